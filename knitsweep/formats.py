@@ -1,0 +1,158 @@
+"""The authors' file formats (sabetta/jammed-knits), so their users can migrate.
+
+* Init files: the 30 numbers of a state, one per line (MODEL.md §2).
+* Config files: only lines starting with ``*`` count, as ``*key value [unit]``
+  (MODEL.md §10). Their units are internal (N, mm, B/2); ``read_authors_config``
+  converts them to knitsweep's user-facing ``StitchParams``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from pydantic import ValidationError
+
+from .kernels.geometry import IDX_AX, IDX_AY, N_STATE
+from .params import InputError, StitchParams, describe_validation_error
+
+SHIPPED_STATES = tuple(f"Init_{i}.dat" for i in range(1, 8))
+
+
+def read_state(path: str | Path) -> np.ndarray:
+    """Read a 30-line state file; errors name the file and the line."""
+    path = Path(path)
+    try:
+        lines = path.read_text().splitlines()
+    except OSError as e:
+        raise InputError(f"state file {path}: {e.strerror or e}") from None
+    values = []
+    for no, line in enumerate(lines, 1):
+        text = line.strip()
+        if not text:
+            continue
+        try:
+            v = float(text)
+        except ValueError:
+            raise InputError(f"state file {path} line {no}: {text!r} is not a number") from None
+        if not math.isfinite(v):
+            raise InputError(f"state file {path} line {no}: {text!r} is not finite")
+        values.append(v)
+    if len(values) != N_STATE:
+        raise InputError(f"state file {path}: expected {N_STATE} numbers, found {len(values)}")
+    x = np.array(values)
+    if x[IDX_AX] <= 0 or x[IDX_AY] <= 0:
+        raise InputError(f"state file {path}: the cell periods a_x, a_y (lines 29, 30) must be > 0")
+    return x
+
+
+def write_state(path: str | Path, x: np.ndarray) -> None:
+    """Write a state as 30 lines, exactly round-tripping every float."""
+    x = np.asarray(x, dtype=float)
+    if x.shape != (N_STATE,):
+        raise ValueError(f"a state has {N_STATE} entries, got shape {x.shape}")
+    Path(path).write_text("".join(f"{float(v)!r}\n" for v in x))
+
+
+def shipped_state(index: int = 1) -> np.ndarray:
+    """One of the authors' 7 starting states shipped with knitsweep (Init_1 … Init_7)."""
+    if not 1 <= index <= len(SHIPPED_STATES):
+        raise InputError(f"shipped state index = {index}: must be in 1..{len(SHIPPED_STATES)}")
+    ref = resources.files("knitsweep") / "data" / SHIPPED_STATES[index - 1]
+    with resources.as_file(ref) as p:
+        return read_state(p)
+
+
+@dataclass(frozen=True)
+class AuthorsConfig:
+    """An authors' config file, converted: the physics plus their run settings."""
+
+    params: StitchParams
+    samples_per_segment: int | None
+    ftol: float | None
+    sweep_direction: str | None
+    step_size_mm: float | None
+    init_dimension_mm: float | None
+    final_dimension_mm: float | None
+    init_file: str | None
+    output_prefix: str | None
+
+
+# key -> (StitchParams field or setting name, factor from their units to ours)
+_PARAM_KEYS = {
+    "stitch_length": ("L_mm", 1.0),
+    "bending_modulus": ("B_mN_mm2", 2e3),  # B/2 in N mm^2 -> B in mN mm^2
+    "regularization": ("regularization_mN_mm4", 1e3),
+    "yarn_radius": ("r_mm", 1.0),
+    "core_radius": ("r_core_mm", 1.0),
+    "max_twist_constraint": ("twist_bound", 1.0),
+    "contact_rigidity": ("k_mN_per_mm2", 1e3),  # N/mm^2 -> mN/mm^2
+    "contact_exponent": ("p", 1.0),
+}
+_FLOAT_KEYS = {"ftol", "step_size", "init_dimension", "final_dimension"}
+_OTHER_KEYS = {"interactions_per_segment", "sweep_direction", "init_file", "output_prefix"}
+KNOWN_KEYS = tuple(sorted(set(_PARAM_KEYS) | _FLOAT_KEYS | _OTHER_KEYS))
+
+
+def read_authors_config(path: str | Path) -> AuthorsConfig:
+    """Parse an authors' ``*key value [unit]`` config file; unknown keys are errors."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise InputError(f"config file {path}: {e.strerror or e}") from None
+    raw: dict[str, tuple[str, int]] = {}
+    for no, line in enumerate(text.splitlines(), 1):
+        words = line.split()
+        if not words or not words[0].startswith("*"):
+            continue
+        key = words[0][1:]
+        if key not in KNOWN_KEYS:
+            raise InputError(
+                f"config file {path} line {no}: unknown key '*{key}' "
+                f"(known keys: {', '.join(KNOWN_KEYS)})"
+            )
+        if len(words) < 2:
+            raise InputError(f"config file {path} line {no}: '*{key}' has no value")
+        raw[key] = (words[1], no)
+
+    def number(key: str) -> float | None:
+        if key not in raw:
+            return None
+        word, no = raw[key]
+        try:
+            return float(word)
+        except ValueError:
+            raise InputError(
+                f"config file {path} line {no}: *{key} = {word!r} is not a number"
+            ) from None
+
+    fields = {}
+    for key, (name, factor) in _PARAM_KEYS.items():
+        v = number(key)
+        if v is not None:
+            fields[name] = v * factor
+    try:
+        params = StitchParams(**fields)
+    except ValidationError as e:
+        raise InputError(f"config file {path}: {describe_validation_error(e)}") from None
+    samples = number("interactions_per_segment")
+    if samples is not None and samples != int(samples):
+        raise InputError(f"config file {path}: *interactions_per_segment must be an integer")
+    direction = raw.get("sweep_direction", (None, 0))[0]
+    if direction is not None:
+        direction = "y" if direction.lower() == "y" else "x"  # as the reference reads it
+    return AuthorsConfig(
+        params=params,
+        samples_per_segment=None if samples is None else int(samples),
+        ftol=number("ftol"),
+        sweep_direction=direction,
+        step_size_mm=number("step_size"),
+        init_dimension_mm=number("init_dimension"),
+        final_dimension_mm=number("final_dimension"),
+        init_file=raw.get("init_file", (None, 0))[0],
+        output_prefix=raw.get("output_prefix", (None, 0))[0],
+    )

@@ -1,0 +1,115 @@
+"""Unit tier: parameter validation and the authors' file formats."""
+
+import math
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from knitsweep.formats import read_authors_config, read_state, shipped_state, write_state
+from knitsweep.params import Fidelity, InputError, StitchParams, describe_validation_error
+
+
+def _message(**kw):
+    with pytest.raises(ValidationError) as e:
+        StitchParams(**kw)
+    return describe_validation_error(e.value)
+
+
+def test_defaults_are_the_papers_table_1():
+    ip = StitchParams().internal()
+    assert ip.bend == pytest.approx(0.045)  # B/2 with B = 90 mN mm^2
+    assert ip.k == pytest.approx(6e-4)  # 0.6 mN/mm^2 in N/mm^2
+    assert ip.reg == pytest.approx(0.002)
+    assert (ip.p, ip.r, ip.rc, ip.twist_bound) == (2.4, 0.74, 0.325, 0.9)
+
+
+@pytest.mark.parametrize(
+    ("kw", "expected"),
+    [
+        ({"p": 1.0}, "p = 1.0: must be > 1"),
+        ({"r_core_mm": 0.74}, "r_core_mm = 0.74: must satisfy 0 < r_core_mm < r_mm = 0.74"),
+        ({"k_mN_per_mm2": -0.1}, "k_mN_per_mm2 = -0.1: must be a finite number > 0"),
+        ({"B_mN_mm2": 0.0}, "B_mN_mm2 = 0.0: must be a finite number > 0"),
+        ({"L_mm": math.inf}, "L_mm = inf: Input should be a finite number"),
+        ({"r_mm": math.nan}, "r_mm = nan: Input should be a finite number"),
+        (
+            {"regularization_mN_mm4": -1.0},
+            "regularization_mN_mm4 = -1.0: must be a finite number >= 0",
+        ),
+        ({"twist_bound": 1.0}, "twist_bound = 1.0: must be in [-1, 1)"),
+        ({"stitch": 1.0}, "stitch: unknown field"),
+    ],
+)
+def test_validation_names_field_value_and_range(kw, expected):
+    assert _message(**kw) == expected
+
+
+def test_fidelity_validation():
+    with pytest.raises(ValidationError) as e:
+        Fidelity(samples_per_segment=1)
+    assert describe_validation_error(e.value).startswith("samples_per_segment = 1:")
+    with pytest.raises(ValidationError):
+        Fidelity(images="box")
+
+
+def test_models_are_frozen():
+    with pytest.raises(ValidationError):
+        StitchParams().L_mm = 12.0
+
+
+def test_init_round_trip(tmp_path, init1):
+    path = tmp_path / "state.dat"
+    write_state(path, init1)
+    np.testing.assert_array_equal(read_state(path), init1)
+    assert len(path.read_text().splitlines()) == 30
+
+
+def test_shipped_states_are_the_authors(data_dir):
+    for i in range(1, 8):
+        np.testing.assert_array_equal(
+            shipped_state(i), read_state(data_dir / "init" / f"Init_{i}.dat")
+        )
+
+
+@pytest.mark.parametrize(
+    ("text", "fragment"),
+    [
+        ("1\n2\n", "expected 30 numbers, found 2"),
+        ("1\n" * 29 + "abc\n", "line 30: 'abc' is not a number"),
+        ("1\n" * 29 + "nan\n", "line 30: 'nan' is not finite"),
+        ("1\n" * 29 + "-2\n", "must be > 0"),
+    ],
+)
+def test_bad_state_files(tmp_path, text, fragment):
+    path = tmp_path / "bad.dat"
+    path.write_text(text)
+    with pytest.raises(InputError, match=fragment):
+        read_state(path)
+
+
+def test_authors_config_units(data_dir):
+    cfg = read_authors_config(data_dir / "sampleconfigfile.dat")
+    assert cfg.params.L_mm == 11.6  # '*stitch_length 11.6 mm' (trailing unit word)
+    assert cfg.params.B_mN_mm2 == pytest.approx(90.0)  # bending_modulus is B/2 in N mm^2
+    assert cfg.params.k_mN_per_mm2 == pytest.approx(0.1)  # contact_rigidity is k in N/mm^2
+    assert cfg.params.internal().bend == pytest.approx(0.045, rel=1e-15)
+    assert cfg.params.internal().k == pytest.approx(1e-4, rel=1e-15)
+    assert cfg.samples_per_segment == 10
+    assert cfg.sweep_direction == "x"
+    assert cfg.step_size_mm == 0.01
+    assert cfg.init_file == "1"
+
+
+def test_authors_config_unknown_key_is_named(tmp_path):
+    path = tmp_path / "c.dat"
+    path.write_text("comment lines are ignored\n*stitch_length 11\n*stitchlength 12\n")
+    with pytest.raises(InputError, match=r"line 3: unknown key '\*stitchlength'"):
+        read_authors_config(path)
+
+
+def test_authors_config_bad_value_is_named(tmp_path):
+    path = tmp_path / "c.dat"
+    path.write_text("*core_radius 0.9\n")
+    with pytest.raises(InputError, match=r"r_core_mm = 0\.9"):
+        read_authors_config(path)
