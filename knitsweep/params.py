@@ -22,8 +22,6 @@ from pydantic import (
     field_validator,
 )
 
-from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE
-
 _CONFIG = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, validate_default=True)
 
 
@@ -149,9 +147,33 @@ class Fidelity(BaseModel):
         "touch) or 'reference' (the authors' fixed box m in -1..1, n in -3..3)",
     )
 
-    @property
-    def image_mode(self) -> int:
-        return IMAGES_CUTOFF if self.images == "cutoff" else IMAGES_REFERENCE
+
+class SolverSettings(BaseModel):
+    """Constrained minimiser settings (SciPy SLSQP with exact Jacobians, MODEL.md §7)."""
+
+    model_config = _CONFIG
+
+    ftol: float = Field(
+        1e-10,
+        gt=0.0,
+        le=1e-2,
+        description="SLSQP precision goal on the energy (mJ); the authors' effective value "
+        "was SciPy's default 1e-6, the paper quotes 1e-5",
+    )
+    maxiter: int = Field(2000, ge=1, le=1_000_000, description="SLSQP iteration limit")
+    length_tol_mm: Positive = Field(
+        1e-6, description="largest |length - L| (mm) that counts as meeting the constraint"
+    )
+    continuation_dL_mm: Positive = Field(
+        0.1, description="largest change of L (mm) per continuation stage"
+    )
+    continuation_factor: float = Field(
+        2.0, gt=1.0, description="largest factor of k or B per continuation stage"
+    )
+    continuation_dr_mm: Positive = Field(
+        0.02, description="largest change of r or r_core (mm) per continuation stage"
+    )
+    continuation_dp: Positive = Field(0.1, description="largest change of p per stage")
 
 
 class InputError(ValueError):
