@@ -14,7 +14,7 @@ import numpy as np
 from .kernels.bending import SEGMENT_WEIGHTS
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy
-from .kernels.contact import min_zeta
+from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
 from .kernels.geometry import IDX_AX, IDX_AY, N_STATE, state_to_control_points
 from .params import Fidelity, InternalParams, StitchParams
 
@@ -53,7 +53,7 @@ class CellModel:
         self._ctab = np.ascontiguousarray(
             basis_tables(midpoints(self.fidelity.samples_per_segment))[:2]
         )
-        self._mode = self.fidelity.image_mode
+        self._mode = IMAGES_CUTOFF if self.fidelity.images == "cutoff" else IMAGES_REFERENCE
         self._grad_e = np.empty(N_STATE)
         self._grad_l = np.empty(N_STATE)
 
