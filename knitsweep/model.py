@@ -14,9 +14,18 @@ import numpy as np
 from .kernels.bending import SEGMENT_WEIGHTS
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy
-from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
+from .kernels.contact import (
+    CORE_EPS,
+    CORE_PENALTY,
+    IMAGES_CUTOFF,
+    IMAGES_REFERENCE,
+    find_contacts,
+    min_zeta,
+)
 from .kernels.geometry import IDX_AX, IDX_AY, N_STATE, state_to_control_points
 from .params import Fidelity, InternalParams, StitchParams
+
+CONTACT_CLASSES = ("self", "same_row", "nn_column", "nnn_column", "other")
 
 
 @dataclass(frozen=True)
@@ -95,6 +104,42 @@ class CellModel:
         x = _as_state(x)
         return min_zeta(self.control_points(x), self._ctab, x[IDX_AX], x[IDX_AY], ip.r, ip.rc,
                         self._mode)  # fmt: skip
+
+    def contact_forces_by_class(self, x: np.ndarray) -> np.ndarray:
+        """Contact forces on the cell's yarn by class of image offset (m, n), N.
+
+        Rows: self (0, 0), same row (n = 0, m != 0), nearest same column (m = 0,
+        |n| = 1), next-nearest same column (m = 0, |n| = 2), other (diagonal or
+        farther images). Columns: the sums over every ordered contact pair of the
+        absolute x, y, z components of the pair force -dV/dR (d/R) v_i v_j dt^2
+        (paper SI "Contact Forces"; each physical contact counted twice, as in E_c).
+        """
+        ip = self.ip
+        x = _as_state(x)
+        cp = self.control_points(x)
+        _, _, speed, idx, sep = find_contacts(cp, self._ctab, x[IDX_AX], x[IDX_AY], ip.r,
+                                              self._mode)  # fmt: skip
+        out = np.zeros((len(CONTACT_CLASSES), 3))
+        if len(idx) == 0:
+            return out
+        dist = sep[:, 3]
+        d = 2.0 * ip.r - 2.0 * ip.rc
+        zeta = (dist - 2.0 * ip.rc) / d
+        r_eps = 2.0 * ip.rc + CORE_EPS * d
+        with np.errstate(divide="ignore", invalid="ignore"):
+            soft = ip.k * d / ip.p * (1.0 - np.maximum(zeta, CORE_EPS) ** -ip.p)
+        dv = np.where(zeta >= CORE_EPS, soft, 2.0 * CORE_PENALTY * (dist - r_eps) / r_eps**2)
+        n = self.fidelity.samples_per_segment
+        w = 2.0 * speed[idx[:, 0]] * speed[idx[:, 1]] / (n * n)  # both orders of the pair
+        comp = np.abs(dv * w / dist)[:, None] * np.abs(sep[:, :3])
+        m, nn = idx[:, 2], np.abs(idx[:, 3])
+        cls = np.full(len(idx), 4)
+        cls[(m == 0) & (nn == 0)] = 0
+        cls[(m != 0) & (nn == 0)] = 1
+        cls[(m == 0) & (nn == 1)] = 2
+        cls[(m == 0) & (nn == 2)] = 3
+        np.add.at(out, cls, comp)
+        return out
 
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
         """Cell thickness dz = z_max - z_min + 2r of the centre-line (paper SI S4), mm."""

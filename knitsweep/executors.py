@@ -1,0 +1,225 @@
+"""Where tasks run: in this process, in local processes, or on MPI ranks.
+
+All three share one small interface (after mpi4py.futures' pool abstraction):
+``submit(task, zero)``, ``next_reply(timeout) -> Reply | None``, ``capacity``,
+``in_flight`` and ``shutdown(abort)``. The runner does not know which it has,
+so most sweep tests need no ``mpiexec``.
+
+MPI protocol (rank 0 is the master, ranks 1..N-1 work): the master broadcasts
+the job once, then sends ``(task, zero)`` values tagged TASK and receives
+``Reply`` values tagged REPLY; ``None`` tagged STOP ends a worker. Both sides
+wait with ``Iprobe`` and a short sleep instead of a blocking receive, because
+MPICH's blocking receive spins a core: with ``mpirun -n 3`` on 2 cores the
+master must leave both cores to the workers.
+"""
+
+from __future__ import annotations
+
+import collections
+import multiprocessing
+import os
+import queue
+import signal
+import socket
+import time
+from typing import Any
+
+from .tasks import Reply, execute
+
+TASK, REPLY, STOP = 1, 2, 3
+MPI_ENV_HINTS = ("PMI_RANK", "PMI_SIZE", "PMI_FD", "PMIX_RANK", "OMPI_COMM_WORLD_SIZE",
+                 "MPI_LOCALNRANKS", "HYDRA_CONTROL_FD")  # fmt: skip
+
+
+def launched_by_mpi() -> bool:
+    """True when this process was started by mpirun/mpiexec/srun --mpi."""
+    return any(k in os.environ for k in MPI_ENV_HINTS)
+
+
+def warm_up(job) -> None:
+    """Compile (or load from numba's cache) every kernel a task uses, once,
+    before the work fans out."""
+    from .formats import shipped_state
+    from .model import CellModel
+    from .params import StitchParams
+
+    model = CellModel(StitchParams(), job.fidelity)
+    x = shipped_state(1)
+    model.energy_and_gradients(x)
+    model.min_zeta(x)
+    model.thickness(x)
+    model.contact_forces_by_class(x)
+
+
+class SerialExecutor:
+    """Runs each task in this process when the runner asks for the next reply."""
+
+    capacity = 1
+    runs_in_master = True
+
+    def __init__(self, job) -> None:
+        self.job = job
+        self._queue: collections.deque = collections.deque()
+
+    @property
+    def in_flight(self) -> int:
+        return len(self._queue)
+
+    def submit(self, task, zero: dict | None) -> None:
+        self._queue.append((task, zero))
+
+    def next_reply(self, timeout: float) -> Reply | None:
+        if not self._queue:
+            time.sleep(min(timeout, 0.05))
+            return None
+        task, zero = self._queue.popleft()
+        return execute(self.job, task, zero, rank=0)
+
+    def shutdown(self, abort: bool = False) -> None:
+        self._queue.clear()
+
+
+def _process_worker_init() -> None:
+    # the master decides about interrupts; a worker just works
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _process_execute(job, task, zero, rank):
+    return execute(job, task, zero, rank)
+
+
+class ProcessExecutor:
+    """Local worker processes (``--workers N``), started with 'spawn'."""
+
+    runs_in_master = False
+
+    def __init__(self, job, workers: int) -> None:
+        self.job = job
+        self.capacity = workers
+        ctx = multiprocessing.get_context("spawn")
+        self._pool = ctx.Pool(workers, initializer=_process_worker_init)
+        self._replies: queue.Queue = queue.Queue()
+        self._running = 0
+        self._next_rank = 0
+
+    @property
+    def in_flight(self) -> int:
+        return self._running
+
+    def submit(self, task, zero: dict | None) -> None:
+        self._next_rank = self._next_rank % self.capacity + 1
+        self._pool.apply_async(
+            _process_execute,
+            (self.job, task, zero, self._next_rank),
+            callback=self._replies.put,
+            error_callback=lambda e, t=task: self._replies.put(_lost(t, e)),
+        )
+        self._running += 1
+
+    def next_reply(self, timeout: float) -> Reply | None:
+        try:
+            reply = self._replies.get(timeout=timeout)
+        except queue.Empty:
+            return None
+        self._running -= 1
+        return reply
+
+    def shutdown(self, abort: bool = False) -> None:
+        if abort:
+            self._pool.terminate()
+        else:
+            self._pool.close()
+        self._pool.join()
+
+
+def _lost(task, exc: BaseException) -> Reply:
+    error = {
+        "kind": type(exc).__name__,
+        "message": f"worker process failed: {exc}",
+        "traceback": "",
+    }
+    return Reply(task.task_id, None, error, -1, socket.gethostname(), 0.0)
+
+
+def _wait_for_message(comm, source: int, tag: int, status, poll_max: float = 0.02) -> bool:
+    """Sleep-poll until a message is there (True) or never (it does not return False
+    unless interrupted by the caller's timeout logic)."""
+    delay = 0.0005
+    while not comm.Iprobe(source=source, tag=tag, status=status):
+        time.sleep(delay)
+        delay = min(2 * delay, poll_max)
+    return True
+
+
+class MPIExecutor:
+    """Rank 0's side of the MPI protocol; ranks 1..N-1 run ``mpi_worker_loop``."""
+
+    runs_in_master = False
+
+    def __init__(self, job, comm) -> None:
+        self.job = job
+        self.comm = comm
+        self.capacity = comm.Get_size() - 1
+        self._free = list(range(comm.Get_size() - 1, 0, -1))
+        self._busy: dict[int, Any] = {}
+        comm.bcast(job.model_dump_json(), root=0)
+        warm_up(job)  # compile once, into numba's cache, before the workers load it
+        comm.Barrier()
+
+    @property
+    def in_flight(self) -> int:
+        return len(self._busy)
+
+    def submit(self, task, zero: dict | None) -> None:
+        rank = self._free.pop()
+        self.comm.send((task, zero), dest=rank, tag=TASK)
+        self._busy[rank] = task
+
+    def next_reply(self, timeout: float) -> Reply | None:
+        from mpi4py import MPI
+
+        status = MPI.Status()
+        deadline = time.monotonic() + timeout
+        delay = 0.0005
+        while not self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=REPLY, status=status):
+            if time.monotonic() >= deadline:
+                return None
+            time.sleep(delay)
+            delay = min(2 * delay, 0.02)
+        source = status.Get_source()
+        reply = self.comm.recv(source=source, tag=REPLY)
+        self._busy.pop(source, None)
+        self._free.append(source)
+        return reply
+
+    def shutdown(self, abort: bool = False) -> None:
+        if abort:
+            self.comm.Abort(3)
+        for rank in range(1, self.comm.Get_size()):
+            self.comm.send(None, dest=rank, tag=STOP)
+
+
+def mpi_worker_loop(comm) -> None:
+    """A worker rank: take tasks until told to stop. Interrupts are the master's."""
+    from mpi4py import MPI
+
+    from .jobs import JobSpec
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    job_json = comm.bcast(None, root=0)
+    if job_json is None:  # the master refused the job before any work
+        return
+    job = JobSpec.model_validate_json(job_json)
+    comm.Barrier()  # rank 0 has compiled the kernels into numba's cache
+    warm_up(job)
+    rank = comm.Get_rank()
+    status = MPI.Status()
+    while True:
+        _wait_for_message(comm, 0, MPI.ANY_TAG, status)
+        message = comm.recv(source=0, tag=status.Get_tag())
+        if status.Get_tag() == STOP:
+            return
+        task, zero = message
+        comm.send(execute(job, task, zero, rank), dest=0, tag=REPLY)

@@ -1,0 +1,325 @@
+"""Job specs: what a sweep computes, validated before any compute starts.
+
+A job file is TOML (see ``jobs/*.toml`` and the README's job-spec reference).
+It names a grid over the stitch parameters, the directions to pull, a fidelity
+preset with optional overrides, the sweep protocol, the starts and seed, and the
+optional observables to store. Every value is checked when the file is loaded;
+errors name the field (``grid.L_mm.step = -0.1: …``) and nothing is written.
+
+Tasks are content-addressed (signac): a point's id is a hash of its canonical
+parameters and numerical settings, a sweep's id adds the direction and protocol.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import sys
+from dataclasses import dataclass
+from decimal import Decimal
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from . import SCHEMA_VERSION
+from .multistart import StartSettings
+from .params import (
+    Fidelity,
+    InputError,
+    SolverSettings,
+    StitchParams,
+    describe_validation_error,
+)
+from .presets import DEFAULT_PRESET, PRESETS, preset_settings
+from .sweep import SweepProtocol
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+_STRICT = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+MAX_POINTS = 1_000_000
+
+
+class Range(BaseModel):
+    """Inclusive range ``start, start + step, …, <= stop`` (decimal arithmetic, so
+    0.1 steps give 11.6, not 11.600000000000001)."""
+
+    model_config = _STRICT
+
+    start: float
+    stop: float
+    step: float = Field(gt=0.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Range:
+        if self.stop < self.start:
+            raise ValueError(f"empty range: stop {self.stop} < start {self.start}")
+        if (self.stop - self.start) / self.step > MAX_POINTS:
+            raise ValueError(f"more than {MAX_POINTS} values")
+        return self
+
+    def values(self) -> list[float]:
+        start, stop, step = (Decimal(repr(v)) for v in (self.start, self.stop, self.step))
+        n = int((stop - start) / step + Decimal("1e-9"))
+        return [float(start + i * step) for i in range(n + 1)]
+
+
+Axis = float | list[float] | Range
+
+
+def _axis_values(axis: Axis) -> list[float]:
+    if isinstance(axis, Range):
+        return axis.values()
+    if isinstance(axis, list):
+        return list(axis)
+    return [axis]
+
+
+class Grid(BaseModel):
+    """The parameter grid, in the paper's units. Each entry is a number, a list,
+    or a ``{start, stop, step}`` range; the grid is their Cartesian product."""
+
+    model_config = _STRICT
+
+    L_mm: Axis = Field(description="yarn length per stitch L (mm)")
+    k_mN_per_mm2: Axis = 0.6
+    B_mN_mm2: Axis = 90.0
+    r_core_mm: Axis = 0.325
+    r_mm: Axis = 0.74
+    p: Axis = 2.4
+    regularization_mN_mm4: Axis = 2.0
+    twist_bound: float = 0.9
+
+    @field_validator(
+        "L_mm",
+        "k_mN_per_mm2",
+        "B_mN_mm2",
+        "r_core_mm",
+        "r_mm",
+        "p",
+        "regularization_mN_mm4",
+        mode="before",
+    )
+    @classmethod
+    def _parse_axis(cls, v: Any) -> Any:
+        """A number, a non-empty list of distinct numbers, or a {start, stop, step} table."""
+        if isinstance(v, dict):
+            try:
+                return Range(**v)
+            except ValidationError as e:
+                raise ValueError(describe_validation_error(e)) from None
+        if isinstance(v, list):
+            if not v:
+                raise ValueError("empty list: give at least one value")
+            if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+                raise ValueError("a list of numbers is expected")
+            if len(set(v)) != len(v):
+                raise ValueError("repeated values")
+            return [float(x) for x in v]
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return float(v)
+        if isinstance(v, Range):
+            return v
+        raise ValueError("expected a number, a list of numbers or {start, stop, step}")
+
+    def axes(self) -> dict[str, list[float]]:
+        names = ("L_mm", "k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p",
+                 "regularization_mN_mm4")  # fmt: skip
+        return {n: _axis_values(getattr(self, n)) for n in names}
+
+
+class Store(BaseModel):
+    """Optional observables; off unless asked (each costs time or space)."""
+
+    model_config = _STRICT
+
+    states: bool = Field(False, description="the 30-entry state at every strain step")
+    contact_forces: bool = Field(
+        False, description="contact forces by class (self, same row, NN/NNN column) per step"
+    )
+    geometry: bool = Field(False, description="control points (8, 6, 3) at every strain step")
+
+
+class RunSettings(BaseModel):
+    """How the run behaves (does not change results, so not part of the job hash)."""
+
+    model_config = _STRICT
+
+    task_timeout_s: float = Field(
+        3600.0, gt=0.0, description="wall-time budget of one task; beyond it: failed: timeout"
+    )
+    checkpoint_s: float = Field(
+        10.0, gt=0.0, description="seconds between consolidations of results into the HDF5 file"
+    )
+
+
+class JobSpec(BaseModel):
+    """A whole job. ``fidelity``, ``solver`` and ``protocol`` start from ``preset``
+    and take any field given explicitly."""
+
+    model_config = _STRICT
+
+    schema_version: int = Field(
+        description=f"job file format; this knitsweep reads {SCHEMA_VERSION}"
+    )
+    name: str = Field(min_length=1, max_length=200)
+    description: str = ""
+    seed: int = Field(0, ge=0, lt=2**63)
+    directions: list[Literal["x", "y"]] = Field(default_factory=lambda: ["x", "y"], min_length=1)
+    preset: str = DEFAULT_PRESET
+    grid: Grid
+    fidelity: Fidelity = Fidelity()
+    solver: SolverSettings = SolverSettings()
+    protocol: SweepProtocol = SweepProtocol()
+    starts: StartSettings = StartSettings()
+    store: Store = Store()
+    run: RunSettings = RunSettings()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _apply_preset(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        data = dict(data)
+        name = data.get("preset", DEFAULT_PRESET)
+        if name not in PRESETS:
+            return data  # reported by the field validator below
+        for section in ("fidelity", "solver", "protocol"):
+            given = data.get(section, {})
+            if isinstance(given, dict):
+                data[section] = {**preset_settings(name, section), **given}
+        return data
+
+    @field_validator("schema_version")
+    @classmethod
+    def _known_schema(cls, v: int) -> int:
+        if v != SCHEMA_VERSION:
+            raise ValueError(
+                f"this knitsweep reads job files of schema_version {SCHEMA_VERSION}; "
+                f"convert the file or use the knitsweep version that wrote it"
+            )
+        return v
+
+    @field_validator("preset")
+    @classmethod
+    def _known_preset(cls, v: str) -> str:
+        if v not in PRESETS:
+            raise ValueError(f"must be one of {', '.join(PRESETS)}")
+        return v
+
+    @field_validator("directions")
+    @classmethod
+    def _unique_directions(cls, v: list[str]) -> list[str]:
+        if len(set(v)) != len(v):
+            raise ValueError("repeated direction")
+        return v
+
+    @model_validator(mode="after")
+    def _valid_points(self) -> JobSpec:
+        axes = self.grid.axes()
+        n = 1
+        for values in axes.values():
+            n *= len(values)
+        if n > MAX_POINTS:
+            raise ValueError(f"grid has {n} points, more than {MAX_POINTS}")
+        for name, values in axes.items():
+            for v in values:  # each value alone first, for a message naming the axis
+                try:
+                    StitchParams(**{name: v})
+                except ValidationError as e:
+                    if name not in ("r_core_mm", "r_mm"):
+                        raise ValueError(f"grid.{describe_validation_error(e)}") from None
+        self.points()  # every combination (r_core < r) is a valid stitch
+        return self
+
+    def points(self) -> list[StitchParams]:
+        """Every grid point, in a fixed order (k, B, r_core, r, p, reg, then L)."""
+        axes = self.grid.axes()
+        order = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regularization_mN_mm4",
+                 "L_mm")  # fmt: skip
+        out = []
+        for combo in itertools.product(*(axes[n] for n in order)):
+            values = dict(zip(order, combo, strict=True))
+            try:
+                out.append(StitchParams(twist_bound=self.grid.twist_bound, **values))
+            except ValidationError as e:
+                where = ", ".join(f"{k}={v}" for k, v in values.items())
+                raise ValueError(f"grid point ({where}): {describe_validation_error(e)}") from None
+        return out
+
+    def canonical(self) -> dict[str, Any]:
+        """Everything that determines the results (name, description and run
+        settings excluded), with effective settings after the preset."""
+        d = self.model_dump(mode="json", exclude={"name", "description", "run", "preset"})
+        d["grid"] = self.grid.axes() | {"twist_bound": self.grid.twist_bound}
+        return d
+
+    @property
+    def job_hash(self) -> str:
+        return digest(self.canonical())
+
+
+def canonical_json(obj: Any) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def digest(obj: Any, n: int = 16) -> str:
+    return hashlib.sha256(canonical_json(obj).encode()).hexdigest()[:n]
+
+
+@dataclass(frozen=True)
+class PointTask:
+    """Zero-force relaxation of one grid point (shared by its sweeps)."""
+
+    task_id: str
+    params: StitchParams
+    seed: int
+
+
+@dataclass(frozen=True)
+class SweepTask:
+    """One strain sweep: a point's zero-force state pulled in one direction."""
+
+    task_id: str
+    point_id: str
+    direction: str
+
+
+def plan(job: JobSpec) -> tuple[list[PointTask], list[SweepTask]]:
+    """All tasks of a job: one zero-force task per point, one sweep per
+    (point, direction). Ids hash the canonical parameters, never file names."""
+    numerics = {
+        "fidelity": job.fidelity.model_dump(mode="json"),
+        "solver": job.solver.model_dump(mode="json"),
+        "starts": job.starts.model_dump(mode="json"),
+        "seed": job.seed,
+    }
+    points, sweeps = [], []
+    for params in job.points():
+        pid = digest({"params": params.model_dump(mode="json"), **numerics})
+        seed = int(hashlib.sha256(f"{job.seed}:{pid}".encode()).hexdigest()[:15], 16)
+        points.append(PointTask(pid, params, seed))
+        for d in job.directions:
+            sid = digest({"point": pid, "direction": d,
+                          "protocol": job.protocol.model_dump(mode="json")})  # fmt: skip
+            sweeps.append(SweepTask(sid, pid, d))
+    return points, sweeps
+
+
+def load_job(path: str | Path) -> JobSpec:
+    """Read and validate a TOML job file; errors are ``InputError`` naming the field."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except OSError as e:
+        raise InputError(f"job file {path}: {e.strerror or e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"job file {path}: not valid TOML: {e}") from None
+    try:
+        return JobSpec(**data)
+    except ValidationError as e:
+        raise InputError(f"job file {path}: {describe_validation_error(e)}") from None

@@ -1,0 +1,298 @@
+"""The master loop of ``knitsweep run``: schedule, collect, write, resume.
+
+Each grid point's zero-force relaxation runs once; when it arrives, the point's
+sweeps become ready and carry its record with them (a point that is failed or
+not knittable passes its verdict to its sweeps without computing them).
+Results go to the journal as they arrive and into the HDF5 file at
+checkpoints (``storage``). Running the same job again skips what is finished
+(done, not_knittable, and failed unless ``retry_failed``) and redoes the rest.
+
+On SIGTERM or SIGINT the master stops handing out work, writes what has
+arrived, closes the file and returns exit code 3 (the CLI prints how to resume).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import socket
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .jobs import JobSpec, PointTask, SweepTask, plan
+from .params import InputError
+from .storage import POINTS, SWEEPS, ResultWriter, atomic_write_bytes, iter_entries, progress_path
+from .tasks import DONE, FAILED, Reply
+
+EXIT_INTERRUPTED = 3
+
+
+class Interrupted(BaseException):
+    """SIGTERM/SIGINT while this process computes a task itself (serial runs);
+    a BaseException, so the task isolation in ``tasks.execute`` lets it through."""
+
+
+@dataclass
+class RunSummary:
+    out: Path
+    total: int
+    counts: dict[str, int] = field(default_factory=lambda: {DONE: 0, FAILED: 0, "not_knittable": 0})
+    skipped: int = 0
+    interrupted: bool = False
+    seconds: float = 0.0
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_INTERRUPTED if self.interrupted else 0
+
+
+def parse_shard(text: str | None) -> tuple[int, int] | None:
+    """'i/N' -> (i, N) with 0 <= i < N."""
+    if text is None:
+        return None
+    try:
+        i, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise InputError(f"shard = {text!r}: must be i/N with integers, e.g. 0/4") from None
+    if not (n >= 1 and 0 <= i < n):
+        raise InputError(f"shard = {text!r}: need N >= 1 and 0 <= i < N")
+    return i, n
+
+
+def shard_tasks(job: JobSpec, shard: tuple[int, int] | None):
+    """The job's tasks, or one shard of them (points i, i+N, …, with their sweeps)."""
+    points, sweeps = plan(job)
+    if shard is None:
+        return points, sweeps
+    i, n = shard
+    points = [p for k, p in enumerate(points) if k % n == i]
+    keep = {p.task_id for p in points}
+    return points, [s for s in sweeps if s.point_id in keep]
+
+
+def _duration(s: float) -> str:
+    if not math.isfinite(s):
+        return "--"
+    s = int(s)
+    return f"{s // 3600}h{s % 3600 // 60:02d}m" if s >= 3600 else f"{s // 60}m{s % 60:02d}s"
+
+
+def progress_line(c: dict[str, Any]) -> str:
+    """One status line from progress counts (shared by the bar and ``status``)."""
+    finished = c["done"] + c["failed"] + c["not_knittable"]
+    width = 24
+    filled = int(width * finished / max(c["total"], 1))
+    rate = c.get("rate_per_s") or 0.0
+    eta = (c["running"] + c["pending"]) / rate if rate > 0 else math.inf
+    return (f"[{'#' * filled}{'.' * (width - filled)}] {finished}/{c['total']}  "
+            f"done {c['done']}  failed {c['failed']}  not_knittable {c['not_knittable']}  "
+            f"running {c['running']}  pending {c['pending']}  {rate * 60:.1f}/min  "
+            f"ETA {_duration(eta)}")  # fmt: skip
+
+
+class _Master:
+    def __init__(self, job, points, sweeps, writer, executor, summary, retry_failed, show):
+        self.job, self.writer, self.executor, self.summary = job, writer, executor, summary
+        self.points = {p.task_id: p for p in points}
+        self.sweeps = {s.task_id: s for s in sweeps}
+        self.sweeps_of: dict[str, list[SweepTask]] = {}
+        for s in sweeps:
+            self.sweeps_of.setdefault(s.point_id, []).append(s)
+        self.ready_points: deque = deque()
+        self.ready_sweeps: deque = deque()
+        self.blocked = 0  # sweeps waiting for their point
+        self.show = show
+        self.tty = sys.stderr.isatty()
+        self.t0 = time.monotonic()
+        self.finished_now = 0
+        self._last_line = self._last_file = 0.0
+        self._plan(retry_failed)
+
+    # -- bookkeeping
+    def _count(self, status: str) -> None:
+        self.summary.counts[status] = self.summary.counts.get(status, 0) + 1
+
+    def _plan(self, retry_failed: bool) -> None:
+        finished = {POINTS: {}, SWEEPS: {}}
+        for e in iter_entries(self.writer.path):
+            status = str(e.meta.get("status", FAILED))
+            if status != FAILED or not retry_failed:
+                finished[e.kind][e.task_id] = status
+        needed = {s.point_id for s in self.sweeps.values() if s.task_id not in finished[SWEEPS]}
+        zero = {e.task_id: {**e.record, **e.meta}
+                for e in iter_entries(self.writer.path, with_data=True)
+                if e.kind == POINTS and e.task_id in needed}  # fmt: skip
+        for pid, p in self.points.items():
+            if pid not in finished[POINTS]:
+                self.ready_points.append((p, None))
+                self.blocked += sum(
+                    s.task_id not in finished[SWEEPS] for s in self.sweeps_of.get(pid, [])
+                )
+                continue
+            self.summary.skipped += 1
+            self._count(finished[POINTS][pid])
+            for s in self.sweeps_of.get(pid, []):
+                if s.task_id in finished[SWEEPS]:
+                    self.summary.skipped += 1
+                    self._count(finished[SWEEPS][s.task_id])
+                elif finished[POINTS][pid] == DONE and pid in zero:
+                    self.ready_sweeps.append((s, _payload(p, zero[pid])))
+                else:  # the point's verdict was stored but not yet passed on
+                    self._inherit(s, zero.get(pid, {"status": finished[POINTS][pid]}))
+
+    def _inherit(self, s: SweepTask, point_meta: dict[str, Any]) -> None:
+        status = str(point_meta.get("status", FAILED))
+        meta = self._meta(s, status, f"zero-force state: {point_meta.get('message', status)}")
+        self.writer.add(SWEEPS, s.task_id, {}, meta)
+        self._count(status)
+
+    def _meta(self, task, status: str, message: str, reply: Reply | None = None) -> dict[str, Any]:
+        params = (self.points[task.point_id] if isinstance(task, SweepTask) else task).params
+        meta: dict[str, Any] = {
+            "status": status,
+            "message": message,
+            "params": params.model_dump(mode="json"),
+            **params.model_dump(mode="json"),
+            "L_over_r": params.L_over_r,
+        }
+        if isinstance(task, SweepTask):
+            meta |= {"point_id": task.point_id, "direction": task.direction}
+        else:
+            meta["seed"] = task.seed
+        if reply is not None:
+            meta |= {"rank": reply.rank, "host": reply.host, "seconds": reply.seconds}
+            if reply.error is not None:
+                meta |= {"error_kind": reply.error["kind"], "error_message": reply.error["message"],
+                         "traceback": reply.error["traceback"]}  # fmt: skip
+        return meta
+
+    # -- the loop
+    def run(self, stop: dict) -> str:
+        last_checkpoint = time.monotonic()
+        while self.ready_points or self.ready_sweeps or self.executor.in_flight:
+            if stop["signal"] is not None:
+                return "interrupted"
+            while self.executor.in_flight < self.executor.capacity:
+                # sweeps first: they complete points and free their zero-force records
+                queue = self.ready_sweeps or self.ready_points
+                if not queue:
+                    break
+                self.executor.submit(*queue.popleft())
+            reply = self.executor.next_reply(timeout=0.25)
+            if reply is not None:
+                self._handle(reply)
+            if time.monotonic() - last_checkpoint > self.job.run.checkpoint_s:
+                self.writer.checkpoint()
+                last_checkpoint = time.monotonic()
+            self._progress()
+        self._progress(force=True)
+        return "complete"
+
+    def _handle(self, reply: Reply) -> None:
+        task = self.points.get(reply.task_id) or self.sweeps[reply.task_id]
+        self.finished_now += 1
+        if reply.error is not None:
+            status = FAILED
+            message = f"failed: {reply.error['kind']}: {reply.error['message']}"
+            self.summary.failures.append(
+                f"{reply.task_id} (rank {reply.rank} on {reply.host}): {message}"
+            )
+            record = {}
+        else:
+            record = dict(reply.record)
+            status = record.pop("status")
+            message = record.pop("message")
+        kind = POINTS if isinstance(task, PointTask) else SWEEPS
+        self.writer.add(kind, task.task_id, record, self._meta(task, status, message, reply))
+        self._count(status)
+        if isinstance(task, PointTask):
+            for s in self.sweeps_of.get(task.task_id, []):
+                self.blocked -= 1
+                if status == DONE:
+                    self.ready_sweeps.append((s, _payload(task, {**record, "status": status,
+                                                          "message": message})))  # fmt: skip
+                else:
+                    self._inherit(s, {"status": status, "message": message})
+
+    def _progress(self, force: bool = False) -> None:
+        t = time.monotonic()
+        if not force and t - self._last_file < 1.0:
+            return
+        self._last_file = t
+        c = self.summary.counts
+        rate = self.finished_now / max(t - self.t0, 1e-9)
+        counts = {"done": c[DONE], "failed": c[FAILED], "not_knittable": c["not_knittable"],
+                  "running": self.executor.in_flight,
+                  "pending": len(self.ready_points) + len(self.ready_sweeps) + self.blocked,
+                  "total": self.summary.total, "rate_per_s": rate, "pid": os.getpid(),
+                  "host": socket.gethostname(), "updated": time.time()}  # fmt: skip
+        atomic_write_bytes(progress_path(self.writer.path), json.dumps(counts).encode())
+        if self.show and (force or t - self._last_line > (0.5 if self.tty else 15.0)):
+            self._last_line = t
+            end = "\r" if self.tty and not force else "\n"
+            print(progress_line(counts), end=end, file=sys.stderr, flush=True)
+
+
+def _payload(point: PointTask, record: dict[str, Any]) -> dict[str, Any]:
+    return {**record, "params": point.params}
+
+
+def run_job(
+    job: JobSpec,
+    out: str | Path,
+    executor,
+    *,
+    shard: tuple[int, int] | None = None,
+    retry_failed: bool = False,
+    show_progress: bool = True,
+) -> RunSummary:
+    """Run every unfinished task of ``job`` (or of one shard) on ``executor``,
+    writing the results file ``out``."""
+    out = Path(out)
+    t0 = time.monotonic()
+    points, sweeps = shard_tasks(job, shard)
+    extra = {"shard": f"{shard[0]}/{shard[1]}" if shard else "", "n_points": len(points),
+             "n_sweeps": len(sweeps)}  # fmt: skip
+    try:
+        writer = ResultWriter(out, job, extra)
+    except BaseException:
+        executor.shutdown(abort=False)  # nothing was handed out; release the workers
+        raise
+    summary = RunSummary(out, len(points) + len(sweeps))
+    stop: dict[str, Any] = {"signal": None}
+
+    def _on_signal(signum, frame):
+        stop["signal"] = signum
+        if executor.runs_in_master:
+            raise Interrupted  # abandon the task this process is computing
+
+    old = {s: signal.signal(s, _on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
+    status = "interrupted"
+    try:
+        master = _Master(
+            job, points, sweeps, writer, executor, summary, retry_failed, show_progress
+        )
+        status = master.run(stop)
+    except Interrupted:
+        pass
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        summary.interrupted = status == "interrupted"
+        writer.close(status)
+        progress_path(out).unlink(missing_ok=True)
+        summary.seconds = time.monotonic() - t0
+    if summary.interrupted:
+        written = sum(summary.counts.values())
+        print(f"\ninterrupted by {signal.Signals(stop['signal'] or signal.SIGINT).name}: "
+              f"{written} of {summary.total} tasks are in {out}; to resume, run the same "
+              "command again (finished tasks are skipped)", file=sys.stderr, flush=True)  # fmt: skip
+    executor.shutdown(abort=summary.interrupted)
+    return summary

@@ -1,0 +1,122 @@
+"""Entry points behind ``knitsweep run`` and ``knitsweep status``.
+
+``run`` picks the executor: under ``mpirun -n N`` (N > 1) rank 0 is the master
+and ranks 1..N-1 work; otherwise the job runs here, serially or in ``workers``
+local processes. Bad input is refused on rank 0 before any work starts, and the
+workers are released instead of left waiting.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any, Literal
+
+from .jobs import JobSpec, load_job
+from .params import InputError
+from .storage import POINTS, iter_entries, lock_path, read_progress, read_root, writer_alive
+from .tasks import DONE, FAILED
+
+ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
+
+
+def default_output(job: JobSpec, shard: tuple[int, int] | None) -> Path:
+    suffix = f".shard{shard[0]}of{shard[1]}" if shard else ""
+    return Path(f"{job.name}{suffix}.h5")
+
+
+def run(
+    job_path: str | Path,
+    out: str | Path | None = None,
+    *,
+    executor: ExecutorKind = "auto",
+    workers: int = 1,
+    shard: str | None = None,
+    retry_failed: bool = False,
+    show_progress: bool = True,
+):
+    """Run a job file; returns the ``RunSummary`` (None on MPI worker ranks)."""
+    from .executors import ProcessExecutor, SerialExecutor, launched_by_mpi
+    from .runner import parse_shard, run_job
+
+    if workers < 1:
+        raise InputError(f"workers = {workers}: must be >= 1")
+    use_mpi = executor == "mpi" or (executor == "auto" and launched_by_mpi())
+    if use_mpi:
+        from mpi4py import MPI
+
+        comm = MPI.COMM_WORLD
+        if comm.Get_size() > 1:
+            return _run_mpi(comm, job_path, out, shard, retry_failed, show_progress)
+        if executor == "mpi":
+            raise InputError("executor = 'mpi' needs at least 2 ranks (mpirun -n 2 or more)")
+    job = load_job(job_path)
+    shard_t = parse_shard(shard)
+    out = Path(out) if out is not None else default_output(job, shard_t)
+    if executor == "processes" or (executor == "auto" and workers > 1):
+        ex = ProcessExecutor(job, workers)
+    else:
+        ex = SerialExecutor(job)
+    return run_job(job, out, ex, shard=shard_t, retry_failed=retry_failed,
+                   show_progress=show_progress)  # fmt: skip
+
+
+def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress):
+    from .executors import MPIExecutor, mpi_worker_loop
+    from .runner import parse_shard, run_job
+
+    if comm.Get_rank() != 0:
+        mpi_worker_loop(comm)
+        return None
+    try:
+        job = load_job(job_path)
+        shard_t = parse_shard(shard)
+        out = Path(out) if out is not None else default_output(job, shard_t)
+    except BaseException:
+        comm.bcast(None, root=0)  # release the workers: there is no job
+        raise
+    ex = MPIExecutor(job, comm)
+    return run_job(job, out, ex, shard=shard_t, retry_failed=retry_failed,
+                   show_progress=show_progress)  # fmt: skip
+
+
+def status(path: str | Path) -> dict[str, Any]:
+    """Counts of a results file (done, failed, not_knittable, running, pending),
+    live from the running master's progress file when there is one."""
+    path = Path(path)
+    root = read_root(path)
+    counts = {DONE: 0, FAILED: 0, "not_knittable": 0}
+    failures = []
+    n_points = 0
+    for e in iter_entries(path):
+        s = str(e.meta.get("status", FAILED))
+        counts[s] = counts.get(s, 0) + 1
+        n_points += e.kind == POINTS
+        if s == FAILED:
+            failures.append(f"{e.kind[:-1]} {e.task_id}: {e.meta.get('message', '')}")
+    total = int(root.get("n_points", 0)) + int(root.get("n_sweeps", 0))
+    live = read_progress(path)
+    fresh = (
+        live is not None
+        and time.time() - float(live.get("updated", 0)) < 60
+        and writer_alive(lock_path(path))
+    )
+    running = int(live["running"]) if fresh else 0
+    finished = sum(counts.values())
+    return {
+        "file": str(path),
+        "job": root.get("job_name", ""),
+        "run_status": root.get("run_status", ""),
+        "live": bool(fresh),
+        "stale": root.get("run_status") == "running" and not fresh,
+        "done": counts[DONE],
+        "failed": counts[FAILED],
+        "not_knittable": counts["not_knittable"],
+        "running": running,
+        "pending": max(total - finished - running, 0),
+        "total": total,
+        "rate_per_s": float(live.get("rate_per_s", 0.0)) if fresh else 0.0,
+        "started_at": root.get("started_at", ""),
+        "finished_at": root.get("finished_at", ""),
+        "failures": failures,
+    }

@@ -1,0 +1,104 @@
+"""Job specs: validation before any compute, grids, presets, content-addressed ids."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from knitsweep.jobs import JobSpec, Range, load_job, plan
+from knitsweep.params import InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+MINIMAL = 'schema_version = 1\nname = "t"\n[grid]\nL_mm = [11.6]\n'
+
+
+def _job(tmp_path, text):
+    path = tmp_path / "job.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("name", ["demo", "paper_k0.1_L_sweep", "paper_phase_kB"])
+def test_shipped_jobs_are_valid(name):
+    job = load_job(ROOT / "jobs" / f"{name}.toml")
+    points, sweeps = plan(job)
+    assert len(sweeps) == len(points) * len(job.directions)
+
+
+def test_paper_series_is_the_papers_grid():
+    job = load_job(ROOT / "jobs" / "paper_k0.1_L_sweep.toml")
+    L = job.grid.axes()["L_mm"]
+    assert L[0] == 10.5 and L[-1] == 12.8 and len(L) == 24
+    assert 11.6 in L  # decimal steps: exactly 11.6, not 11.600000000000001
+    assert job.grid.axes()["k_mN_per_mm2"] == [0.1]
+
+
+def test_range_is_inclusive_and_decimal():
+    assert Range(start=10.5, stop=10.8, step=0.1).values() == [10.5, 10.6, 10.7, 10.8]
+
+
+@pytest.mark.parametrize(
+    ("text", "fragment"),
+    [
+        (MINIMAL + "colour = 'red'\n", "colour: unknown field"),
+        (MINIMAL.replace("[grid]", "[grid]\nL = 3"), "grid.L: unknown field"),
+        (MINIMAL + "[protocol]\nstep = 0.1\n", "protocol.step: unknown field"),
+        (MINIMAL.replace("[11.6]", "{start = 12, stop = 11, step = 0.1}"), "empty range"),
+        (
+            MINIMAL.replace("[11.6]", "{start = 11, stop = 12, step = -0.1}"),
+            "grid.L_mm = {'start': 11, 'stop': 12, 'step': -0.1}: step = -0.1",
+        ),
+        (MINIMAL.replace("[11.6]", "[]"), "empty list"),
+        (MINIMAL.replace("[grid]", "directions = []\n[grid]"), "directions = []"),
+        (MINIMAL.replace("[grid]", "directions = ['x', 'z']\n[grid]"), "directions.1 = 'z'"),
+        (MINIMAL.replace("[grid]", "preset = 'ultra'\n[grid]"), "preset = 'ultra'"),
+        (MINIMAL.replace("schema_version = 1", "schema_version = 2"), "schema_version = 2"),
+        (
+            MINIMAL + "k_mN_per_mm2 = [0.1, -1.0]\n",
+            "k_mN_per_mm2 = -1.0: must be a finite number > 0",
+        ),
+        (
+            MINIMAL + "r_core_mm = [0.3, 0.8]\n",
+            "r_core_mm = 0.8: must satisfy 0 < r_core_mm < r_mm",
+        ),
+        (MINIMAL + "p = 1.0\n", "p = 1.0: must be > 1"),
+        (MINIMAL + "[starts]\ncount = 0\n", "starts.count = 0"),
+        (MINIMAL + "[run]\ntask_timeout_s = 0\n", "run.task_timeout_s = 0"),
+        ("name = 'no grid'\nschema_version = 1\n", "grid: Field required"),
+        ("this is = not toml [", "not valid TOML"),
+    ],
+)
+def test_bad_job_specs_name_the_field(tmp_path, text, fragment):
+    with pytest.raises(InputError) as e:
+        load_job(_job(tmp_path, text))
+    assert fragment in str(e.value)
+
+
+def test_bad_job_via_cli_writes_nothing(tmp_path):
+    path = _job(tmp_path, MINIMAL + "k_mN_per_mm2 = -1\n")
+    out = tmp_path / "out.h5"
+    proc = subprocess.run([sys.executable, "-m", "knitsweep", "run", str(path), "--out", str(out)],
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "k_mN_per_mm2" in proc.stderr
+    assert list(tmp_path.iterdir()) == [path]
+
+
+def test_presets_and_overrides():
+    job = JobSpec(schema_version=1, name="t", grid={"L_mm": 11.6}, preset="draft",
+                  fidelity={"quadrature_nodes": 16})  # fmt: skip
+    assert job.fidelity.samples_per_segment == 6  # from the preset
+    assert job.fidelity.quadrature_nodes == 16  # explicit override
+    assert job.solver.ftol == 1e-8 and job.protocol.step_mm == 0.005
+
+
+def test_task_ids_hash_parameters_not_names_or_order():
+    a = JobSpec(schema_version=1, name="a", grid={"L_mm": [11.0, 12.0]})
+    b = JobSpec(schema_version=1, name="b", description="other", grid={"L_mm": [12.0, 11.0]})
+    c = JobSpec(schema_version=1, name="a", grid={"L_mm": [11.0, 12.1]})
+    ids = lambda j: {p.task_id for p in plan(j)[0]}  # noqa: E731
+    assert ids(a) == ids(b)
+    assert len(ids(a) & ids(c)) == 1
+    assert all(len(i) == 16 and "." not in i for i in ids(a))
+    assert a.job_hash != c.job_hash

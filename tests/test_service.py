@@ -1,0 +1,263 @@
+"""The sweep service: one HDF5 file, resume, refusal, failure isolation, signals,
+MPI and kill -9 (integration tier)."""
+
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from knitsweep import SCHEMA_VERSION, service
+from knitsweep.executors import SerialExecutor
+from knitsweep.jobs import load_job
+from knitsweep.params import InputError
+from knitsweep.runner import run_job
+from knitsweep.storage import journal_dir, lock_path
+
+DATA = Path(__file__).parent / "data"
+TINY = DATA / "jobs" / "tiny.toml"
+VENV_BIN = Path(sys.executable).parent
+MPIRUN = shutil.which("mpirun", path=str(VENV_BIN)) or shutil.which("mpirun")
+VOLATILE = {"seconds", "relax_seconds", "wall_seconds", "rank", "host"}
+
+
+def physics(path):
+    """Every task's stored arrays and status, minus timings and placement."""
+    out = {}
+    with h5py.File(path, "r") as f:
+        for kind in ("points", "sweeps"):
+            for tid, g in f[kind].items():
+                rec = {k: g[k][()] for k in g if k not in VOLATILE}
+                rec["status"] = g.attrs["status"]
+                out[(kind, tid)] = rec
+    return out
+
+
+def assert_same_results(a, b):
+    pa, pb = physics(a), physics(b)
+    assert pa.keys() == pb.keys()
+    for key in pa:
+        assert pa[key].keys() == pb[key].keys(), key
+        for name in pa[key]:
+            assert np.array_equal(pa[key][name], pb[key][name]), (key, name)
+
+
+def knitsweep(*args, mpi=0, **kw):
+    cmd = [sys.executable, "-m", "knitsweep", *args]
+    if mpi:
+        cmd = [MPIRUN, "-n", str(mpi), *cmd]
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env, **kw)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The tiny job, run serially and uninterrupted."""
+    out = tmp_path_factory.mktemp("ref") / "tiny.h5"
+    summary = service.run(TINY, out, executor="serial", show_progress=False)
+    assert summary.counts["done"] == summary.total == 6
+    return out
+
+
+def test_file_schema(reference):
+    with h5py.File(reference, "r") as f:
+        for key in ("schema_version", "knitsweep_version", "git_commit", "job_json", "job_hash",
+                    "numpy_version", "scipy_version", "numba_version", "h5py_version",
+                    "hdf5_version", "mpi4py_version", "mpi_library_version", "host",
+                    "slurm_job_id", "started_at", "finished_at"):  # fmt: skip
+            assert key in f.attrs, key
+        assert f.attrs["schema_version"] == SCHEMA_VERSION
+        assert f.attrs["run_status"] == "complete"
+        assert len(f["points"]) == 2 and len(f["sweeps"]) == 4
+        for g in f["sweeps"].values():
+            assert g.attrs["status"] == "done"
+            assert g["stress"][0] == 0.0 and g["strain"][0] == 0.0
+            assert g["stress"][-1] > 0.0 and np.all(np.isfinite(g["stress"][()]))
+            assert "states" not in g  # not asked for
+            assert {"seed", "rank", "host", "seconds"} <= set(
+                f["points"][g.attrs["point_id"]].attrs
+            )
+    assert not journal_dir(reference).exists() and not lock_path(reference).exists()
+
+
+def test_rerun_skips_finished_tasks(reference, tmp_path):
+    out = tmp_path / "again.h5"
+    shutil.copy(reference, out)
+    summary = service.run(TINY, out, executor="serial", show_progress=False)
+    assert summary.skipped == summary.total == 6
+    assert_same_results(reference, out)
+
+
+def test_different_job_is_refused_and_file_kept(reference, tmp_path):
+    out = tmp_path / "kept.h5"
+    shutil.copy(reference, out)
+    other = tmp_path / "other.toml"
+    other.write_text(TINY.read_text().replace("[11.4, 12.0]", "[11.4, 12.1]"))
+    with pytest.raises(InputError, match=r"different job \(differs in grid.L_mm\)"):
+        service.run(other, out, executor="serial", show_progress=False)
+    assert_same_results(reference, out)
+
+
+def test_failing_task_is_isolated(tmp_path, monkeypatch):
+    import knitsweep.tasks as tasks
+
+    real = tasks.run_point
+
+    def flaky(job, task):
+        if task.params.L_mm == 12.0:
+            raise RuntimeError("injected failure")
+        return real(job, task)
+
+    monkeypatch.setattr(tasks, "run_point", flaky)
+    job = load_job(TINY)
+    summary = run_job(job, tmp_path / "f.h5", SerialExecutor(job), show_progress=False)
+    assert summary.counts == {"done": 3, "failed": 3, "not_knittable": 0}
+    with h5py.File(tmp_path / "f.h5") as f:
+        failed = [g for g in f["points"].values() if g.attrs["status"] == "failed"]
+        assert len(failed) == 1
+        g = failed[0]
+        assert g.attrs["error_kind"] == "RuntimeError"
+        assert "injected failure" in g.attrs["traceback"]
+        assert g.attrs["rank"] == 0 and g.attrs["host"]
+        inherited = [
+            s for s in f["sweeps"].values() if s.attrs["point_id"] == failed[0].name.split("/")[-1]
+        ]
+        assert len(inherited) == 2
+        assert all(s.attrs["status"] == "failed" for s in inherited)
+
+
+def test_task_wall_time_budget(tmp_path):
+    """A 1 ms budget: every zero-force relaxation is cut off, its sweeps inherit."""
+    tiny = load_job(TINY)
+    job = tiny.model_copy(update={"run": tiny.run.model_copy(update={"task_timeout_s": 0.001})})
+    summary = run_job(job, tmp_path / "t.h5", SerialExecutor(job), show_progress=False)
+    assert summary.counts["failed"] == 6
+    with h5py.File(tmp_path / "t.h5") as f:
+        assert {g.attrs.get("error_kind") for g in f["points"].values()} == {"timeout"}
+        assert all("failed: timeout" in g.attrs["message"] for g in f["points"].values())
+        assert all("zero-force state: failed: timeout" in g.attrs["message"]
+                   for g in f["sweeps"].values())  # fmt: skip
+
+
+def test_status_of_a_finished_file(reference):
+    s = service.status(reference)
+    assert (s["done"], s["failed"], s["pending"], s["total"]) == (6, 0, 0, 6)
+    assert s["run_status"] == "complete" and not s["live"]
+
+
+def _wait_for_progress(out, finished, timeout=120):
+    """Wait until the master's progress file shows ``finished`` tasks."""
+    import json
+
+    path = out.with_name(out.name + ".progress.json")
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        try:
+            c = json.loads(path.read_text())
+            if c["done"] + c["failed"] + c["not_knittable"] >= finished:
+                return
+        except (FileNotFoundError, ValueError):
+            pass
+        time.sleep(0.05)
+    raise TimeoutError("no progress")
+
+
+@pytest.mark.parametrize("ranks", [0, 3])
+def test_sigterm_writes_what_arrived_and_resumes(reference, tmp_path, ranks):
+    if ranks and MPIRUN is None:
+        pytest.fail("mpirun not found: install the mpich wheel")
+    out = tmp_path / "term.h5"
+    cmd = [sys.executable, "-m", "knitsweep", "run", str(TINY), "--out", str(out), "--quiet"]
+    if ranks:
+        cmd = [MPIRUN, "-n", str(ranks), *cmd]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})  # fmt: skip
+    _wait_for_progress(out, 1)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 3, err
+    assert "to resume, run the same command again" in err
+    with h5py.File(out) as f:  # closed cleanly: opens, and says it was interrupted
+        assert f.attrs["run_status"] == "interrupted"
+    assert service.status(out)["done"] >= 1
+    assert knitsweep("run", str(TINY), "--out", str(out), "--quiet", mpi=ranks).returncode == 0
+    assert_same_results(reference, out)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_mpi_run_matches_serial(reference, tmp_path, ranks):
+    if MPIRUN is None:
+        pytest.fail("mpirun not found: install the mpich wheel")
+    out = tmp_path / f"mpi{ranks}.h5"
+    proc = knitsweep("run", str(TINY), "--out", str(out), mpi=ranks)
+    assert proc.returncode == 0, proc.stderr
+    assert_same_results(reference, out)
+
+
+def test_local_processes_match_serial(reference, tmp_path):
+    out = tmp_path / "proc.h5"
+    summary = service.run(TINY, out, workers=2, show_progress=False)
+    assert summary.counts["done"] == 6
+    assert_same_results(reference, out)
+
+
+def _wait_for_fresh_progress(out, proc, since, timeout=90):
+    """Until this launch's master reports progress, or the process ends."""
+    import json
+
+    path = out.with_name(out.name + ".progress.json")
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout and proc.poll() is None:
+        try:
+            if json.loads(path.read_text())["updated"] > since:
+                return
+        except (FileNotFoundError, ValueError, KeyError):
+            pass
+        time.sleep(0.05)
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_kill_9_at_random_moments_then_resume(tmp_path):
+    """kill -9 the whole run (master and workers) at random moments, several
+    times, then rerun: every task exactly once, results as uninterrupted."""
+    if MPIRUN is None:
+        pytest.fail("mpirun not found: install the mpich wheel")
+    job = tmp_path / "six.toml"  # 18 tasks: enough work left to interrupt four times
+    job.write_text(TINY.read_text().replace("[11.4, 12.0]", "[11.2, 11.4, 11.6, 11.8, 12.0, 12.2]"))
+    reference = tmp_path / "reference.h5"
+    service.run(job, reference, executor="serial", show_progress=False)
+    out = tmp_path / "k9.h5"
+    rng = random.Random(20261122)
+    cmd = [MPIRUN, "-n", "3", sys.executable, "-m", "knitsweep", "run", str(job), "--out",
+           str(out), "--quiet"]  # fmt: skip
+    kills = 0
+    while kills < 4:
+        since = time.time()
+        log = tmp_path / f"launch{kills}.log"
+        with open(log, "w") as fh:
+            proc = subprocess.Popen(cmd, stdout=fh, stderr=fh, start_new_session=True,
+                                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})  # fmt: skip
+        _wait_for_fresh_progress(out, proc, since)
+        time.sleep(rng.uniform(0.0, 0.4))
+        if proc.poll() is not None:
+            pytest.fail(f"the run ended by itself (code {proc.returncode}): {log.read_text()}")
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        kills += 1
+        with h5py.File(out) as f:  # the file on disk always opens
+            assert f.attrs["schema_version"] == SCHEMA_VERSION
+    assert kills == 4
+    assert knitsweep("run", str(job), "--out", str(out), "--quiet", mpi=3).returncode == 0
+    with h5py.File(out) as f:
+        assert len(f["points"]) == 6 and len(f["sweeps"]) == 12  # each task exactly once
+    assert not journal_dir(out).exists()
+    assert_same_results(reference, out)
