@@ -1,0 +1,359 @@
+"""Onset of unjamming (L/r)_trans, the transition width ΔL/r, and regimes
+(MODEL.md §9; paper "Energy Markers for Jamming", Fig. 4, SI "Tolerance and Error").
+
+A *series* is one energy gap against L/r, sorted ascending, at fixed k, B, r_core, r,
+p and one pulling direction. The gap that marks jamming is ΔE_c for 'x' and ΔE_b for
+'y' (paper Fig. 3); the caller chooses it (:func:`group_series` does so for records).
+Gaps are in N·mm (the paper's "J"); the default threshold is the paper's energy-gap
+error, 5e-5.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from ._common import PlainDict, check_array, check_direction, check_same_length, check_scalar
+from .fitting import LinearFit, fit_line
+from .metrics import JAMMING_GAP
+
+GAP_THRESHOLD = 5e-5
+"""The paper's energy-gap error (N·mm, its "J"): below it a fabric counts as unjammed."""
+
+REGIMES = ("jammed_xy", "jammed_y_only", "jammed_x_only", "unjammed")
+"""The regimes of :func:`regime`, as in paper Fig. 4c/5a (plus the rare converse)."""
+
+RARE_REGIME = "jammed_x_only"
+"""Jammed in x but not in y: the paper finds it "very unlikely to exist" (Fig. S6);
+a result in this regime deserves a second look."""
+
+SERIES_KEYS = ("k", "B", "r_core", "r", "p")
+
+TransitionStatus = Literal["transition", "unjammed_at_start", "jammed_throughout"]
+
+
+@dataclass(frozen=True)
+class Transition(PlainDict):
+    """The onset of unjamming along one series (paper Fig. 4a, Table S4).
+
+    L/r values are dimensionless; gaps and the fit are in N·mm per unit L/r. To
+    compare ``fit.slope`` with paper Table S4 (fitted against L in mm), divide it by
+    r; the intercept (the value at L = 0) is the same in both.
+
+    Attributes:
+        status: 'transition' (a jammed point is followed by an unjammed one),
+            'unjammed_at_start' (the first point is already below the threshold) or
+            'jammed_throughout' (no point is below it).
+        L_over_r_trans: (L/r)_trans, the first L/r whose gap < threshold; for
+            'unjammed_at_start' the first sampled L/r (an upper bound); None for
+            'jammed_throughout'.
+        bracket_lower: the last jammed L/r below (L/r)_trans, the paper's "−one step"
+            error bar; None for 'unjammed_at_start'; the last sampled L/r for
+            'jammed_throughout' (a lower bound on the transition).
+        bracket_upper: equals ``L_over_r_trans`` (the paper's "+0").
+        threshold: the gap threshold used, N·mm.
+        source: 'grid' (:func:`transition`) or 'bracket' (:func:`transition_from_bracket`).
+        n_points: number of points of the series.
+        n_jammed: points before the transition (all with gap ≥ threshold), the points
+            of the fit.
+        n_jammed_after: points after the transition whose gap is again ≥ threshold
+            (0 for a monotone series; > 0 deserves a look).
+        fit: least-squares line of gap against L/r over the jammed points (≥ 2
+            needed), else None.
+        L_over_r_intercept: where that line reaches zero gap, −intercept/slope; None
+            without a fit or when the slope is ≥ 0 (a gap that does not decrease has
+            no meaningful end of jamming).
+        delta_L_over_r: ΔL/r = (L/r)_trans − ``L_over_r_intercept`` (paper Fig. 4a),
+            None when either is None.
+    """
+
+    status: TransitionStatus
+    L_over_r_trans: float | None
+    bracket_lower: float | None
+    bracket_upper: float | None
+    threshold: float
+    source: Literal["grid", "bracket"]
+    n_points: int
+    n_jammed: int
+    n_jammed_after: int
+    fit: LinearFit | None
+    L_over_r_intercept: float | None
+    delta_L_over_r: float | None
+
+
+@dataclass(frozen=True, eq=False)
+class GapSeries(PlainDict):
+    """One series for :func:`transition`: a gap against L/r at fixed parameters.
+
+    Attributes:
+        params: the fixed parameters as ((name, value), ...) in the order of ``keys``.
+        direction: 'x' or 'y'.
+        L_over_r: shape (n,), strictly increasing (read-only).
+        gap: shape (n,), N·mm, the jamming gap at each L/r (read-only).
+    """
+
+    params: tuple[tuple[str, Any], ...]
+    direction: str
+    L_over_r: np.ndarray
+    gap: np.ndarray
+
+
+def _series(L_over_r: Any, gap: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Checked copies of a series, sorted by L/r; duplicates and negative gaps refused."""
+    x = check_array("L_over_r", L_over_r)
+    g = check_array("gap", gap)
+    check_same_length(L_over_r=x, gap=g)
+    if np.any(g < 0.0):
+        i = int(np.flatnonzero(g < 0.0)[0])
+        raise ValueError(f"gap: entry {i} is {float(g[i])!r}; energy gaps are >= 0")
+    order = np.argsort(x, kind="stable")
+    x, g = x[order], g[order]
+    same = np.flatnonzero(np.diff(x) == 0.0)
+    if same.size:
+        raise ValueError(f"L_over_r: the value {float(x[same[0]])!r} appears more than once")
+    return x, g
+
+
+def _jammed_line(x: np.ndarray, g: np.ndarray) -> tuple[LinearFit | None, float | None]:
+    if x.size < 2:
+        return None, None
+    fit = fit_line(x, g)
+    return fit, (fit.x_intercept if fit.slope < 0.0 else None)
+
+
+def _result(
+    status: TransitionStatus,
+    trans: float | None,
+    lower: float | None,
+    x: np.ndarray,
+    g: np.ndarray,
+    n_jammed: int,
+    threshold: float,
+    source: Literal["grid", "bracket"],
+) -> Transition:
+    fit, x0 = _jammed_line(x[:n_jammed], g[:n_jammed])
+    after = x > trans if trans is not None else np.zeros(x.size, dtype=bool)
+    return Transition(
+        status=status,
+        L_over_r_trans=trans,
+        bracket_lower=lower,
+        bracket_upper=trans,
+        threshold=threshold,
+        source=source,
+        n_points=int(x.size),
+        n_jammed=n_jammed,
+        n_jammed_after=int(np.count_nonzero(after & (g >= threshold))),
+        fit=fit,
+        L_over_r_intercept=x0,
+        delta_L_over_r=(trans - x0) if trans is not None and x0 is not None else None,
+    )
+
+
+def transition(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> Transition:
+    """(L/r)_trans, its bracket, the jammed-regime fit and ΔL/r of one series.
+
+    Paper "Energy Markers for Jamming": (L/r)_trans is "the first stitch length with
+    an energy gap below our error threshold"; its error is "+0, −one step" (SI
+    "Tolerance and Error"), hence the bracket (previous grid point, (L/r)_trans).
+    The jammed points are those before the transition (all with gap ≥ threshold);
+    a straight least-squares line through them gives the Table S4 columns, its
+    L/r-intercept, and ΔL/r = (L/r)_trans − intercept (paper Fig. 4a).
+
+    Args:
+        L_over_r: shape (n,), n ≥ 1, distinct; sorted here if unsorted (the gap
+            follows). Passing L in mm instead gives the same results in mm.
+        gap: shape (n,), N·mm, ≥ 0 (ΔE_c for x, ΔE_b for y).
+        threshold: N·mm, > 0 (paper: 5e-5). A point is unjammed when gap < threshold.
+
+    Returns:
+        :class:`Transition` with ``source='grid'``.
+
+    Raises:
+        ValueError: non-finite, negative-gap, duplicated-L/r or mismatched input,
+            naming the argument; threshold ≤ 0.
+    """
+    threshold = check_scalar("threshold", threshold, positive=True)
+    x, g = _series(L_over_r, gap)
+    below = np.flatnonzero(g < threshold)
+    if below.size == 0:
+        return _result("jammed_throughout", None, float(x[-1]), x, g, x.size, threshold, "grid")
+    i = int(below[0])
+    if i == 0:
+        return _result("unjammed_at_start", float(x[0]), None, x, g, 0, threshold, "grid")
+    return _result("transition", float(x[i]), float(x[i - 1]), x, g, i, threshold, "grid")
+
+
+def transition_from_bracket(
+    lo: float,
+    hi: float,
+    L_over_r: Any = None,
+    gap: Any = None,
+    threshold: float = GAP_THRESHOLD,
+) -> Transition:
+    """A transition found by bisection: (L/r)_trans = ``hi``, bracket (``lo``, ``hi``).
+
+    For an adaptive search that has narrowed the onset of unjamming to lo < hi, where
+    the gap at ``lo`` is ≥ threshold and the gap at ``hi`` is < threshold. If the
+    sampled series (every L/r evaluated, grid and bisection points, any order) is
+    given, the jammed points are those with L/r < hi; they must all have gap ≥
+    threshold (otherwise ``hi`` is not the first unjammed L/r), and they give the
+    fit, its L/r-intercept and ΔL/r exactly as in :func:`transition`.
+
+    Args:
+        lo, hi: the bracket, lo < hi (L/r, dimensionless).
+        L_over_r, gap: optional sampled series, shape (n,) each (see :func:`transition`).
+        threshold: N·mm, > 0.
+
+    Returns:
+        :class:`Transition` with ``status='transition'`` and ``source='bracket'``.
+
+    Raises:
+        ValueError: lo ≥ hi, only one of L_over_r/gap given, or a series inconsistent
+            with the bracket (a point below hi under the threshold, a point at hi at or
+            above it, a point at lo below it).
+    """
+    lo = check_scalar("lo", lo)
+    hi = check_scalar("hi", hi)
+    threshold = check_scalar("threshold", threshold, positive=True)
+    if not lo < hi:
+        raise ValueError(f"bracket (lo, hi) = ({lo!r}, {hi!r}): needs lo < hi")
+    if (L_over_r is None) != (gap is None):
+        raise ValueError("L_over_r and gap: give both or neither")
+    if L_over_r is None:
+        empty = np.zeros(0)
+        return _result("transition", hi, lo, empty, empty, 0, threshold, "bracket")
+    x, g = _series(L_over_r, gap)
+    before = x < hi
+    if np.any(before & (g < threshold)):
+        bad = float(x[np.flatnonzero(before & (g < threshold))[0]])
+        raise ValueError(
+            f"L_over_r = {bad!r} < hi = {hi!r} has gap below the threshold; "
+            "hi is not the first unjammed L/r"
+        )
+    if np.any((x == hi) & (g >= threshold)):
+        raise ValueError(f"the gap at hi = {hi!r} is not below the threshold")
+    n_jammed = int(np.count_nonzero(before))
+    return _result("transition", hi, lo, x, g, n_jammed, threshold, "bracket")
+
+
+def _as_trans(name: str, value: Any) -> float:
+    if isinstance(value, Transition):
+        value = value.L_over_r_trans
+    if value is None:
+        return float("inf")
+    return check_scalar(name, value)
+
+
+def regime(L_over_r: float, trans_x: Any, trans_y: Any) -> str:
+    """Jamming regime at one L/r from the two directions' (L/r)_trans (paper Fig. 4c).
+
+    A direction is jammed at L/r when L/r < its (L/r)_trans. Returns
+
+    * 'jammed_xy': L/r < both;
+    * 'jammed_y_only': trans_x ≤ L/r < trans_y;
+    * 'jammed_x_only': trans_y ≤ L/r < trans_x — the converse, which the paper finds
+      very unlikely (see :data:`RARE_REGIME`): check such a point;
+    * 'unjammed': L/r ≥ both.
+
+    Args:
+        L_over_r: the L/r to classify.
+        trans_x, trans_y: (L/r)_trans per direction, as a float, a :class:`Transition`
+            or None. None (and a 'jammed_throughout' Transition) means no unjamming
+            was found in the sampled range: that direction is taken as jammed at every
+            L/r (its transition lies above the series). For an 'unjammed_at_start'
+            Transition, (L/r)_trans is the first sampled L/r, only an upper bound, so
+            smaller L/r are classified as jammed by extrapolation.
+    """
+    x = check_scalar("L_over_r", L_over_r)
+    jammed_x = x < _as_trans("trans_x", trans_x)
+    jammed_y = x < _as_trans("trans_y", trans_y)
+    if jammed_x and jammed_y:
+        return "jammed_xy"
+    if jammed_y:
+        return "jammed_y_only"
+    if jammed_x:
+        return "jammed_x_only"
+    return "unjammed"
+
+
+def _record_L_over_r(i: int, rec: Mapping[str, Any]) -> float:
+    if "L_over_r" in rec:
+        return check_scalar(f"records[{i}]['L_over_r']", rec["L_over_r"], positive=True)
+    if "L" in rec and "r" in rec:
+        L = check_scalar(f"records[{i}]['L']", rec["L"], positive=True)
+        return L / check_scalar(f"records[{i}]['r']", rec["r"], positive=True)
+    raise ValueError(f"records[{i}]: needs 'L_over_r', or both 'L' and 'r'")
+
+
+def _record_gap(i: int, rec: Mapping[str, Any], direction: str) -> float:
+    name = "gap" if "gap" in rec else JAMMING_GAP[direction]
+    if name not in rec:
+        raise ValueError(f"records[{i}]: needs 'gap' or '{name}' for direction {direction!r}")
+    return check_scalar(f"records[{i}][{name!r}]", rec[name])
+
+
+def group_series(
+    records: Iterable[Mapping[str, Any]], keys: tuple[str, ...] = SERIES_KEYS
+) -> dict[tuple[tuple[Any, ...], str], GapSeries]:
+    """Group per-sweep records into series for :func:`transition`.
+
+    Each record is a flat mapping with 'direction' ('x' or 'y'), every name in
+    ``keys``, 'L_over_r' (or 'L' and 'r', mm, giving L/r = L/r), and the gap: 'gap'
+    if present, else the direction's jamming gap, 'delta_E_c' for x and 'delta_E_b'
+    for y (the names of :class:`~knitsweep.analysis.metrics.EnergyGaps`). Other fields
+    are ignored. Parameter values are grouped by equality, so give each the same
+    float in every record of a series.
+
+    Args:
+        records: iterable of mappings, e.g. rows of a results file.
+        keys: the parameters held fixed along a series (default k, B, r_core, r, p).
+
+    Returns:
+        {(values of ``keys``, direction): :class:`GapSeries`}, in order of first
+        appearance, each series sorted by L/r.
+
+    Raises:
+        ValueError: a missing or non-finite field (naming the record and field), a bad
+            direction, a negative gap, or the same L/r twice in one series.
+    """
+    keys = tuple(keys)
+    collected: dict[tuple[tuple[Any, ...], str], list[tuple[float, float]]] = {}
+    for i, rec in enumerate(records):
+        if "direction" not in rec:
+            raise ValueError(f"records[{i}]: missing 'direction'")
+        direction = check_direction(rec["direction"])
+        missing = [k for k in keys if k not in rec]
+        if missing:
+            raise ValueError(f"records[{i}]: missing series key(s) {missing}")
+        values = tuple(rec[k] for k in keys)
+        point = (_record_L_over_r(i, rec), _record_gap(i, rec, direction))
+        collected.setdefault((values, direction), []).append(point)
+
+    series = {}
+    for (values, direction), points in collected.items():
+        try:
+            x, g = _series([p[0] for p in points], [p[1] for p in points])
+        except ValueError as e:
+            raise ValueError(
+                f"series {dict(zip(keys, values, strict=True))} in {direction}: {e}"
+            ) from None
+        x.flags.writeable = False
+        g.flags.writeable = False
+        params = tuple(zip(keys, values, strict=True))
+        series[(values, direction)] = GapSeries(params, direction, x, g)
+    return series
+
+
+def series_transitions(
+    records: Iterable[Mapping[str, Any]],
+    keys: tuple[str, ...] = SERIES_KEYS,
+    threshold: float = GAP_THRESHOLD,
+) -> dict[tuple[tuple[Any, ...], str], Transition]:
+    """:func:`transition` of every series of :func:`group_series` (same keys and order)."""
+    return {
+        key: transition(s.L_over_r, s.gap, threshold)
+        for key, s in group_series(records, keys).items()
+    }
