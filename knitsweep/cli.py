@@ -335,6 +335,24 @@ def status(
         typer.echo(f"  failed {line}")
 
 
+@app.command()
+def merge(
+    out: Annotated[Path, typer.Argument(help="merged results file to write")],
+    inputs: Annotated[list[Path], typer.Argument(help="shard files of one job")],
+) -> None:
+    """Combine the shard files of one job (knitsweep run --shard i/N) into one file."""
+    from . import service
+
+    with user_errors():
+        r = service.merge(out, inputs)
+    state = (
+        "complete"
+        if r["complete"]
+        else f"partial: {r['points'] + r['sweeps']} of {r['expected']} tasks"
+    )
+    typer.echo(f"{r['file']}: {r['points']} points, {r['sweeps']} sweeps ({state})")
+
+
 def main() -> None:
     """Console-script entry point: usage errors become one line and exit code 2."""
     try:

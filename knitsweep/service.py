@@ -120,3 +120,48 @@ def status(path: str | Path) -> dict[str, Any]:
         "finished_at": root.get("finished_at", ""),
         "failures": failures,
     }
+
+
+def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
+    """Combine shard files of one job (``knitsweep run --shard i/N``) into ``out``.
+
+    Every input must come from the same job (same job hash and schema); a task
+    present in several inputs is taken once, a 'done' result winning over a
+    failed one. Returns counts of what ``out`` holds.
+    """
+    from .jobs import JobSpec, plan
+    from .storage import SWEEPS, ResultWriter
+
+    if not inputs:
+        raise InputError("merge needs at least one input file")
+    out = Path(out)
+    roots = [read_root(p) for p in inputs]
+    hashes = {r["job_hash"] for r in roots}
+    if len(hashes) != 1:
+        names = ", ".join(
+            f"{p} ({r['job_name']}, {r['job_hash']})" for p, r in zip(inputs, roots, strict=True)
+        )
+        raise InputError(f"inputs come from different jobs: {names}")
+    job = JobSpec.model_validate_json(roots[0]["job_json"])
+    points, sweeps = plan(job)
+    chosen: dict[tuple[str, str], Any] = {}
+    for path in inputs:
+        if Path(path).resolve() == out.resolve():
+            raise InputError(f"{out} is also an input; merge into a new file")
+        for e in iter_entries(path, with_data=True):
+            key = (e.kind, e.task_id)
+            if key not in chosen or (
+                chosen[key].meta.get("status") == FAILED and e.meta.get("status") != FAILED
+            ):
+                chosen[key] = e
+    writer = ResultWriter(out, job, {"n_points": len(points), "n_sweeps": len(sweeps),
+                                     "shard": "", "merged_from": ", ".join(map(str, inputs))})  # fmt: skip
+    try:
+        for e in chosen.values():
+            writer.add(e.kind, e.task_id, e.record, e.meta)
+    finally:
+        complete = len(chosen) == len(points) + len(sweeps)
+        writer.close("complete" if complete else "partial")
+    n_sweeps = sum(kind == SWEEPS for kind, _ in chosen)
+    return {"file": str(out), "points": len(chosen) - n_sweeps, "sweeps": n_sweeps,
+            "expected": len(points) + len(sweeps), "complete": complete}  # fmt: skip

@@ -146,6 +146,32 @@ def test_task_wall_time_budget(tmp_path):
                    for g in f["sweeps"].values())  # fmt: skip
 
 
+def test_shards_merge_into_the_whole_job(reference, tmp_path):
+    shards = [tmp_path / f"s{i}.h5" for i in range(2)]
+    for i, path in enumerate(shards):
+        service.run(TINY, path, executor="serial", shard=f"{i}/2", show_progress=False)
+    assert service.status(shards[0])["total"] == 3
+    merged = tmp_path / "merged.h5"
+    r = service.merge(merged, shards)
+    assert r["complete"] and (r["points"], r["sweeps"]) == (2, 4)
+    assert_same_results(reference, merged)
+    with pytest.raises(InputError, match="also an input"):
+        service.merge(shards[0], shards)
+
+
+def test_merge_refuses_other_jobs(reference, tmp_path):
+    other = tmp_path / "other.toml"
+    other.write_text(
+        TINY.read_text()
+        .replace('name = "tiny"', 'name = "tiny"\ndescription = "x"')
+        .replace("seed = 7", "seed = 8")
+    )
+    out = tmp_path / "o.h5"
+    service.run(other, out, executor="serial", shard="0/2", show_progress=False)
+    with pytest.raises(InputError, match="different jobs"):
+        service.merge(tmp_path / "m.h5", [reference, out])
+
+
 def test_status_of_a_finished_file(reference):
     s = service.status(reference)
     assert (s["done"], s["failed"], s["pending"], s["total"]) == (6, 0, 0, 6)
