@@ -197,7 +197,14 @@ def relax(
         x, success, message, nit = prob.full(res.x), bool(res.success), str(res.message), res.nit
     except (ValueError, FloatingPointError, ZeroDivisionError) as e:
         x, success, message, nit = x0.copy(), False, f"minimiser failed: {e}", 0
-    return _assess(model, x, free, success, message, nit, prob.evaluations, settings, t0)
+    return _assess(model, x0, x, free, success, message, nit, prob.evaluations, settings, t0)
+
+
+def _finite_state(model: CellModel, x: np.ndarray) -> bool:
+    if not (np.all(np.isfinite(x)) and x[IDX_AX] > 0 and x[IDX_AY] > 0):
+        return False
+    e = model.energies(x)
+    return all(map(math.isfinite, (e.bending_energy, e.contact_energy, e.length)))
 
 
 def _widen(bound, value):
@@ -208,13 +215,12 @@ def _widen(bound, value):
     return lo, hi
 
 
-def _assess(model, x, free, success, message, nit, nev, settings, t0) -> Relaxation:
+def _assess(model, x0, x, free, success, message, nit, nev, settings, t0) -> Relaxation:
     """Measure the result and give it a truthful status."""
-    nan = float("nan")
-    if not np.all(np.isfinite(x)) or x[IDX_AX] <= 0 or x[IDX_AY] <= 0:
-        return Relaxation(x, nan, nan, nan, NOT_CONVERGED, f"non-finite state: {message}", nit,
-                          nev, nan, nan, False, nan, nan, nan, (nan, nan),
-                          time.perf_counter() - t0)  # fmt: skip
+    if not _finite_state(model, x):
+        # never report a non-finite state: keep the (finite) start, say what happened
+        x = np.array(x0, dtype=float)
+        success, message = False, f"the minimiser left the finite states ({message}); start kept"
     e, ge, gl = model.energy_and_gradients(x)
     twist_margin = math.cos(x[IDX_TW]) - model.ip.twist_bound
     twist_active = twist_margin <= _TWIST_ACTIVE_TOL
