@@ -157,6 +157,23 @@ class RunSettings(BaseModel):
     )
 
 
+class AdaptiveSettings(BaseModel):
+    """The adaptive search for (L/r)_trans (``mode = "adaptive"``): ``grid.L_mm`` is
+    the coarse grid that brackets each series' transition, then the bracket
+    shrinks below ``tolerance_mm`` (see ``knitsweep.adaptive``)."""
+
+    model_config = _STRICT
+
+    tolerance_mm: float = Field(0.005, gt=0.0, le=1.0, description="final bracket width in L (mm)")
+    threshold_mJ: float = Field(
+        5e-5, gt=0.0, description="energy-gap threshold between jammed and unjammed (mJ)"
+    )
+    secant_span_mm: float = Field(
+        0.05, gt=0.0, description="shortest L span of the secant that extrapolates the gap (mm)"
+    )
+    max_refinements: int = Field(40, ge=1, le=1000, description="refinements per series, at most")
+
+
 class JobSpec(BaseModel):
     """A whole job. ``fidelity``, ``solver`` and ``protocol`` start from ``preset``
     and take any field given explicitly."""
@@ -171,6 +188,10 @@ class JobSpec(BaseModel):
     seed: int = Field(0, ge=0, lt=2**63)
     directions: list[Literal["x", "y"]] = Field(default_factory=lambda: ["x", "y"], min_length=1)
     preset: str = DEFAULT_PRESET
+    mode: Literal["grid", "adaptive"] = Field(
+        "grid", description="'grid': every grid point; 'adaptive': bisect each L series' transition"
+    )
+    adaptive: AdaptiveSettings = AdaptiveSettings()
     grid: Grid
     fidelity: Fidelity = Fidelity()
     solver: SolverSettings = SolverSettings()
@@ -234,6 +255,8 @@ class JobSpec(BaseModel):
                     if name not in ("r_core_mm", "r_mm"):
                         raise ValueError(f"grid.{describe_validation_error(e)}") from None
         self.points()  # every combination (r_core < r) is a valid stitch
+        if self.mode == "adaptive" and len(axes["L_mm"]) < 2:
+            raise ValueError("mode = 'adaptive' needs at least 2 coarse values in grid.L_mm")
         return self
 
     def points(self) -> list[StitchParams]:
@@ -289,24 +312,37 @@ class SweepTask:
     direction: str
 
 
-def plan(job: JobSpec) -> tuple[list[PointTask], list[SweepTask]]:
-    """All tasks of a job: one zero-force task per point, one sweep per
-    (point, direction). Ids hash the canonical parameters, never file names."""
-    numerics = {
+def _numerics(job: JobSpec) -> dict[str, Any]:
+    return {
         "fidelity": job.fidelity.model_dump(mode="json"),
         "solver": job.solver.model_dump(mode="json"),
         "starts": job.starts.model_dump(mode="json"),
         "seed": job.seed,
     }
+
+
+def point_task(job: JobSpec, params: StitchParams) -> PointTask:
+    """The zero-force task of one point; its id hashes the parameters and numerics."""
+    pid = digest({"params": params.model_dump(mode="json"), **_numerics(job)})
+    seed = int(hashlib.sha256(f"{job.seed}:{pid}".encode()).hexdigest()[:15], 16)
+    return PointTask(pid, params, seed)
+
+
+def sweep_task(job: JobSpec, point_id: str, direction: str) -> SweepTask:
+    sid = digest({"point": point_id, "direction": direction,
+                  "protocol": job.protocol.model_dump(mode="json")})  # fmt: skip
+    return SweepTask(sid, point_id, direction)
+
+
+def plan(job: JobSpec) -> tuple[list[PointTask], list[SweepTask]]:
+    """All tasks of a grid job (for an adaptive job: its coarse grid): one
+    zero-force task per point, one sweep per (point, direction). Ids hash the
+    canonical parameters, never file names."""
     points, sweeps = [], []
     for params in job.points():
-        pid = digest({"params": params.model_dump(mode="json"), **numerics})
-        seed = int(hashlib.sha256(f"{job.seed}:{pid}".encode()).hexdigest()[:15], 16)
-        points.append(PointTask(pid, params, seed))
-        for d in job.directions:
-            sid = digest({"point": pid, "direction": d,
-                          "protocol": job.protocol.model_dump(mode="json")})  # fmt: skip
-            sweeps.append(SweepTask(sid, pid, d))
+        p = point_task(job, params)
+        points.append(p)
+        sweeps.extend(sweep_task(job, p.task_id, d) for d in job.directions)
     return points, sweeps
 
 

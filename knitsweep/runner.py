@@ -25,9 +25,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .jobs import JobSpec, PointTask, SweepTask, plan
+from .analysis.metrics import energy_gaps
+from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, sweep_task
 from .params import InputError
-from .storage import POINTS, SWEEPS, ResultWriter, atomic_write_bytes, iter_entries, progress_path
+from .refine import Refiner
+from .storage import (
+    POINTS,
+    SERIES,
+    SWEEPS,
+    ResultWriter,
+    atomic_write_bytes,
+    iter_entries,
+    progress_path,
+    read_entry,
+)
 from .tasks import DONE, FAILED, Reply
 
 EXIT_INTERRUPTED = 3
@@ -98,60 +109,108 @@ def progress_line(c: dict[str, Any]) -> str:
 
 
 class _Master:
-    def __init__(self, job, points, sweeps, writer, executor, summary, retry_failed, show):
+    """Schedules tasks, records replies, and (adaptive jobs) refines each series.
+
+    Everything goes through ``_request(point, directions)``: make sure these
+    sweeps of this point get computed (its zero-force task first, if needed).
+    """
+
+    def __init__(self, job, points, writer, executor, summary, retry_failed, show):
         self.job, self.writer, self.executor, self.summary = job, writer, executor, summary
-        self.points = {p.task_id: p for p in points}
-        self.sweeps = {s.task_id: s for s in sweeps}
-        self.sweeps_of: dict[str, list[SweepTask]] = {}
-        for s in sweeps:
-            self.sweeps_of.setdefault(s.point_id, []).append(s)
-        self.ready_points: deque = deque()
-        self.ready_sweeps: deque = deque()
-        self.blocked = 0  # sweeps waiting for their point
         self.show = show
         self.tty = sys.stderr.isatty()
         self.t0 = time.monotonic()
         self.finished_now = 0
         self._last_line = self._last_file = 0.0
-        self._plan(retry_failed)
+        self.points: dict[str, PointTask] = {}
+        self.sweeps: dict[str, SweepTask] = {}
+        self.sweeps_of: dict[str, list[SweepTask]] = {}  # waiting for their point
+        self.ready_points: deque = deque()
+        self.ready_sweeps: deque = deque()
+        self.zero: dict[str, dict[str, Any]] = {}  # done points' records, while sweeps need them
+        self.finished: dict[str, dict[str, dict[str, Any]]] = {POINTS: {}, SWEEPS: {}, SERIES: {}}
+        for e in iter_entries(writer.path):
+            if str(e.meta.get("status")) != FAILED or not retry_failed or e.kind == SERIES:
+                self.finished[e.kind][e.task_id] = e.meta
+        self.refiner = Refiner(job) if job.mode == "adaptive" else None
+        for p in points:
+            self._request(p, job.directions)
+        if self.refiner is not None:
+            for meta in self.finished[SWEEPS].values():
+                self.refiner.observe(meta)
+            self._refine()
 
     # -- bookkeeping
     def _count(self, status: str) -> None:
         self.summary.counts[status] = self.summary.counts.get(status, 0) + 1
 
-    def _plan(self, retry_failed: bool) -> None:
-        finished = {POINTS: {}, SWEEPS: {}}
-        for e in iter_entries(self.writer.path):
-            status = str(e.meta.get("status", FAILED))
-            if status != FAILED or not retry_failed:
-                finished[e.kind][e.task_id] = status
-        needed = {s.point_id for s in self.sweeps.values() if s.task_id not in finished[SWEEPS]}
-        zero = {e.task_id: {**e.record, **e.meta}
-                for e in iter_entries(self.writer.path, with_data=True)
-                if e.kind == POINTS and e.task_id in needed}  # fmt: skip
-        for pid, p in self.points.items():
-            if pid not in finished[POINTS]:
-                self.ready_points.append((p, None))
-                self.blocked += sum(
-                    s.task_id not in finished[SWEEPS] for s in self.sweeps_of.get(pid, [])
-                )
-                continue
-            self.summary.skipped += 1
-            self._count(finished[POINTS][pid])
-            for s in self.sweeps_of.get(pid, []):
-                if s.task_id in finished[SWEEPS]:
-                    self.summary.skipped += 1
-                    self._count(finished[SWEEPS][s.task_id])
-                elif finished[POINTS][pid] == DONE and pid in zero:
-                    self.ready_sweeps.append((s, _payload(p, zero[pid])))
-                else:  # the point's verdict was stored but not yet passed on
-                    self._inherit(s, zero.get(pid, {"status": finished[POINTS][pid]}))
+    @property
+    def pending(self) -> int:
+        waiting = sum(len(v) for v in self.sweeps_of.values())
+        return len(self.ready_points) + len(self.ready_sweeps) + waiting
 
-    def _inherit(self, s: SweepTask, point_meta: dict[str, Any]) -> None:
+    def _request(self, p: PointTask, directions) -> None:
+        """Make sure the sweeps of point ``p`` in ``directions`` get computed."""
+        pid = p.task_id
+        new_point = pid not in self.points
+        if new_point:
+            self.points[pid] = p
+            self.summary.total += 1
+            if pid in self.finished[POINTS]:
+                self.summary.skipped += 1
+                self._count(str(self.finished[POINTS][pid]["status"]))
+        for d in directions:
+            s = sweep_task(self.job, pid, d)
+            if s.task_id in self.sweeps:
+                continue
+            self.sweeps[s.task_id] = s
+            self.summary.total += 1
+            if s.task_id in self.finished[SWEEPS]:
+                self.summary.skipped += 1
+                self._count(str(self.finished[SWEEPS][s.task_id]["status"]))
+            elif pid in self.finished[POINTS]:
+                self._release(s, self.finished[POINTS][pid])
+            else:
+                self.sweeps_of.setdefault(pid, []).append(s)
+        if new_point and pid not in self.finished[POINTS]:
+            self.ready_points.append((p, None))
+
+    def _release(self, s: SweepTask, point_meta: dict[str, Any]) -> None:
+        """A sweep whose point is finished: queue it, or pass the point's verdict on."""
         status = str(point_meta.get("status", FAILED))
+        if status == DONE:
+            self.ready_sweeps.append((s, self._payload(s.point_id)))
+            return
         meta = self._meta(s, status, f"zero-force state: {point_meta.get('message', status)}")
-        self.writer.add(SWEEPS, s.task_id, {}, meta)
-        self._count(status)
+        self._record_sweep(s, {}, meta)
+
+    def _payload(self, pid: str) -> dict[str, Any]:
+        if pid not in self.zero:
+            entry = read_entry(self.writer.path, POINTS, pid)
+            self.zero[pid] = {**entry.record, **entry.meta}
+        return {**self.zero[pid], "params": self.points[pid].params}
+
+    def _record_sweep(self, s: SweepTask, record: dict[str, Any], meta: dict[str, Any]) -> None:
+        if record:
+            gaps = energy_gaps(record["bending_energy"], record["contact_energy"])
+            meta |= {"delta_E_b": gaps.delta_E_b, "delta_E_c": gaps.delta_E_c,
+                     "energy_gap": gaps.jamming_gap(s.direction)}  # fmt: skip
+        self.writer.add(SWEEPS, s.task_id, record, meta)
+        self.finished[SWEEPS][s.task_id] = meta
+        self._count(str(meta["status"]))
+        if self.refiner is not None:
+            self.refiner.observe(meta)
+            self._refine()
+
+    def _refine(self) -> None:
+        for key, state in self.refiner.states():
+            if state.status == "refining":
+                params, direction = self.refiner.point_params(key, state.next_L)
+                self._request(point_task(self.job, params), [direction])
+            elif state.finished and key not in self.finished[SERIES]:
+                meta = self.refiner.series_meta(key, state)
+                self.writer.add(SERIES, key, {}, meta)
+                self.finished[SERIES][key] = meta
 
     def _meta(self, task, status: str, message: str, reply: Reply | None = None) -> dict[str, Any]:
         params = (self.points[task.point_id] if isinstance(task, SweepTask) else task).params
@@ -209,17 +268,17 @@ class _Master:
             record = dict(reply.record)
             status = record.pop("status")
             message = record.pop("message")
-        kind = POINTS if isinstance(task, PointTask) else SWEEPS
-        self.writer.add(kind, task.task_id, record, self._meta(task, status, message, reply))
+        meta = self._meta(task, status, message, reply)
+        if isinstance(task, SweepTask):
+            self._record_sweep(task, record, meta)
+            return
+        self.writer.add(POINTS, task.task_id, record, meta)
+        self.finished[POINTS][task.task_id] = meta
         self._count(status)
-        if isinstance(task, PointTask):
-            for s in self.sweeps_of.get(task.task_id, []):
-                self.blocked -= 1
-                if status == DONE:
-                    self.ready_sweeps.append((s, _payload(task, {**record, "status": status,
-                                                          "message": message})))  # fmt: skip
-                else:
-                    self._inherit(s, {"status": status, "message": message})
+        if status == DONE:
+            self.zero[task.task_id] = {**record, "status": status, "message": message}
+        for s in self.sweeps_of.pop(task.task_id, []):
+            self._release(s, meta)
 
     def _progress(self, force: bool = False) -> None:
         t = time.monotonic()
@@ -230,7 +289,7 @@ class _Master:
         rate = self.finished_now / max(t - self.t0, 1e-9)
         counts = {"done": c[DONE], "failed": c[FAILED], "not_knittable": c["not_knittable"],
                   "running": self.executor.in_flight,
-                  "pending": len(self.ready_points) + len(self.ready_sweeps) + self.blocked,
+                  "pending": self.pending,
                   "total": self.summary.total, "rate_per_s": rate, "pid": os.getpid(),
                   "host": socket.gethostname(), "updated": time.time()}  # fmt: skip
         atomic_write_bytes(progress_path(self.writer.path), json.dumps(counts).encode())
@@ -257,6 +316,10 @@ def run_job(
     writing the results file ``out``."""
     out = Path(out)
     t0 = time.monotonic()
+    if shard is not None and job.mode == "adaptive":
+        executor.shutdown(abort=False)
+        raise InputError("shard: an adaptive job refines series as results arrive and cannot "
+                         "be split into shards; run it whole (under MPI for many workers)")  # fmt: skip
     points, sweeps = shard_tasks(job, shard)
     extra = {"shard": f"{shard[0]}/{shard[1]}" if shard else "", "n_points": len(points),
              "n_sweeps": len(sweeps)}  # fmt: skip
@@ -265,7 +328,7 @@ def run_job(
     except BaseException:
         executor.shutdown(abort=False)  # nothing was handed out; release the workers
         raise
-    summary = RunSummary(out, len(points) + len(sweeps))
+    summary = RunSummary(out, 0)
     stop: dict[str, Any] = {"signal": None}
 
     def _on_signal(signum, frame):
@@ -275,10 +338,9 @@ def run_job(
 
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
     status = "interrupted"
+    master = None
     try:
-        master = _Master(
-            job, points, sweeps, writer, executor, summary, retry_failed, show_progress
-        )
+        master = _Master(job, points, writer, executor, summary, retry_failed, show_progress)
         status = master.run(stop)
     except Interrupted:
         pass
@@ -286,7 +348,10 @@ def run_job(
         for s, h in old.items():
             signal.signal(s, h)
         summary.interrupted = status == "interrupted"
-        writer.close(status)
+        sizes = {}
+        if master is not None:
+            sizes = {"n_points": len(master.points), "n_sweeps": len(master.sweeps)}
+        writer.close(status, sizes)
         progress_path(out).unlink(missing_ok=True)
         summary.seconds = time.monotonic() - t0
     if summary.interrupted:

@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 from .jobs import JobSpec, load_job
 from .params import InputError
-from .storage import POINTS, iter_entries, lock_path, read_progress, read_root, writer_alive
+from .storage import POINTS, SERIES, iter_entries, lock_path, read_progress, read_root, writer_alive
 from .tasks import DONE, FAILED
 
 ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
@@ -88,7 +88,11 @@ def status(path: str | Path) -> dict[str, Any]:
     counts = {DONE: 0, FAILED: 0, "not_knittable": 0}
     failures = []
     n_points = 0
+    series = []
     for e in iter_entries(path):
+        if e.kind == SERIES:
+            series.append(e.meta)
+            continue
         s = str(e.meta.get("status", FAILED))
         counts[s] = counts.get(s, 0) + 1
         n_points += e.kind == POINTS
@@ -119,6 +123,10 @@ def status(path: str | Path) -> dict[str, Any]:
         "started_at": root.get("started_at", ""),
         "finished_at": root.get("finished_at", ""),
         "failures": failures,
+        "series": {
+            "done": sum(m.get("status") == "done" for m in series),
+            "total": len(series),
+        },
     }
 
 
@@ -160,8 +168,9 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
         for e in chosen.values():
             writer.add(e.kind, e.task_id, e.record, e.meta)
     finally:
-        complete = len(chosen) == len(points) + len(sweeps)
+        complete = sum(kind != SERIES for kind, _ in chosen) == len(points) + len(sweeps)
         writer.close("complete" if complete else "partial")
     n_sweeps = sum(kind == SWEEPS for kind, _ in chosen)
-    return {"file": str(out), "points": len(chosen) - n_sweeps, "sweeps": n_sweeps,
+    n_points = sum(kind == POINTS for kind, _ in chosen)
+    return {"file": str(out), "points": n_points, "sweeps": n_sweeps,
             "expected": len(points) + len(sweeps), "complete": complete}  # fmt: skip

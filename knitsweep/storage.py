@@ -20,7 +20,10 @@ Schema (``schema_version`` 1; documented in the README):
   (``numpy_version`` … ``mpi_library_version``), ``host``, ``slurm_job_id``,
   ``started_at``, ``finished_at``, ``run_status``, ``n_points``, ``n_sweeps``;
 * ``/points/<id>``: one grid point's zero-force relaxation over all starts;
-* ``/sweeps/<id>``: one strain sweep (arrays over steps, step 0 = zero force).
+* ``/sweeps/<id>``: one strain sweep (arrays over steps, step 0 = zero force),
+  with its energy gaps ``delta_E_b``, ``delta_E_c`` and ``energy_gap`` (the
+  direction's jamming gap: ΔE_c in x, ΔE_b in y) as attributes;
+* ``/series/<id>`` (adaptive jobs): one L series' final transition bracket.
 Each task group has attributes ``status`` (done | failed | not_knittable),
 ``message``, ``rank``, ``host``, ``seconds`` and, on failure, ``error_kind``,
 ``error_message``, ``traceback``.
@@ -46,7 +49,8 @@ import numpy as np
 from . import SCHEMA_VERSION, __version__
 from .params import InputError
 
-POINTS, SWEEPS = "points", "sweeps"
+POINTS, SWEEPS, SERIES = "points", "sweeps", "series"
+KINDS = (POINTS, SWEEPS, SERIES)
 _STR = None  # h5py string dtype, created lazily
 
 
@@ -244,16 +248,9 @@ class ResultWriter:
             f.attrs["run_status"] = "running"
             for k, v in {**environment_metadata(), **extra_meta}.items():
                 f.attrs[k] = v
-            f.create_group(POINTS)
-            f.create_group(SWEEPS)
+            for kind in KINDS:
+                f.create_group(kind)
         os.replace(tmp, self.path)
-
-    def finished_ids(self) -> dict[str, set[str]]:
-        """Task ids already in the file or the journal, by kind."""
-        out = {POINTS: set(), SWEEPS: set()}
-        for e in iter_entries(self.path):
-            out[e.kind].add(e.task_id)
-        return out
 
     def add(self, kind: str, task_id: str, record: dict[str, Any], meta: dict[str, Any]) -> None:
         """Journal one finished task durably (atomic, fsynced)."""
@@ -285,9 +282,9 @@ class ResultWriter:
             (self.journal / f"{e.kind}-{e.task_id}.pkl").unlink(missing_ok=True)
         return len(merged)
 
-    def close(self, run_status: str) -> None:
+    def close(self, run_status: str, attrs: dict[str, Any] | None = None) -> None:
         try:
-            self.checkpoint({"run_status": run_status, "finished_at": now()})
+            self.checkpoint({**(attrs or {}), "run_status": run_status, "finished_at": now()})
             with contextlib.suppress(OSError):
                 self.journal.rmdir()
         finally:
@@ -376,7 +373,7 @@ def iter_entries(path: str | Path, with_data: bool = False) -> Iterator[Entry]:
     seen: set[tuple[str, str]] = set()
     if path.exists():
         with _h5().File(path, "r") as f:
-            for kind in (POINTS, SWEEPS):
+            for kind in KINDS:
                 for tid, group in f.get(kind, {}).items():
                     if with_data:
                         meta, record = _read_group(group)
@@ -388,6 +385,21 @@ def iter_entries(path: str | Path, with_data: bool = False) -> Iterator[Entry]:
         if (e.kind, e.task_id) not in seen:
             seen.add((e.kind, e.task_id))
             yield e
+
+
+def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
+    """One finished task with its data, from the HDF5 file or the journal."""
+    path = Path(path)
+    if path.exists():
+        with _h5().File(path, "r") as f:
+            group = f.get(f"{kind}/{task_id}")
+            if group is not None:
+                meta, record = _read_group(group)
+                return Entry(kind, task_id, record, meta)
+    try:
+        return pickle.loads((journal_dir(path) / f"{kind}-{task_id}.pkl").read_bytes())
+    except (FileNotFoundError, EOFError, pickle.UnpicklingError):
+        return None
 
 
 def read_root(path: str | Path) -> dict[str, Any]:

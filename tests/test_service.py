@@ -66,6 +66,18 @@ def reference(tmp_path_factory):
     return out
 
 
+@pytest.fixture(scope="module")
+def six(tmp_path_factory):
+    """An 18-task job (6 points): enough work left to interrupt, with its serial
+    uninterrupted reference."""
+    d = tmp_path_factory.mktemp("six")
+    job = d / "six.toml"
+    job.write_text(TINY.read_text().replace("[11.4, 12.0]", "[11.2, 11.4, 11.6, 11.8, 12.0, 12.2]"))
+    reference = d / "reference.h5"
+    service.run(job, reference, executor="serial", show_progress=False)
+    return job, reference
+
+
 def test_file_schema(reference):
     with h5py.File(reference, "r") as f:
         for key in ("schema_version", "knitsweep_version", "git_commit", "job_json", "job_hash",
@@ -178,42 +190,44 @@ def test_status_of_a_finished_file(reference):
     assert s["run_status"] == "complete" and not s["live"]
 
 
-def _wait_for_progress(out, finished, timeout=120):
-    """Wait until the master's progress file shows ``finished`` tasks."""
+def _wait_for_fresh_progress(out, proc, since, finished=0, timeout=120):
+    """Until this launch's master reports ``finished`` tasks, or the process ends."""
     import json
 
     path = out.with_name(out.name + ".progress.json")
     t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout:
+    while time.monotonic() - t0 < timeout and proc.poll() is None:
         try:
             c = json.loads(path.read_text())
-            if c["done"] + c["failed"] + c["not_knittable"] >= finished:
+            if c["updated"] > since and c["done"] + c["failed"] + c["not_knittable"] >= finished:
                 return
-        except (FileNotFoundError, ValueError):
+        except (FileNotFoundError, ValueError, KeyError):
             pass
         time.sleep(0.05)
-    raise TimeoutError("no progress")
 
 
 @pytest.mark.parametrize("ranks", [0, 3])
-def test_sigterm_writes_what_arrived_and_resumes(reference, tmp_path, ranks):
+def test_sigterm_writes_what_arrived_and_resumes(six, tmp_path, ranks):
     if ranks and MPIRUN is None:
         pytest.fail("mpirun not found: install the mpich wheel")
+    job, reference = six
     out = tmp_path / "term.h5"
-    cmd = [sys.executable, "-m", "knitsweep", "run", str(TINY), "--out", str(out), "--quiet"]
+    cmd = [sys.executable, "-m", "knitsweep", "run", str(job), "--out", str(out), "--quiet"]
     if ranks:
         cmd = [MPIRUN, "-n", str(ranks), *cmd]
+    since = time.time()
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})  # fmt: skip
-    _wait_for_progress(out, 1)
+    _wait_for_fresh_progress(out, proc, since, finished=1)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 3, err
     assert "to resume, run the same command again" in err
     with h5py.File(out) as f:  # closed cleanly: opens, and says it was interrupted
         assert f.attrs["run_status"] == "interrupted"
-    assert service.status(out)["done"] >= 1
-    assert knitsweep("run", str(TINY), "--out", str(out), "--quiet", mpi=ranks).returncode == 0
+    assert 1 <= service.status(out)["done"] < 18
+    assert knitsweep("run", str(job), "--out", str(out), "--quiet", mpi=ranks).returncode == 0
     assert_same_results(reference, out)
 
 
@@ -235,32 +249,14 @@ def test_local_processes_match_serial(reference, tmp_path):
     assert_same_results(reference, out)
 
 
-def _wait_for_fresh_progress(out, proc, since, timeout=90):
-    """Until this launch's master reports progress, or the process ends."""
-    import json
-
-    path = out.with_name(out.name + ".progress.json")
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout and proc.poll() is None:
-        try:
-            if json.loads(path.read_text())["updated"] > since:
-                return
-        except (FileNotFoundError, ValueError, KeyError):
-            pass
-        time.sleep(0.05)
-
-
 @pytest.mark.slow
 @pytest.mark.mpi
-def test_kill_9_at_random_moments_then_resume(tmp_path):
+def test_kill_9_at_random_moments_then_resume(six, tmp_path):
     """kill -9 the whole run (master and workers) at random moments, several
     times, then rerun: every task exactly once, results as uninterrupted."""
     if MPIRUN is None:
         pytest.fail("mpirun not found: install the mpich wheel")
-    job = tmp_path / "six.toml"  # 18 tasks: enough work left to interrupt four times
-    job.write_text(TINY.read_text().replace("[11.4, 12.0]", "[11.2, 11.4, 11.6, 11.8, 12.0, 12.2]"))
-    reference = tmp_path / "reference.h5"
-    service.run(job, reference, executor="serial", show_progress=False)
+    job, reference = six
     out = tmp_path / "k9.h5"
     rng = random.Random(20261122)
     cmd = [MPIRUN, "-n", "3", sys.executable, "-m", "knitsweep", "run", str(job), "--out",

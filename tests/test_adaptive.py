@@ -1,0 +1,162 @@
+"""Adaptive transition search: the pure controller, and adaptive jobs end to end."""
+
+import math
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from knitsweep import service
+from knitsweep.adaptive import JAMMED_GAP, series_state
+from knitsweep.params import InputError
+
+DATA = Path(__file__).parent / "data"
+JOB = DATA / "jobs" / "tiny_adaptive.toml"
+T, TOL = 5e-5, 0.005
+COARSE = [10.5, 11.3, 12.1, 12.9]
+
+
+def _drive(gap, coarse=COARSE, tol=TOL, limit=60):
+    """Run the controller against a gap function; returns (state, evaluations)."""
+    gaps = {L: gap(L) for L in coarse}
+    for _ in range(limit):
+        st = series_state(coarse, gaps, T, tol)
+        if st.status != "refining":
+            return st, gaps
+        assert st.lo < st.next_L < st.hi and st.next_L not in gaps
+        gaps[st.next_L] = gap(st.next_L)
+    raise AssertionError("no convergence")
+
+
+def _crossing(gap, lo=10.0, hi=13.0):
+    for _ in range(200):  # bisection for the true crossing of a monotone gap
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if gap(mid) >= T else (lo, mid)
+    return hi
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["linear", "convex", "kinked", "steep"],
+)
+def test_brackets_contain_the_crossing(name):
+    gap = {
+        "linear": lambda L: max(0.0, 0.016 * (11.52 - L)),
+        "convex": lambda L: max(0.0, 0.02 * (11.55 - L)) ** 1.3 * 2.5,
+        "kinked": lambda L: max(0.0, 0.016 * (11.4 - L)) + 4e-5 * math.exp(-8 * max(0, L - 11.4)),
+        "steep": lambda L: max(0.0, 0.2 * (11.01 - L)),
+    }[name]
+    st, gaps = _drive(gap)
+    truth = _crossing(gap)
+    assert st.status == "done"
+    assert st.hi - st.lo <= TOL * (1 + 1e-9)
+    assert st.lo < truth <= st.hi + 1e-12
+    # bisection from the 0.8 mm bracket would need 8; the secant does better
+    assert len(gaps) - len(COARSE) <= 8
+
+
+def test_far_fewer_evaluations_than_a_uniform_grid():
+    gap = lambda L: max(0.0, 0.0165 * (11.52 - L)) ** 1.15 * 1.8  # noqa: E731
+    _, gaps = _drive(gap)
+    uniform = len(np.arange(10.5, 12.81, 0.1))  # the paper's 0.1 mm grid: 24 points
+    assert uniform / len(gaps) >= 2.5
+
+
+def test_noisy_gaps_still_bracket():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        def gap(L, noise={}):  # noqa: B006 - one noise draw per L within this series
+            noise.setdefault(L, 2e-6 * rng.standard_normal())
+            return max(0.0, 0.016 * (11.5 - L)) + noise[L]
+
+        st, gaps = _drive(gap)
+        assert st.status == "done" and st.hi - st.lo <= TOL * (1 + 1e-9)
+        assert gaps[st.lo] >= T > gaps[st.hi]
+
+
+def test_edge_cases():
+    assert series_state(COARSE, {10.5: 1e-3}, T, TOL).status == "coarse"
+    jammed = {L: 1e-3 for L in COARSE}
+    assert series_state(COARSE, jammed, T, TOL).status == "jammed_throughout"
+    loose = {L: 0.0 for L in COARSE}
+    st = series_state(COARSE, loose, T, TOL)
+    assert st.status == "unjammed_at_start" and st.hi == 10.5
+    broken = {**{L: 0.0 for L in COARSE}, 11.3: None}
+    assert series_state(COARSE, broken, T, TOL).status == "failed"
+    unknittable = {10.5: JAMMED_GAP, 11.3: 2e-4, 12.1: 0.0, 12.9: 0.0}
+    st = series_state(COARSE, unknittable, T, TOL)
+    assert st.status == "refining" and st.lo == 11.3 and st.hi == 12.1
+    many = {**{L: 0.0 for L in COARSE}, 10.5: 1e-3}
+    assert series_state(COARSE, many, T, TOL, max_refinements=0).status == "failed"
+
+
+def test_proposals_depend_only_on_the_data():
+    gaps = {10.5: 1.4e-3, 11.3: 2e-4, 12.1: 0.0, 12.9: 0.0, 11.45: 6e-5}
+    a = series_state(COARSE, gaps, T, TOL)
+    b = series_state(list(reversed(COARSE)), dict(reversed(list(gaps.items()))), T, TOL)
+    assert a == b
+
+
+@pytest.fixture(scope="module")
+def adaptive_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("adaptive") / "a.h5"
+    summary = service.run(JOB, out, executor="serial", show_progress=False)
+    assert summary.counts["failed"] == 0
+    return out
+
+
+def _series(path):
+    with h5py.File(path) as f:
+        return {k: dict(g.attrs) for k, g in f["series"].items()}
+
+
+def test_adaptive_job_writes_brackets(adaptive_run):
+    series = _series(adaptive_run)
+    assert sorted(s["direction"] for s in series.values()) == ["x", "y"]
+    with h5py.File(adaptive_run) as f:
+        for s in series.values():
+            assert s["status"] == "done" and s["hi_mm"] - s["lo_mm"] <= 0.02 + 1e-9
+            gaps = {g.attrs["L_mm"]: g.attrs["energy_gap"] for g in f["sweeps"].values()
+                    if g.attrs["direction"] == s["direction"]}  # fmt: skip
+            assert gaps[s["lo_mm"]] >= 5e-5 > gaps[s["hi_mm"]]
+            assert all(g < 5e-5 for L, g in gaps.items() if L > s["hi_mm"])
+            assert s["L_over_r_trans"] == pytest.approx(s["hi_mm"] / 0.74)
+    status = service.status(adaptive_run)
+    assert status["series"] == {"done": 2, "total": 2} and status["pending"] == 0
+
+
+def test_adaptive_resume_after_sigterm(adaptive_run, tmp_path):
+    out = tmp_path / "resumed.h5"
+    cmd = [sys.executable, "-m", "knitsweep", "run", str(JOB), "--out", str(out), "--quiet"]
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
+    progress = out.with_name(out.name + ".progress.json")
+    import json
+    import time
+
+    while proc.poll() is None:  # interrupt once the refinement has started
+        try:
+            if json.loads(progress.read_text())["done"] >= 14:
+                break
+        except (FileNotFoundError, ValueError):
+            pass
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=120)
+    assert proc.returncode == 3
+    assert subprocess.run(cmd, env=env, capture_output=True, timeout=600).returncode == 0
+    a, b = _series(adaptive_run), _series(out)
+    assert a.keys() == b.keys()
+    for k in a:
+        assert (a[k]["lo_mm"], a[k]["hi_mm"], a[k]["evaluations"]) == (
+            b[k]["lo_mm"], b[k]["hi_mm"], b[k]["evaluations"])  # fmt: skip
+
+
+def test_adaptive_jobs_cannot_be_sharded(tmp_path):
+    with pytest.raises(InputError, match="cannot be split into shards"):
+        service.run(JOB, tmp_path / "s.h5", executor="serial", shard="0/2", show_progress=False)
