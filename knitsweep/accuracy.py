@@ -1,0 +1,216 @@
+"""The speed/accuracy trade, measured: ``knitsweep accuracy``.
+
+The same point is computed at rising fidelity (by default the presets draft,
+paper, converged and fine); for each setting the study records the cost (time
+per zero-force relaxation, per sweep) and the error against the finest setting
+in the zero-force energy, a_x0, a_y0, Y_sec, sigma0, ΔE_c, ΔE_b, and (L/r)_trans
+on a small series in L. On a grid the transition can only move in whole steps,
+so the series reports the crossing of the gap through the threshold,
+interpolated linearly between the last jammed and the first unjammed L: a
+continuous (L/r)_trans whose error is measurable.
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .analysis import energy_gaps, offset_stress, secant_modulus
+from .multistart import StartSettings, zero_force
+from .params import Fidelity, SolverSettings, StitchParams
+from .presets import PRESETS, preset_settings
+from .sweep import SweepProtocol, strain_sweep
+
+METRICS = ("E0", "a_x0", "a_y0", "Y_sec_x", "Y_sec_y", "sigma0_x", "sigma0_y", "dEc_x", "dEb_y",
+           "L_over_r_trans_x")  # fmt: skip
+LABELS = {"E0": "zero-force energy", "a_x0": "$a_{x0}$", "a_y0": "$a_{y0}$",
+          "Y_sec_x": "$Y_{sec}$ (x)", "Y_sec_y": "$Y_{sec}$ (y)", "sigma0_x": r"$\sigma_0$ (x)",
+          "sigma0_y": r"$\sigma_0$ (y)", "dEc_x": r"$\Delta E_c$ (x)", "dEb_y": r"$\Delta E_b$ (y)",
+          "L_over_r_trans_x": "$(L/r)_{trans}$ (x)"}  # fmt: skip
+UNITS = {"E0": "mJ", "a_x0": "mm", "a_y0": "mm", "Y_sec_x": "N/mm", "Y_sec_y": "N/mm",
+         "sigma0_x": "N/mm", "sigma0_y": "N/mm", "dEc_x": "mJ", "dEb_y": "mJ",
+         "L_over_r_trans_x": "1"}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Setting:
+    name: str
+    fidelity: Fidelity
+    solver: SolverSettings
+    protocol: SweepProtocol
+
+
+def setting(spec: str) -> Setting:
+    """'converged' or 'converged:samples_per_segment=6+ftol=1e-8' -> Setting."""
+    name, _, overrides = spec.partition(":")
+    fid = preset_settings(name, "fidelity")
+    sol = preset_settings(name, "solver")
+    pro = preset_settings(name, "protocol")
+    for item in filter(None, overrides.split("+")):
+        key, _, value = item.partition("=")
+        target = (
+            fid
+            if key in Fidelity.model_fields
+            else sol
+            if key in SolverSettings.model_fields
+            else pro
+        )
+        target[key] = value
+    return Setting(spec, Fidelity(**fid), SolverSettings(**sol), SweepProtocol(**pro))
+
+
+@dataclass
+class SettingResult:
+    name: str
+    values: dict[str, float | None] = field(default_factory=dict)
+    seconds_relax: float = 0.0
+    seconds_sweep: float = 0.0
+    relaxations_per_sweep: float = 0.0
+    errors: dict[str, float | None] = field(default_factory=dict)
+
+
+def _crossing(Ls: list[float], gaps: list[float], threshold: float, r: float) -> float | None:
+    """Interpolated L/r where the gap first falls below the threshold."""
+    for i in range(1, len(Ls)):
+        if gaps[i] < threshold <= gaps[i - 1]:
+            t = (gaps[i - 1] - threshold) / (gaps[i - 1] - gaps[i])
+            return (Ls[i - 1] + t * (Ls[i] - Ls[i - 1])) / r
+    return None
+
+
+def run_setting(point: StitchParams, s: Setting, series: list[float], threshold: float,
+                progress=None) -> SettingResult:  # fmt: skip
+    """Every measurement of one setting (one start: Init_1, as the reference)."""
+    starts = StartSettings(count=1)
+    out = SettingResult(s.name)
+    t = time.perf_counter()
+    zf = zero_force(point, s.fidelity, s.solver, starts)
+    out.seconds_relax = time.perf_counter() - t
+    best = zf.best
+    out.values |= {"E0": best.total_energy, "a_x0": best.a_x, "a_y0": best.a_y}
+    sweep_times, relaxations = [], []
+    for d in ("x", "y"):
+        t = time.perf_counter()
+        sw = strain_sweep(point, zf, d, s.protocol, s.fidelity, s.solver)
+        sweep_times.append(time.perf_counter() - t)
+        relaxations.append(sw.relaxations)
+        gaps = energy_gaps(sw.bending_energy, sw.contact_energy)
+        out.values[f"Y_sec_{d}"] = secant_modulus(sw.strain, sw.stress).Y_sec
+        out.values[f"sigma0_{d}"] = offset_stress(sw.strain, sw.stress).sigma0
+        out.values[f"dEc_{d}" if d == "x" else f"dEb_{d}"] = (
+            gaps.delta_E_c if d == "x" else gaps.delta_E_b
+        )
+        if progress:
+            progress(f"{s.name}: {d} sweep {sweep_times[-1]:.1f} s")
+    gap_series = []
+    for L in series:
+        p = point.model_copy(update={"L_mm": L})
+        zl = zero_force(p, s.fidelity, s.solver, starts)
+        t = time.perf_counter()
+        sw = strain_sweep(p, zl, "x", s.protocol, s.fidelity, s.solver)
+        sweep_times.append(time.perf_counter() - t)
+        relaxations.append(sw.relaxations)
+        gap_series.append(energy_gaps(sw.bending_energy, sw.contact_energy).delta_E_c)
+    out.values["L_over_r_trans_x"] = _crossing(series, gap_series, threshold, point.r_mm)
+    out.seconds_sweep = float(np.median(sweep_times))
+    out.relaxations_per_sweep = float(np.mean(relaxations))
+    if progress:
+        progress(f"{s.name}: done")
+    return out
+
+
+def accuracy_study(
+    point: StitchParams,
+    specs: list[str] | None = None,
+    series: list[float] | None = None,
+    threshold: float = 5e-5,
+    workers: int = 1,
+    progress=None,
+) -> list[SettingResult]:
+    """Measure every setting; errors are against the last (finest) one."""
+    specs = specs or list(PRESETS)
+    settings = [setting(spec) for spec in specs]
+    series = series or [round(point.L_mm + d, 6) for d in (-0.2, -0.1, 0.0, 0.1, 0.2)]
+    if workers > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
+            futures = [ex.submit(run_setting, point, s, series, threshold) for s in settings]
+            results = [f.result() for f in futures]
+    else:
+        results = [run_setting(point, s, series, threshold, progress) for s in settings]
+    ref = results[-1].values
+    for r in results:
+        for m in METRICS:
+            a, b = r.values.get(m), ref.get(m)
+            r.errors[m] = None if a is None or b is None else abs(a - b) / max(abs(b), 1e-300)
+    return results
+
+
+def write_report(results: list[SettingResult], out: Path) -> list[Path]:
+    """accuracy.csv and accuracy.png (relative error against cost) in ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    csv_path = out / "accuracy.csv"
+    with open(csv_path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["setting", "seconds_per_relaxation", "seconds_per_sweep",
+                    "relaxations_per_sweep", *METRICS, *(f"relerr_{m}" for m in METRICS)])  # fmt: skip
+        for r in results:
+            w.writerow([r.name, f"{r.seconds_relax:.4g}", f"{r.seconds_sweep:.4g}",
+                        f"{r.relaxations_per_sweep:.4g}",
+                        *(_fmt(r.values.get(m)) for m in METRICS),
+                        *(_fmt(r.errors.get(m)) for m in METRICS)])  # fmt: skip
+    png = out / "accuracy.png"
+    _plot(results, png)
+    return [csv_path, png]
+
+
+def _fmt(v: Any) -> str:
+    return "" if v is None else f"{v:.6g}"
+
+
+def table(results: list[SettingResult]) -> str:
+    """A plain-text table: cost, then relative error per metric (vs the last row)."""
+    w = max(len("setting"), *(len(r.name) for r in results)) + 2
+    head = f"{'setting':<{w}}{'s/relax':>9}{'s/sweep':>9}" + "".join(f"{m:>17}" for m in METRICS)
+    lines = [head, "-" * len(head)]
+    for r in results:
+        errs = "".join(f"{(f'{r.errors[m]:.1e}' if r.errors.get(m) is not None else '-'):>17}"
+                       for m in METRICS)  # fmt: skip
+        lines.append(f"{r.name:<{w}}{r.seconds_relax:9.2f}{r.seconds_sweep:9.2f}{errs}")
+    return "\n".join(lines)
+
+
+def _plot(results: list[SettingResult], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 5.0), dpi=150)
+    cost = [r.seconds_sweep for r in results[:-1]]
+    for m in METRICS:
+        errs = [r.errors.get(m) for r in results[:-1]]
+        pts = [(c, max(e, 1e-12)) for c, e in zip(cost, errs, strict=True) if e is not None]
+        if pts:
+            xs, ys = zip(*pts, strict=True)
+            ax.plot(xs, ys, marker="o", label=LABELS[m])
+    ax.set_xscale("log")
+    top = ax.secondary_xaxis("top")
+    top.set_xticks(cost, labels=[r.name for r in results[:-1]], fontsize=8, rotation=20)
+    top.minorticks_off()
+    ax.set_yscale("log")
+    ax.set_xlabel("median time per strain sweep (s, one core)", fontsize=11)
+    ax.set_ylabel(f"relative error against '{results[-1].name}'", fontsize=11)
+    ax.set_title("knitsweep: accuracy against cost", fontsize=12)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8, ncol=2, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
