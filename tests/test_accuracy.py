@@ -28,7 +28,8 @@ def test_study_measures_errors_against_the_finest(tmp_path):
     assert all(math.isfinite(v) for v in coarse.values.values() if v is not None)
     assert 11.3 / 0.74 < fine.values["L_over_r_trans_x"] < 11.7 / 0.74
     csv_path, png = write_report(results, tmp_path)
-    rows = list(csv.DictReader(open(csv_path)))
+    with open(csv_path) as f:
+        rows = list(csv.DictReader(f))
     assert [r["setting"] for r in rows] == [coarse.name, fine.name]
     assert png.stat().st_size > 10_000
     assert "E0" in table(results)
