@@ -2,6 +2,8 @@
 
 Composes geometry (state -> control points, Jacobian) with the bending and
 contact kernels: grad_x E = J^T dE/dcp + (explicit dE_c/d(a_x, a_y)).
+``cell_energy_listed`` is the same with the optional neighbour list of
+``neighbours`` (MODEL.md §6) for callers that evaluate many nearby states.
 """
 
 from __future__ import annotations
@@ -12,18 +14,29 @@ from numba import njit
 from .bending import bending_and_length
 from .contact import contact_energy
 from .geometry import IDX_AX, IDX_AY, N_STATE, state_to_control_points
+from .neighbours import contact_energy_listed
 
 
 @njit(cache=True)
-def _jt_dot(jac, g, out):
-    """out += J^T g for J (8, 6, 3, 30) and g (8, 6, 3)."""
+def _jt_dot2(jac, g1, g2, out1, out2):
+    """out1 += J^T g1 and out2 += J^T g2 for J (8, 6, 3, 30), g (8, 6, 3), in one
+    pass over J, row by row (each out[k] adds the same terms in the same order as
+    two separate passes). The trip count is read from the array, not the constant
+    N_STATE, so that LLVM vectorises the k loops instead of unrolling them into
+    scalar code (measured 2.9 -> 1.5 us)."""
+    nk = jac.shape[3]
     for s in range(jac.shape[0]):
         for i in range(6):
             for d in range(3):
-                gv = g[s, i, d]
-                if gv != 0.0:
-                    for k in range(N_STATE):
-                        out[k] += jac[s, i, d, k] * gv
+                a = g1[s, i, d]
+                b = g2[s, i, d]
+                row = jac[s, i, d]
+                if a != 0.0:
+                    for k in range(nk):
+                        out1[k] += row[k] * a
+                if b != 0.0:
+                    for k in range(nk):
+                        out2[k] += row[k] * b
 
 
 @njit(cache=True)
@@ -46,11 +59,41 @@ def cell_energy(x, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, mode, with_gra
     eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
     ec = contact_energy(cp, ctab, x[IDX_AX], x[IDX_AY], r, rc, k, p, mode, with_grad, gc, gcell)
     if with_grad:
-        grad_e[:] = 0.0
-        grad_l[:] = 0.0
-        ge += gc
-        _jt_dot(jac, ge, grad_e)
-        _jt_dot(jac, gl, grad_l)
-        grad_e[IDX_AX] += gcell[0]
-        grad_e[IDX_AY] += gcell[1]
+        _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
     return eb, ec, length
+
+
+@njit(cache=True)
+def _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l):
+    """grad_x E = J^T (dE_b/dcp + dE_c/dcp) + explicit dE_c/d(a_x, a_y), and
+    grad_x l = J^T dl/dcp, into ``grad_e``, ``grad_l`` (30,)."""
+    grad_e[:] = 0.0
+    grad_l[:] = 0.0
+    ge += gc
+    _jt_dot2(jac, ge, gl, grad_e, grad_l)
+    grad_e[IDX_AX] += gcell[0]
+    grad_e[IDX_AY] += gcell[1]
+
+
+@njit(cache=True)
+def cell_energy_listed(x, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, mode, with_grad,
+                       grad_e, grad_l, rows, ref_pos, meta):  # fmt: skip
+    """``cell_energy`` with the contact sum over a neighbour list
+    (``neighbours.build_neighbour_list``, built from this state's control points or
+    a nearby one). Returns (E_b, E_c, length, valid): the same numbers as
+    ``cell_energy``, bit for bit; ``valid`` False means the list no longer covered
+    the state (the contact sum then came from the full search) and should be rebuilt.
+    """
+    cp = np.empty((8, 6, 3))
+    jac = np.empty((8, 6, 3, N_STATE))
+    state_to_control_points(x, cp, jac)
+    ge = np.empty((8, 6, 3))
+    gl = np.empty((8, 6, 3))
+    gc = np.empty((8, 6, 3))
+    gcell = np.zeros(2)
+    eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
+    ec, valid = contact_energy_listed(cp, ctab, x[IDX_AX], x[IDX_AY], r, rc, k, p, mode,
+                                      with_grad, gc, gcell, rows, ref_pos, meta)  # fmt: skip
+    if with_grad:
+        _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
+    return eb, ec, length, valid

@@ -6,16 +6,27 @@ V(R) v_i v_j dt^2. Each physical contact appears twice (the reference's
 convention); this kernel visits every unordered pair once and doubles it, which
 gives the same sum.
 
-Candidate search: the images (m, n) and segment pairs whose axis-aligned
-bounding boxes (of their samples) come within 2r are the only ones visited.
-``IMAGES_REFERENCE`` restricts the images to the reference code's fixed box
-m in -1..1, n in -3..3; ``IMAGES_CUTOFF`` takes every image that can touch.
+Candidate search (``partition``): only images, segment pairs and samples whose
+axis-aligned bounding boxes come within 2r are visited. ``IMAGES_REFERENCE``
+restricts the images to the reference code's fixed box m in -1..1, n in -3..3;
+``IMAGES_CUTOFF`` takes every image that can touch.
+
+Evaluation: found pairs go through a buffer. A branch-free pass computes R, zeta
+and V (and dV/dR) for the whole batch, so LLVM vectorises it; zeta^(1-p) comes
+from ``elementary.pow_pos`` instead of one libm ``pow`` call per pair (~15 ns, no
+vector math library in this llvmlite). A scalar pass then adds energies and
+gradients in search order, with running sums, so the result does not depend on
+where the buffer was flushed. Pairs in the hard-core branch (zeta < 1e-5) take
+``pair_potential`` itself.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from .elementary import pow_pos
+from .partition import image_reaches, search_pairs, segment_boxes_soa, segment_gaps
 
 IMAGES_REFERENCE = 0
 IMAGES_CUTOFF = 1
@@ -104,41 +115,9 @@ def image_list(pts, ax, ay, r, mode):
 
 
 @njit(cache=True)
-def segment_boxes(pts, nseg, n):
-    lo = np.empty((nseg, 3))
-    hi = np.empty((nseg, 3))
-    for s in range(nseg):
-        for d in range(3):
-            lo[s, d] = pts[s * n : (s + 1) * n, d].min()
-            hi[s, d] = pts[s * n : (s + 1) * n, d].max()
-    return lo, hi
-
-
-@njit(cache=True)
-def _boxes_close(lo, hi, a, b, ox, oy, cut):
-    g = 0.0
-    off = (ox, oy, 0.0)
-    for d in range(3):
-        gap = max(lo[b, d] + off[d] - hi[a, d], lo[a, d] - hi[b, d] - off[d], 0.0)
-        g += gap * gap
-    return g < cut * cut
-
-
-@njit(cache=True)
-def _grow(a, size):
-    out = np.empty((size, *a.shape[1:]), dtype=a.dtype)
-    out[: a.shape[0]] = a
-    return out
-
-
-@njit(cache=True)
-def find_contacts(cp, tab, ax, ay, r, mode):
-    """Every counted contact of the cell, each unordered pair once (MODEL.md §6).
-
-    Returns (pts (8N, 3), r1 (8N, 3), speed (8N,), idx (c, 4) = (i, j, m, n),
-    sep (c, 4) = (dx, dy, dz, R)), where d = p_i - p_j - m t_c - n t_w and R = |d| < 2r,
-    excluding same-row pairs closer than 2.1 r along the yarn.
-    """
+def _samples(cp, tab):
+    """Samples of the path: positions (3, 8N) structure-of-arrays, derivatives
+    (8N, 3), speeds (8N,), midpoint arclengths (8N,) and the total arclength."""
     nseg = cp.shape[0]
     n = tab.shape[1]
     ns = nseg * n
@@ -148,51 +127,156 @@ def find_contacts(cp, tab, ax, ay, r, mode):
     s_mid = np.empty(ns)
     sample_path(cp, tab, pts, r1, speed)
     s_tot = midpoint_arclength(speed, 1.0 / n, s_mid)
-    lo, hi = segment_boxes(pts, nseg, n)
+    pos = np.empty((3, ns))
+    for i in range(ns):
+        pos[0, i] = pts[i, 0]
+        pos[1, i] = pts[i, 1]
+        pos[2, i] = pts[i, 2]
+    return pts, pos, r1, speed, s_mid, s_tot
+
+
+@njit(cache=True)
+def _grow(a, size):
+    """Copy of a (k, cap) buffer with ``size`` columns."""
+    out = np.empty((a.shape[0], size), dtype=a.dtype)
+    out[:, : a.shape[1]] = a
+    return out
+
+
+@njit(cache=True)
+def find_contacts(cp, tab, ax, ay, r, mode):
+    """Every counted contact of the cell, each unordered pair once (MODEL.md §6).
+
+    Returns (pts (8N, 3), r1 (8N, 3), speed (8N,), idx (c, 4) = (i, j, m, n),
+    sep (c, 4) = (dx, dy, dz, R)), where d = p_i - p_j - m t_c - n t_w and R = |d| < 2r,
+    excluding same-row pairs closer than 2.1 r along the yarn. Contacts are listed
+    in (image, segment a, segment b, i, j) order (``knitsweep.kernels.partition``).
+    """
+    nseg = cp.shape[0]
+    n = tab.shape[1]
+    pts, pos, r1, speed, s_mid, s_tot = _samples(cp, tab)
+    box = segment_boxes_soa(pos, nseg, n)
     images = image_list(pts, ax, ay, r, mode)
     cut = 2.0 * r
-    cut2 = cut * cut
     s_excl = EXCLUSION_FACTOR * r
-    cap = 4 * ns * n
-    idx = np.empty((cap, 4), dtype=np.int64)
-    sep = np.empty((cap, 4))
+    gaps = np.empty(nseg)
+    cap = 4 * nseg * n * n
+    ib = np.empty((4, cap), dtype=np.int64)
+    fb = np.empty((4, cap))
     c = 0
     for im in range(-1, images.shape[0]):
-        if im < 0:
-            m, nn = 0, 0
-        else:
-            m, nn = images[im, 0], images[im, 1]
+        m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
         ox = m * ax
         oy = nn * ay
-        s_shift = m * s_tot
+        if im >= 0 and not image_reaches(box, ox, oy, cut):
+            continue
         for sa in range(nseg):
+            segment_gaps(box, sa, ox, oy, gaps)
             for sb in range(sa if im < 0 else 0, nseg):
-                if not _boxes_close(lo, hi, sa, sb, ox, oy, cut):
+                if not gaps[sb] < cut * cut:
                     continue
-                for i in range(sa * n, (sa + 1) * n):
-                    j0 = i + 1 if (im < 0 and sa == sb) else sb * n
-                    for j in range(j0, (sb + 1) * n):
-                        dx = pts[i, 0] - pts[j, 0] - ox
-                        dy = pts[i, 1] - pts[j, 1] - oy
-                        dz = pts[i, 2] - pts[j, 2]
-                        rr = dx * dx + dy * dy + dz * dz
-                        if rr >= cut2:
-                            continue
-                        if nn == 0 and abs(s_mid[i] - s_mid[j] - s_shift) <= s_excl:
-                            continue
-                        if c == idx.shape[0]:
-                            idx = _grow(idx, 2 * c)
-                            sep = _grow(sep, 2 * c)
-                        idx[c, 0] = i
-                        idx[c, 1] = j
-                        idx[c, 2] = m
-                        idx[c, 3] = nn
-                        sep[c, 0] = dx
-                        sep[c, 1] = dy
-                        sep[c, 2] = dz
-                        sep[c, 3] = np.sqrt(rr)
-                        c += 1
-    return pts, r1, speed, idx[:c], sep[:c]
+                if c + n * n > cap:
+                    cap *= 2
+                    ib = _grow(ib, cap)
+                    fb = _grow(fb, cap)
+                c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, ox, oy, m * s_tot,
+                                 cut * cut, s_excl, ib, fb, c)  # fmt: skip
+    idx = np.ascontiguousarray(ib[:, :c].T)
+    sep = np.empty((c, 4))
+    for q in range(c):
+        sep[q, 0] = fb[0, q]
+        sep[q, 1] = fb[1, q]
+        sep[q, 2] = fb[2, q]
+        sep[q, 3] = np.sqrt(fb[3, q])
+    return pts, r1, speed, idx, sep
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _pow_inplace(x, nb, e):
+    """x[:nb] **= e for x in [CORE_EPS, 1], vectorised (``elementary.pow_pos``).
+
+    fastmath "contract" only lets LLVM fuse a * b + c into one correctly rounded
+    FMA (no reassociation, no finite-math assumptions): each fused step rounds
+    once instead of twice; tests/test_elementary.py bounds the error against
+    libm's pow. ~15 % faster than without.
+    """
+    for c in range(nb):
+        x[c] = pow_pos(x[c], e)
+
+
+@njit(cache=True, error_model="numpy")
+def _soft_shell(rr, nb, r, rc, k, p, with_grad, dist, zeta, v, dv):
+    """Soft-shell branch of ``pair_potential`` for the first ``nb`` squared
+    distances ``rr``: R, zeta, V(R) and, with ``with_grad``, dV/dR, into the 1-D
+    arrays ``dist``, ``zeta``, ``v``, ``dv`` (MODEL.md §6).
+
+    The formulas of ``pair_potential``, split into branch-free loops that
+    vectorise; zeta^(1-p) comes from ``_pow_inplace``. Pairs with zeta < CORE_EPS
+    get meaningless values and are redone by the caller. error_model="numpy": a
+    zero zeta (core branch only) then gives inf instead of raising.
+    """
+    d = 2.0 * r - 2.0 * rc
+    if nb > 0 and (d == 0.0 or p * (p - 1.0) == 0.0):
+        raise ZeroDivisionError("division by zero")  # as pair_potential would
+    two_rc = 2.0 * rc
+    pref = k * d * d / (p * (p - 1.0))
+    pm1 = p - 1.0
+    e = 1.0 - p
+    for c in range(nb):
+        x = np.sqrt(rr[c])
+        z = (x - two_rc) / d
+        dist[c] = x
+        zeta[c] = z
+        v[c] = z if z >= CORE_EPS else CORE_EPS
+    # |e log zeta| <= |e| 11.6 for zeta in [CORE_EPS, 1): exp_finite needs <= 708
+    if abs(e) * 11.6 <= 700.0:
+        _pow_inplace(v, nb, e)
+    else:
+        for c in range(nb):
+            v[c] = v[c] ** e
+    if with_grad:
+        for c in range(nb):
+            dv[c] = pref * pm1 * (1.0 - v[c] / zeta[c]) / d
+    for c in range(nb):
+        v[c] = pref * (v[c] - 1.0 - pm1 * (1.0 - zeta[c]))
+
+
+@njit(cache=True)
+def _accumulate(ib, fb, nb, speed, dt2, r, rc, k, p, with_grad, work, g, energy, gax, gay):
+    """Add the first ``nb`` buffered pairs, in buffer order, to the running sums
+    ``energy``, ``gax``, ``gay`` (E and the explicit dE/da_x, dE/da_y through the
+    image offsets; returned) and, with ``with_grad``, to the gradient ``g``
+    (8N, 4): columns 0-2 dE/dp_i, column 3 dE/dv_i. Each unordered pair stands for
+    two ordered ones: weight w = 2 v_i v_j dt^2. ``work`` (4, cap) is scratch.
+    Running sums make the result independent of where the buffer was flushed.
+    """
+    dist, zeta, v, dv = work[0], work[1], work[2], work[3]
+    _soft_shell(fb[3], nb, r, rc, k, p, with_grad, dist, zeta, v, dv)
+    for c in range(nb):
+        i, j = ib[0, c], ib[1, c]
+        vc = v[c]
+        dvc = dv[c] if with_grad else 0.0
+        if not zeta[c] >= CORE_EPS:  # hard-core branch: the scalar formulas
+            vc, dvc = pair_potential(dist[c], r, rc, k, p)
+        si = speed[i]
+        sj = speed[j]
+        w = 2.0 * si * sj * dt2
+        energy += vc * w
+        if with_grad:
+            f = w * dvc / dist[c]
+            dx, dy, dz = fb[0, c], fb[1, c], fb[2, c]
+            fx, fy, fz = f * dx, f * dy, f * dz
+            g[i, 0] += fx
+            g[i, 1] += fy
+            g[i, 2] += fz
+            g[i, 3] += 2.0 * vc * sj * dt2
+            g[j, 0] -= fx
+            g[j, 1] -= fy
+            g[j, 2] -= fz
+            g[j, 3] += 2.0 * vc * si * dt2
+            gax -= ib[2, c] * f * dx
+            gay -= ib[3, c] * f * dy
+    return energy, gax, gay
 
 
 @njit(cache=True)
@@ -203,46 +287,72 @@ def contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_
     derivatives at the N sample parameters. ``grad_cp`` (8, 6, 3) receives
     dE_c/dcp at fixed periods and ``grad_cell`` (2,) the explicit dE_c/d(a_x, a_y)
     through the image offsets.
+
+    The pairs found by the search (``knitsweep.kernels.partition``) go through a
+    buffer: a vectorised pass evaluates the potential of a batch, a scalar pass
+    adds it up in search order.
     """
+    nseg = cp.shape[0]
     n = tab.shape[1]
     dt2 = 1.0 / (n * n)
-    _, r1, speed, idx, sep = find_contacts(cp, tab, ax, ay, r, mode)
+    pts, pos, r1, speed, s_mid, s_tot = _samples(cp, tab)
     ns = speed.shape[0]
-    g_pts = np.zeros((ns, 3))
-    g_speed = np.zeros(ns)
+    box = segment_boxes_soa(pos, nseg, n)
+    images = image_list(pts, ax, ay, r, mode)
+    cut = 2.0 * r
+    s_excl = EXCLUSION_FACTOR * r
+    gaps = np.empty(nseg)
+    cap = max(2048, 2 * n * n)
+    ib = np.empty((4, cap), dtype=np.int64)
+    fb = np.empty((4, cap))
+    work = np.empty((4, cap))
+    g = np.zeros((ns, 4))
+    energy = 0.0
     gax = 0.0
     gay = 0.0
-    energy = 0.0
-    for c in range(idx.shape[0]):
-        i, j = idx[c, 0], idx[c, 1]
-        dist = sep[c, 3]
-        v, dv = pair_potential(dist, r, rc, k, p)
-        # factor 2: every unordered pair stands for two ordered ones
-        w = 2.0 * speed[i] * speed[j] * dt2
-        energy += v * w
-        if with_grad:
-            f = w * dv / dist
-            for d in range(3):
-                g_pts[i, d] += f * sep[c, d]
-                g_pts[j, d] -= f * sep[c, d]
-            gax -= idx[c, 2] * f * sep[c, 0]
-            gay -= idx[c, 3] * f * sep[c, 1]
-            g_speed[i] += 2.0 * v * speed[j] * dt2
-            g_speed[j] += 2.0 * v * speed[i] * dt2
+    c = 0
+    for im in range(-1, images.shape[0]):
+        m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
+        ox = m * ax
+        oy = nn * ay
+        if im >= 0 and not image_reaches(box, ox, oy, cut):
+            continue
+        for sa in range(nseg):
+            segment_gaps(box, sa, ox, oy, gaps)
+            for sb in range(sa if im < 0 else 0, nseg):
+                if not gaps[sb] < cut * cut:
+                    continue
+                if c + n * n > cap:
+                    energy, gax, gay = _accumulate(ib, fb, c, speed, dt2, r, rc, k, p, with_grad,
+                                                   work, g, energy, gax, gay)  # fmt: skip
+                    c = 0
+                c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, ox, oy, m * s_tot,
+                                 cut * cut, s_excl, ib, fb, c)  # fmt: skip
+    energy, gax, gay = _accumulate(ib, fb, c, speed, dt2, r, rc, k, p, with_grad, work, g,
+                                   energy, gax, gay)  # fmt: skip
     if with_grad:
-        grad_cp[:] = 0.0
-        for s in range(cp.shape[0]):
-            for jj in range(n):
-                i = s * n + jj
-                inv = g_speed[i] / speed[i]
-                for d in range(3):
-                    gd = g_pts[i, d]
-                    gv = inv * r1[i, d]
-                    for cc in range(6):
-                        grad_cp[s, cc, d] += tab[0, jj, cc] * gd + tab[1, jj, cc] * gv
+        project_gradient(g, speed, r1, tab, grad_cp)
         grad_cell[0] = gax
         grad_cell[1] = gay
     return energy
+
+
+@njit(cache=True)
+def project_gradient(g, speed, r1, tab, grad_cp):
+    """dE/dcp (8, 6, 3) from dE/dp_i and dE/dv_i (``g`` (8N, 4)) at the samples:
+    p_i = sum_c B_c(t_j) P_c and v_i = |r'(t_j)|, so dv_i/dr' = r'/v_i."""
+    nseg = grad_cp.shape[0]
+    n = tab.shape[1]
+    grad_cp[:] = 0.0
+    for s in range(nseg):
+        for jj in range(n):
+            i = s * n + jj
+            inv = g[i, 3] / speed[i]
+            for d in range(3):
+                gd = g[i, d]
+                gv = inv * r1[i, d]
+                for cc in range(6):
+                    grad_cp[s, cc, d] += tab[0, jj, cc] * gd + tab[1, jj, cc] * gv
 
 
 @njit(cache=True)

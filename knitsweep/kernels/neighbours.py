@@ -1,0 +1,173 @@
+"""Optional Verlet neighbour list for the contact sum (MODEL.md §6).
+
+A relaxation evaluates the energy at thousands of nearby states. The list holds
+every sample pair (i, j, m, n) closer than 2r + skin at the state where it was
+built, in the search order of ``partition`` (image, segment a, segment b, i, j),
+as rows (i, j_lo, j_hi, m, n): sample i against the run j_lo <= j < j_hi of one
+segment that covers its listed partners. An evaluation tests those runs instead
+of searching (no box tests). It is exact:
+
+* A pair's separation d = p_i - p_j - m t_c - n t_w changes by at most
+  2 max_i |dp_i| + |m| |da_x| + |n| |da_y| since the build. While that bound is
+  below the skin, every pair with R < 2r now was listed (cutoff mode builds its
+  image list for the reach 2r + skin, so no image is missing either).
+* The same-row exclusion (arclength along the yarn) and R < 2r are tested at
+  the current state, in list order, with the same arithmetic as the search.
+
+So while the list is valid, ``contact_energy_listed`` adds exactly the numbers
+``contact.contact_energy`` adds, in the same order: the sums are identical, not
+just close (tests/test_neighbour_list.py). When the bound is not met it falls
+back to the search and says so, and the caller builds a new list. Nothing is
+kept between calls: the caller owns the list (three arrays) and passes it in.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .contact import (
+    EXCLUSION_FACTOR,
+    _accumulate,
+    _grow,
+    _samples,
+    contact_energy,
+    image_list,
+    project_gradient,
+)
+from .partition import (
+    image_reaches,
+    search_pairs,
+    search_row,
+    segment_boxes_soa,
+    segment_gaps,
+)
+
+# meta layout: a_x, a_y, skin, max |m|, max |n|, r, image mode at the build
+_META = 7
+
+
+@njit(cache=True)
+def build_neighbour_list(cp, tab, ax, ay, r, mode, skin):
+    """Every sample pair closer than 2r + ``skin`` (mm), each unordered pair once.
+
+    cp (8, 6, 3), tab (2, N, 6), periods a_x, a_y (mm), yarn radius r, image
+    ``mode`` as in ``contact_energy``. Returns (rows (k, 5) int64 =
+    (i, j_lo, j_hi, m, n), ref_pos (3, 8N) sample positions, meta (7,) float64);
+    pass all three to ``contact_energy_listed``.
+    """
+    nseg = cp.shape[0]
+    n = tab.shape[1]
+    pts, pos, _, _, s_mid, s_tot = _samples(cp, tab)
+    box = segment_boxes_soa(pos, nseg, n)
+    reach = 2.0 * r + skin
+    images = image_list(pts, ax, ay, 0.5 * reach, mode)
+    gaps = np.empty(nseg)
+    cap = 4 * nseg * n * n
+    ib = np.empty((4, cap), dtype=np.int64)
+    fb = np.empty((4, cap))
+    c = 0
+    for im in range(-1, images.shape[0]):
+        m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
+        ox = m * ax
+        oy = nn * ay
+        if im >= 0 and not image_reaches(box, ox, oy, reach):
+            continue
+        for sa in range(nseg):
+            segment_gaps(box, sa, ox, oy, gaps)
+            for sb in range(sa if im < 0 else 0, nseg):
+                if not gaps[sb] < reach * reach:
+                    continue
+                if c + n * n > cap:
+                    cap *= 2
+                    ib = _grow(ib, cap)
+                    fb = _grow(fb, cap)
+                # s_excl < 0: no pair is excluded here, the exclusion is tested per call
+                c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, ox, oy, m * s_tot,
+                                 reach * reach, -1.0, ib, fb, c)  # fmt: skip
+    # runs of one i against one segment in one image (consecutive in search order)
+    rows = np.empty((c, 5), dtype=np.int64)
+    k = 0
+    for q in range(c):
+        i, j, m, nn = ib[0, q], ib[1, q], ib[2, q], ib[3, q]
+        if k > 0:
+            prev = rows[k - 1]
+            if prev[0] == i and prev[3] == m and prev[4] == nn and (prev[2] - 1) // n == j // n:
+                prev[2] = j + 1
+                continue
+        rows[k, 0] = i
+        rows[k, 1] = j
+        rows[k, 2] = j + 1
+        rows[k, 3] = m
+        rows[k, 4] = nn
+        k += 1
+    meta = np.empty(_META)
+    meta[0], meta[1], meta[2], meta[5], meta[6] = ax, ay, skin, r, mode
+    meta[3] = np.abs(ib[2, :c]).max() if c > 0 else 0.0
+    meta[4] = np.abs(ib[3, :c]).max() if c > 0 else 0.0
+    return rows[:k].copy(), pos, meta
+
+
+@njit(cache=True)
+def neighbour_list_valid(pos, ax, ay, r, mode, ref_pos, meta):
+    """True if the list built at (``ref_pos``, ``meta``) still holds every pair
+    closer than 2r for samples ``pos`` (3, 8N) and periods a_x, a_y."""
+    if pos.shape != ref_pos.shape or meta.shape[0] != _META:
+        return False
+    if meta[5] != r or meta[6] != mode:
+        return False
+    d2max = 0.0
+    for i in range(pos.shape[1]):
+        dx = pos[0, i] - ref_pos[0, i]
+        dy = pos[1, i] - ref_pos[1, i]
+        dz = pos[2, i] - ref_pos[2, i]
+        d2max = max(d2max, dx * dx + dy * dy + dz * dz)
+    drift = 2.0 * np.sqrt(d2max) + meta[3] * abs(ax - meta[0]) + meta[4] * abs(ay - meta[1])
+    skin = meta[2]
+    # margin: distances at the build were computed in floating point
+    return drift < skin - 1e-9 * (1.0 + 2.0 * r + skin)
+
+
+@njit(cache=True)
+def contact_energy_listed(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_cell,
+                          rows, ref_pos, meta):  # fmt: skip
+    """``contact.contact_energy`` over a neighbour list; returns (E_c, valid).
+
+    Arguments as in ``contact_energy``, plus the three arrays of
+    ``build_neighbour_list``. If the list no longer covers the state (``valid`` is
+    False), the energy comes from the full search instead: the result is always
+    the exact one, and the caller should build a new list.
+    """
+    n = tab.shape[1]
+    dt2 = 1.0 / (n * n)
+    _, pos, r1, speed, s_mid, s_tot = _samples(cp, tab)
+    if not neighbour_list_valid(pos, ax, ay, r, mode, ref_pos, meta):
+        e = contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_cell)
+        return e, False
+    ns = speed.shape[0]
+    cut2 = (2.0 * r) * (2.0 * r)
+    s_excl = EXCLUSION_FACTOR * r
+    cap = max(2048, 2 * n * n)
+    ib = np.empty((4, cap), dtype=np.int64)
+    fb = np.empty((4, cap))
+    work = np.empty((4, cap))
+    g = np.zeros((ns, 4))
+    energy = 0.0
+    gax = 0.0
+    gay = 0.0
+    c = 0
+    for q in range(rows.shape[0]):
+        i, j0, j1, m, nn = rows[q, 0], rows[q, 1], rows[q, 2], rows[q, 3], rows[q, 4]
+        if c + n > cap:
+            energy, gax, gay = _accumulate(ib, fb, c, speed, dt2, r, rc, k, p, with_grad, work, g,
+                                           energy, gax, gay)  # fmt: skip
+            c = 0
+        c = search_row(pos, s_mid, i, j0, j1, m, nn, m * ax, nn * ay, m * s_tot, cut2, s_excl,
+                       ib, fb, c)  # fmt: skip
+    energy, gax, gay = _accumulate(ib, fb, c, speed, dt2, r, rc, k, p, with_grad, work, g,
+                                   energy, gax, gay)  # fmt: skip
+    if with_grad:
+        project_gradient(g, speed, r1, tab, grad_cp)
+        grad_cell[0] = gax
+        grad_cell[1] = gay
+    return energy, True
