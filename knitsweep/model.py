@@ -106,39 +106,60 @@ class CellModel:
                         self._mode)  # fmt: skip
 
     def contact_forces_by_class(self, x: np.ndarray) -> np.ndarray:
-        """Contact forces on the cell's yarn by class of image offset (m, n), N.
+        """Contact forces on the cell by class of image offset (m, n), N.
 
         Rows: self (0, 0), same row (n = 0, m != 0), nearest same column (m = 0,
         |n| = 1), next-nearest same column (m = 0, |n| = 2), other (diagonal or
-        farther images). Columns: the sums over every ordered contact pair of the
-        absolute x, y, z components of the pair force -dV/dR (d/R) v_i v_j dt^2
-        (paper SI "Contact Forces"; each physical contact counted twice, as in E_c).
+        farther images). Columns:
+
+        * x, y: the class's generalised force on the cell period,
+          F_a = -dE_c(class)/da at fixed shape parameters (through the crossover
+          positions, the connector shifts and the image offsets). Positive: the
+          contacts push the cell to extend along a; negative: they pull it
+          together (interlocked loops). Over all classes, and with the bending
+          term, these add up to the cell's total force, zero at zero force.
+        * z: the push out of plane, -dE_c(class)/dlambda / dz under a uniform
+          dilation z -> lambda z of the cell (dz its thickness); >= 0.
+
+        Each physical contact counts twice, as in E_c (paper SI "Contact Forces").
         """
         ip = self.ip
         x = _as_state(x)
-        cp = self.control_points(x)
-        _, _, speed, idx, sep = find_contacts(cp, self._ctab, x[IDX_AX], x[IDX_AY], ip.r,
-                                              self._mode)  # fmt: skip
+        cp, jac = self.control_points_and_jacobian(x)
+        _, r1, speed, idx, sep = find_contacts(cp, self._ctab, x[IDX_AX], x[IDX_AY], ip.r,
+                                               self._mode)  # fmt: skip
         out = np.zeros((len(CONTACT_CLASSES), 3))
         if len(idx) == 0:
             return out
-        dist = sep[:, 3]
-        d = 2.0 * ip.r - 2.0 * ip.rc
-        zeta = (dist - 2.0 * ip.rc) / d
-        r_eps = 2.0 * ip.rc + CORE_EPS * d
-        with np.errstate(divide="ignore", invalid="ignore"):
-            soft = ip.k * d / ip.p * (1.0 - np.maximum(zeta, CORE_EPS) ** -ip.p)
-        dv = np.where(zeta >= CORE_EPS, soft, 2.0 * CORE_PENALTY * (dist - r_eps) / r_eps**2)
         n = self.fidelity.samples_per_segment
-        w = 2.0 * speed[idx[:, 0]] * speed[idx[:, 1]] / (n * n)  # both orders of the pair
-        comp = np.abs(dv * w / dist)[:, None] * np.abs(sep[:, :3])
-        m, nn = idx[:, 2], np.abs(idx[:, 3])
+        dt2 = 1.0 / (n * n)
+        i, j, m, nn = idx[:, 0], idx[:, 1], idx[:, 2], idx[:, 3]
+        dist, d = sep[:, 3], sep[:, :3]
+        v, dv = _pair_potential_arrays(dist, ip)
+        # samples' motion with each period: dp/da (ns, 3) and dv/da (ns,)
+        b0, b1 = self._ctab[0], self._ctab[1]  # (N, 6)
+        forces = np.empty((len(idx), 2))
+        for col, k in enumerate((IDX_AX, IDX_AY)):
+            dp = np.einsum("jc,scd->sjd", b0, jac[..., k]).reshape(-1, 3)
+            dr1 = np.einsum("jc,scd->sjd", b1, jac[..., k]).reshape(-1, 3)
+            dspeed = np.einsum("id,id->i", r1, dr1) / speed
+            dd = dp[i] - dp[j]
+            dd[:, col] -= m if col == 0 else nn
+            dR = np.einsum("pd,pd->p", d, dd) / dist
+            dE = 2.0 * dt2 * (dv * dR * speed[i] * speed[j]
+                              + v * (dspeed[i] * speed[j] + speed[i] * dspeed[j]))  # fmt: skip
+            forces[:, col] = -dE
+        z = self.control_points(x)[:, :, 2]
+        dz = float(z.max() - z.min() + 2.0 * ip.r)
+        fz = -2.0 * dt2 * dv * d[:, 2] ** 2 / dist * speed[i] * speed[j] / dz
         cls = np.full(len(idx), 4)
         cls[(m == 0) & (nn == 0)] = 0
         cls[(m != 0) & (nn == 0)] = 1
-        cls[(m == 0) & (nn == 1)] = 2
-        cls[(m == 0) & (nn == 2)] = 3
-        np.add.at(out, cls, comp)
+        cls[(m == 0) & (np.abs(nn) == 1)] = 2
+        cls[(m == 0) & (np.abs(nn) == 2)] = 3
+        np.add.at(out, (cls, 0), forces[:, 0])
+        np.add.at(out, (cls, 1), forces[:, 1])
+        np.add.at(out, (cls, 2), fz)
         return out
 
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
@@ -147,6 +168,24 @@ class CellModel:
         b = basis_tables(np.linspace(0.0, 1.0, samples))[0]
         z = np.einsum("ti,si->st", b, cp[:, :, 2])
         return float(z.max() - z.min() + 2.0 * self.ip.r)
+
+
+def _pair_potential_arrays(dist: np.ndarray, ip: InternalParams) -> tuple[np.ndarray, np.ndarray]:
+    """V(R) and dV/dR of MODEL.md §6 for arrays of distances (all below 2r)."""
+    d = 2.0 * ip.r - 2.0 * ip.rc
+    pref = ip.k * d * d / (ip.p * (ip.p - 1.0))
+    zeta = (dist - 2.0 * ip.rc) / d
+    soft = zeta >= CORE_EPS
+    zs = np.where(soft, zeta, 1.0)
+    zp = zs ** (1.0 - ip.p)
+    v_soft = pref * (zp - 1.0 - (ip.p - 1.0) * (1.0 - zs))
+    dv_soft = pref * (ip.p - 1.0) * (1.0 - zp / zs) / d
+    v_eps = pref * (CORE_EPS ** (1.0 - ip.p) - 1.0 - (ip.p - 1.0) * (1.0 - CORE_EPS))
+    r_eps = 2.0 * ip.rc + CORE_EPS * d
+    xh = (dist - r_eps) / r_eps
+    v = np.where(soft, v_soft, v_eps + CORE_PENALTY * xh * xh)
+    dv = np.where(soft, dv_soft, 2.0 * CORE_PENALTY * xh / r_eps)
+    return v, dv
 
 
 def _as_state(x: np.ndarray) -> np.ndarray:

@@ -7,10 +7,10 @@ Every start of the point is carried along as its own chain; at each step the
 lowest-energy chain wins (the authors' "4 Init files, keep the lowest").
 
 Stress, in N/mm per unit transverse width at zero force:
-* ``stress``: the discrete derivative of the energy, centred on each step,
-  sigma_j = (E_{j+1} - E_{j-1})/(a_{j+1} - a_{j-1})/a_perp0 (backward at the last
-  step, 0 at the zero-force state) — the reference protocol, attributed to the
-  midpoint as the authors' analysis does;
+* ``stress``: the discrete derivative of the energy at each step, centred
+  (on uniform steps exactly the reference's (E_{j+1} - E_{j-1})/(a_{j+1} - a_{j-1}),
+  attributed to the midpoint as the authors' analysis does; second-order on
+  uneven steps), divided by a_perp0; backward at the last step, 0 at zero force;
 * ``stress_envelope``: dE*/da/a_perp0 at each step from the Lagrange multiplier
   of the length constraint (envelope theorem), free of differencing error.
 The stop rule is the reference's: after step i >= 2, stop when
@@ -108,12 +108,23 @@ class SweepResult:
 
 
 def centred_stress(energy: np.ndarray, a: np.ndarray, a_perp0: float) -> np.ndarray:
-    """sigma_j = (E_{j+1} - E_{j-1})/(a_{j+1} - a_{j-1})/a_perp0; 0 at j = 0 (zero force),
-    backward difference at the last step (N/mm)."""
+    """dE/da / a_perp0 at every step (N/mm): the second-order three-point derivative
+    on the possibly uneven grid of periods, 0 at the zero-force state (j = 0) and a
+    backward difference at the last step.
+
+    On a uniform grid this is exactly the reference's centred difference
+    (E_{j+1} - E_{j-1})/(a_{j+1} - a_{j-1}); where the step changes (the first step
+    after a_0, and the switch to large steps) it stays second-order accurate,
+    where the plain centred difference would be biased by the larger step.
+    """
     n = len(energy)
     s = np.zeros(n)
     if n >= 3:
-        s[1:-1] = (energy[2:] - energy[:-2]) / (a[2:] - a[:-2]) / a_perp0
+        hm = a[1:-1] - a[:-2]
+        hp = a[2:] - a[1:-1]
+        s[1:-1] = (
+            hm**2 * energy[2:] - hp**2 * energy[:-2] + (hp**2 - hm**2) * energy[1:-1]
+        ) / (hm * hp * (hm + hp)) / a_perp0
     if n >= 2:
         s[-1] = (energy[-1] - energy[-2]) / (a[-1] - a[-2]) / a_perp0
     return s
