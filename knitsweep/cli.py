@@ -353,6 +353,177 @@ def merge(
     typer.echo(f"{r['file']}: {r['points']} points, {r['sweeps']} sweeps ({state})")
 
 
+@app.command("phase-diagram")
+def phase_diagram(
+    results: Annotated[Path, typer.Argument(help="results file written by knitsweep run")],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="directory for the CSV and PNG files [<results>_phase_diagram]"),
+    ] = None,
+    threshold: Annotated[
+        float, typer.Option("--threshold", help="energy-gap threshold, mJ [5e-5, the paper's]")
+    ] = 5e-5,
+    no_figures: Annotated[bool, typer.Option("--no-figures", help="write the tables only")] = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Jamming transitions (L/r)_trans, ΔL/r and regimes of a results file, as a printed
+    table, CSV files and the paper's figures; also on a file a run is still writing."""
+    from .postprocess import phase_diagram as make_phase_diagram
+
+    with user_errors():
+        report = make_phase_diagram(results, out, threshold, figures=not no_figures)
+    if as_json:
+        red = report.reduction
+        typer.echo(json.dumps({
+            "file": str(red.path), "run_status": red.run_status, "partial": red.partial,
+            "partial_reason": red.partial_reason, "threshold": red.threshold,
+            "transitions": red.transitions, "problems": red.problems,
+            "tables": [str(p) for p in report.tables],
+            "figures": {f.name: str(f.path) if f.path else f"skipped: {f.reason}"
+                        for f in report.figures},
+        }))  # fmt: skip
+        return
+    for line in report.lines():
+        typer.echo(line)
+
+
+@app.command()
+def render(
+    out: Annotated[Path, typer.Option("--out", help="image to write: .png, .pdf or .svg")],
+    results: Annotated[
+        Path | None, typer.Option("--results", help="results file written by knitsweep run")
+    ] = None,
+    task: Annotated[
+        str | None, typer.Option("--task", help="point or sweep id in --results (a unique prefix)")
+    ] = None,
+    step: Annotated[
+        int | None, typer.Option("--step", help="strain step of a sweep [0: the zero-force state]")
+    ] = None,
+    state: Annotated[
+        Path | None, typer.Option("--state", help="a 30-line state (Init) file instead")
+    ] = None,
+    L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
+    r_core: RcOpt = None, config: ConfigOpt = None,
+    radius: Annotated[
+        float | None,
+        typer.Option("--radius", help="tube radius to draw, mm (default: r; the paper drew 0.5)"),
+    ] = None,
+    cells: Annotated[int, typer.Option("--cells", help="stitches per side of the picture")] = 3,
+    side: Annotated[str, typer.Option("--side", help="face (knit side) or back (purl side)")] = "face",
+    elevation: Annotated[
+        float, typer.Option("--elevation", help="view angle above the fabric plane, degrees")
+    ] = 72.0,
+    width: Annotated[int, typer.Option("--width", help="rendering resolution, pixels across")] = 1100,
+) -> None:  # fmt: skip
+    """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a: a task of a results
+    file (point, or sweep at --step) or a state file."""
+    from . import render as rendering
+    from .params import InputError
+
+    with user_errors():
+        params = None
+        flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core}
+        if state is not None:
+            params, _ = stitch_inputs(config, **flags)
+        elif config is not None or any(v is not None for v in flags.values()):
+            raise InputError("--L, --B, --k, --p, --r, --r-core and --config apply to --state; "
+                             "a results file holds its own parameters")  # fmt: skip
+        path, stitch = rendering.render(
+            out, results=results, task=task, step=step, state=state, params=params,
+            radius=radius, cells=cells, side=side, elevation_deg=elevation, width_px=width,
+        )  # fmt: skip
+    typer.echo(f"wrote {path}: {stitch.label}")
+
+
+@app.command()
+def accuracy(
+    L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
+    r_core: RcOpt = None, regularization: RegOpt = None,
+    settings: Annotated[
+        str, typer.Option("--settings", help="comma-separated presets, coarse to fine, each "
+                          "optionally 'preset:field=value+field=value'; errors are against the last")
+    ] = "draft,paper,converged,fine",
+    series: Annotated[
+        str | None, typer.Option("--series", help="L values (mm) of the (L/r)_trans series, "
+                                 "comma-separated [L-0.2 … L+0.2 in 0.1 steps]")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="directory for accuracy.csv/png")] = Path(
+        "accuracy"
+    ),
+    workers: Annotated[int, typer.Option("--workers", help="settings computed in parallel")] = 1,
+) -> None:  # fmt: skip
+    """Measure the speed/accuracy trade: one point at rising fidelity, with time per
+    relaxation and per sweep and the error of each observable against the finest."""
+    from .accuracy import accuracy_study, table, write_report
+    from .params import InputError
+
+    with user_errors():
+        params, _ = stitch_inputs(None, L=L if L is not None else 11.0, B=B,
+                                  k=k if k is not None else 0.1, p=p, r=r, r_core=r_core,
+                                  regularization=regularization)  # fmt: skip
+        specs = [s.strip() for s in settings.split(",") if s.strip()]
+        if len(specs) < 2:
+            raise InputError("settings: give at least two, coarse to fine")
+        try:
+            Ls = None if series is None else [float(v) for v in series.split(",")]
+        except ValueError:
+            raise InputError(f"series = {series!r}: comma-separated numbers (mm)") from None
+        from .accuracy import setting
+
+        for spec in specs:
+            setting(spec)  # validate every setting before any compute
+    results = accuracy_study(params, specs, Ls, workers=workers,
+                             progress=lambda m: typer.echo(m, err=True))  # fmt: skip
+    typer.echo(table(results))
+    for path in write_report(results, out):
+        typer.echo(f"wrote {path}", err=True)
+
+
+# ---- knitsweep slurm … (batch scripts; knitsweep/slurm.py, slurm/README.md) -------
+slurm_app = typer.Typer(
+    no_args_is_help=True, help="SLURM batch scripts for knitsweep runs (slurm/README.md)."
+)
+app.add_typer(slurm_app, name="slurm")
+
+
+@slurm_app.command("render")
+def slurm_render(
+    job: Annotated[Path, typer.Argument(help="job file (TOML)")],
+    out: Annotated[Path, typer.Option("--out", help="results file (mpi) or shard directory "
+                                      "(array, merge)")],
+    template: Annotated[str, typer.Option("--template", help="mpi, array or merge")] = "mpi",
+    nodes: Annotated[int | None, typer.Option("--nodes", help="nodes (mpi)")] = None,
+    ntasks: Annotated[int | None, typer.Option("--ntasks", help="MPI ranks, >= 2 (mpi)")] = None,
+    time: Annotated[str | None, typer.Option("--time", help="walltime HH:MM:SS")] = None,
+    partition: Annotated[str | None, typer.Option("--partition", help="partition")] = None,
+    launcher: Annotated[str | None, typer.Option("--launcher", help="srun or mpirun (mpi)")] = None,
+    venv: Annotated[Path | None, typer.Option("--venv", help="virtualenv to activate")] = None,
+    modules: Annotated[str | None, typer.Option("--modules", help="modules to load, "
+                                                "space-separated")] = None,
+    shards: Annotated[int | None, typer.Option("--shards", help="array tasks (array)")] = None,
+    cpus_per_task: Annotated[int | None, typer.Option("--cpus-per-task", help="local workers "
+                                                      "per shard (array)")] = None,
+    requeue: Annotated[bool, typer.Option("--requeue", help="requeue after the walltime "
+                                          "signal, to resume (mpi, array)")] = False,
+    script: Annotated[Path | None, typer.Option("--script", help="write here [stdout]")] = None,
+) -> None:  # fmt: skip
+    """Print (or write) a ready-to-submit batch script: a shipped template with the job,
+    output, resources and environment filled in."""
+    from .slurm import SlurmScript, render, write_script
+
+    with user_errors():
+        text = render(SlurmScript(
+            template=template, job=str(job), out=str(out), nodes=nodes, ntasks=ntasks,
+            time=time, partition=partition, launcher=launcher,
+            venv=None if venv is None else str(venv), modules=modules, shards=shards,
+            cpus_per_task=cpus_per_task, requeue=requeue,
+        ))  # fmt: skip
+    if script is None:
+        typer.echo(text, nl=False)
+    else:
+        typer.echo(f"wrote {write_script(script, text)}: submit it with sbatch", err=True)
+
+
 def main() -> None:
     """Console-script entry point: usage errors become one line and exit code 2."""
     try:

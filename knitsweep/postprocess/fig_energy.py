@@ -1,0 +1,321 @@
+"""Energy-gap figures: the gaps against L/r (paper Fig. 3, Fig. S15), the width of
+the transition ΔL/r against k (Fig. 4b), and the regimes over k, B, r_core … (Fig. 4c).
+
+Each function takes a :class:`~.reduce.Reduction` and a list for notes, and returns a
+matplotlib Figure or raises :class:`~.plotting.SkipFigure` saying what is missing.
+Energies in mJ (= N·mm, the paper's "J"); L/r dimensionless.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..analysis.transitions import Transition
+from .plotting import (
+    BENDING_COLOUR,
+    BRACKET_FILL,
+    CONTACT_COLOUR,
+    DIRECTION_COLOUR,
+    L_OVER_R,
+    LINESTYLES,
+    MARKERS,
+    REGIME_FILL,
+    REGIME_LABEL,
+    THRESHOLD_COLOUR,
+    TRANSITION_LINE,
+    SkipFigure,
+    grid_of_panels,
+    label_of,
+    limit_panels,
+    new_figure,
+    parameter_axis,
+    series_keys,
+    title,
+)
+from .reduce import PARAM_SYMBOLS, SERIES_PARAMS, Reduction
+from .tables import series_label
+
+MATH_SYMBOL = {"k_mN_per_mm2": "k", "B_mN_mm2": "B", "r_core_mm": r"r_{\rm core}", "r_mm": "r",
+               "p": "p"}  # fmt: skip
+GAP_LABEL = {"x": r"$\Delta E_c$", "y": r"$\Delta E_b$"}
+
+
+def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, d: str,
+               log: bool) -> None:  # fmt: skip
+    x = np.array([r["L_over_r"] for r in rows])
+    gc = np.array([r["delta_E_c"] for r in rows])
+    gb = np.array([r["delta_E_b"] for r in rows])
+    floor = red.threshold / 50.0
+    if t is not None and t.status == "transition":
+        ax.axvspan(t.bracket_lower, t.bracket_upper, color=BRACKET_FILL, alpha=0.7, lw=0,
+                   label="transition bracket")  # fmt: skip
+        ax.axvline(t.L_over_r_trans, color="0.25", ls="--", lw=1.2,
+                   label=r"$(L/r)_{\rm trans}$")  # fmt: skip
+        ax.text(t.L_over_r_trans, 1.0, f" {t.L_over_r_trans:.2f}", transform=ax.get_xaxis_transform(),
+                ha="left", va="top", fontsize=10, color="0.2")  # fmt: skip
+    for g, colour, marker, name in ((gc, CONTACT_COLOUR, "o", r"$\Delta E_c$ (contact)"),
+                                    (gb, BENDING_COLOUR, "s", r"$\Delta E_b$ (bending)")):  # fmt: skip
+        y = np.maximum(g, floor) if log else g
+        ax.plot(x, y, color=colour, marker=marker, label=name, zorder=3)
+        if log and np.any(g < floor):
+            low = g < floor
+            ax.plot(x[low], y[low], ls="none", marker=marker, mfc="white", mec=colour, zorder=4)
+    ax.axhline(red.threshold, color=THRESHOLD_COLOUR, ls=":", lw=1.2,
+               label=f"threshold {red.threshold:g} mJ")  # fmt: skip
+    if not log and t is not None and t.fit is not None and t.L_over_r_intercept is not None:
+        xs = np.array([x[0], t.L_over_r_intercept])
+        colour = CONTACT_COLOUR if d == "x" else BENDING_COLOUR
+        ax.plot(xs, t.fit.intercept + t.fit.slope * xs, color=colour, ls=(0, (1, 1.5)), lw=1.3,
+                label="jammed-regime line fit", zorder=2)  # fmt: skip
+    if t is not None and t.status != "transition":
+        text = ("jammed throughout the sampled range" if t.status == "jammed_throughout"
+                else "unjammed from the first point")  # fmt: skip
+        ax.text(0.98, 0.45 if log else 0.97, text, transform=ax.transAxes, ha="right",
+                va="center" if log else "top", fontsize=10, color="0.25",
+                bbox={"fc": "white", "ec": "0.7", "pad": 2.5})  # fmt: skip
+    if log:
+        ax.set_yscale("log")
+        ax.set_ylim(bottom=floor / 1.6)
+        if np.any(np.minimum(gc, gb) < floor):
+            ax.plot([], [], ls="none", marker="o", mfc="white", mec="0.3",
+                    label=f"gap < {floor:.0e} mJ (drawn at {floor:.0e})")  # fmt: skip
+    else:
+        ax.set_ylim(bottom=-0.04 * max(float(np.max(gc)), float(np.max(gb)), red.threshold))
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(0, 0), useMathText=True)
+    ax.set_xlabel(L_OVER_R)
+    ax.set_ylabel("energy gap (mJ)")
+
+
+def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any:
+    """Gaps ΔE_c (coral) and ΔE_b (blue) against L/r, one panel per series and
+    direction; threshold line, transition bracket shaded (paper Fig. 3; log: Fig. S15)."""
+    keys = [k for k in series_keys(red) if len({c.L_mm for c in red.curves if c.series == k}) >= 2]
+    if not keys:
+        raise SkipFigure("needs a series with sweeps at ≥ 2 values of L")
+    keys = limit_panels(keys, "fig3", notes)
+    directions = sorted({c.direction for c in red.curves})
+    fig = new_figure(max(8.0, 5.2 * len(directions) + 0.4), 3.2 * len(keys) + 1.5)
+    axes = fig.subplots(len(keys), len(directions), squeeze=False, sharex=True)
+    handles: dict[str, Any] = {}
+    for i, key in enumerate(keys):
+        for j, d in enumerate(directions):
+            ax = axes[i, j]
+            rows = sorted((r for r in red.sweeps if r["direction"] == d
+                           and tuple(r[p] for p in SERIES_PARAMS) == key),
+                          key=lambda r: r["L_over_r"])  # fmt: skip
+            if not rows:
+                ax.set_axis_off()
+                continue
+            _gap_panel(ax, red, rows, red.transition_of.get((key, d)), d, log)
+            lab = label_of(red, key)
+            ax.set_title(f"pulled in {d}: jamming gap {GAP_LABEL[d]}" + (f"\n{lab}" if lab else ""))
+            for h, name in zip(*ax.get_legend_handles_labels(), strict=True):
+                handles.setdefault(name, h)
+            ax.xaxis.set_tick_params(labelbottom=True)
+    fig.legend(handles.values(), handles.keys(), loc="outside lower center",
+               ncols=min(len(handles), 4), frameon=False)  # fmt: skip
+    scale = "log scale" if log else "linear scale"
+    title(fig, red, f"Energy gaps against $L/r$ ({scale})")
+    return fig
+
+
+def fig4b_deltaL_vs_k(red: Reduction, notes: list[str]) -> Any:
+    """ΔL/r against k per direction and per other parameters (paper Fig. 4b); error
+    bars are the paper's "+0, −one step" of (L/r)_trans."""
+    others = [p for p in SERIES_PARAMS if p != "k_mN_per_mm2"]
+    groups: dict[tuple, list[dict]] = {}
+    for t in red.transitions:
+        if t["delta_L_over_r"] is not None:
+            groups.setdefault((t["direction"], *(t[p] for p in others)), []).append(t)
+    if len({t["k_mN_per_mm2"] for rows in groups.values() for t in rows}) < 2:
+        raise SkipFigure("needs ≥ 2 values of k with a transition (and a jammed-regime fit) "
+                         "in one series")  # fmt: skip
+    fig = new_figure(7.6, 4.8)
+    ax = fig.subplots()
+    varying_others = [p for p in red.varying if p in others]
+    style_of = {o: i for i, o in enumerate(sorted({g[1:] for g in groups}))}
+    ks = []
+    for j, (g, rows) in enumerate(sorted(groups.items())):
+        rows = sorted(rows, key=lambda t: t["k_mN_per_mm2"])
+        k = np.array([t["k_mN_per_mm2"] for t in rows])
+        dodge = 1.0 + 0.025 * (j - (len(groups) - 1) / 2)  # keep error bars apart
+        dl = np.array([t["delta_L_over_r"] for t in rows])
+        step = np.array([t["L_over_r_trans"] - t["bracket_lower"] for t in rows])
+        i = style_of[g[1:]]
+        lab = series_label(dict(zip(others, g[1:], strict=True)), varying_others)
+        ax.errorbar(k * dodge, dl, yerr=[step, np.zeros_like(step)], capsize=3,
+                    color=DIRECTION_COLOUR[g[0]], marker=MARKERS[i % len(MARKERS)],
+                    ls=LINESTYLES[i % len(LINESTYLES)], ms=7,
+                    label=f"pulled in {g[0]}" + (f", {lab}" if lab else ""))  # fmt: skip
+        ks += list(k)
+    parameter_axis(ax, ks)
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.set_xlabel(r"compression constant $k$ (mN/mm$^2$)")
+    ax.set_ylabel(r"transition width $\Delta L/r$")
+    ax.text(0.99, 0.02, "error bars: +0, −one step of $L/r$; series offset slightly in $k$",
+            transform=ax.transAxes, ha="right", va="bottom", fontsize=9, color="0.35")  # fmt: skip
+    ax.legend(frameon=False)
+    title(fig, red, r"Width of the jamming transition $\Delta L/r$ against $k$")
+    return fig
+
+
+def _trans_value(t: dict | None, top: float, bottom: float) -> float:
+    """(L/r)_trans for drawing: above the axis if jammed throughout, below if
+    unjammed from the start, NaN if the direction was not run."""
+    if t is None:
+        return np.nan
+    if t["status"] == "jammed_throughout":
+        return top
+    if t["status"] == "unjammed_at_start":
+        return bottom
+    return t["L_over_r_trans"]
+
+
+def _regime_panel(ax: Any, xs: np.ndarray, tx: np.ndarray, ty: np.ndarray, lim: tuple) -> None:
+    """Shade the regimes between the two (L/r)_trans lines over a parameter axis."""
+    bottom, top = lim
+    if np.all(np.isfinite(tx)) and np.all(np.isfinite(ty)):
+        low, high = np.minimum(tx, ty), np.maximum(tx, ty)
+        ax.fill_between(xs, bottom, low, color=REGIME_FILL["jammed_xy"], lw=0)
+        ax.fill_between(xs, low, high, where=tx <= ty, interpolate=True, lw=0,
+                        color=REGIME_FILL["jammed_y_only"])  # fmt: skip
+        ax.fill_between(xs, low, high, where=tx > ty, interpolate=True, lw=0,
+                        color=REGIME_FILL["jammed_x_only"])  # fmt: skip
+        ax.fill_between(xs, high, top, color=REGIME_FILL["unjammed"], lw=0)
+    ax.set_ylim(bottom, top)
+    ax.set_xlim(xs[0], xs[-1])
+
+
+def _transition_marks(ax: Any, xs: np.ndarray, rows: list[dict | None], d: str,
+                      lim: tuple, label: bool) -> None:  # fmt: skip
+    bottom, top = lim
+    y = np.array([_trans_value(t, top, bottom) for t in rows])
+    colour = TRANSITION_LINE[d]
+    # x drawn wide and y narrow on top, so that coinciding transitions show both colours
+    wide = d == "x"
+    ax.plot(xs, y, color=colour, lw=4.0 if wide else 1.8, marker="o" if wide else "s",
+            ms=10 if wide else 5.5, zorder=4 if wide else 5, clip_on=False,
+            label=rf"$(L/r)_{{\rm trans}}$, {d}" if label else None)  # fmt: skip
+    for xi, t in zip(xs, rows, strict=True):
+        if t is None:
+            continue
+        if t["status"] == "transition":
+            step = t["L_over_r_trans"] - t["bracket_lower"]
+            ax.errorbar([xi], [t["L_over_r_trans"]], yerr=[[step], [0.0]], color=colour,
+                        capsize=3, lw=1.2, zorder=5)  # fmt: skip
+        else:
+            up = t["status"] == "jammed_throughout"
+            ax.annotate("", xy=(xi, top if up else bottom),
+                        xytext=(xi, top - 0.12 * (top - bottom) if up else bottom + 0.12 * (top - bottom)),
+                        arrowprops={"arrowstyle": "->", "color": colour, "lw": 1.6},
+                        zorder=6)  # fmt: skip
+
+
+def _regime_legend(fig: Any, axes: list, with_lines: bool) -> None:
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles = [Patch(color=REGIME_FILL[r], label=REGIME_LABEL[r])
+               for r in ("jammed_xy", "jammed_y_only", "unjammed")]  # fmt: skip
+    if with_lines:
+        handles += [Line2D([], [], color=TRANSITION_LINE[d], lw=4.0 if d == "x" else 1.8,
+                           marker="o" if d == "x" else "s", ms=10 if d == "x" else 5.5,
+                           label=rf"$(L/r)_{{\rm trans}}$, pulled in {d}") for d in "xy"]  # fmt: skip
+        handles.append(Line2D([], [], color="0.3", marker=r"$\uparrow$", ls="none", ms=9,
+                              label="beyond the sampled $L/r$"))  # fmt: skip
+    fig.legend(handles=handles, loc="outside lower center", ncols=3, frameon=False)
+
+
+def _lim(red: Reduction) -> tuple[float, float]:
+    x = sorted({r["L_over_r"] for r in red.sweeps})
+    step = min(np.diff(x)) if len(x) > 1 else 0.5
+    return x[0] - 0.6 * step, x[-1] + 0.6 * step
+
+
+def fig4c_phase_diagram(red: Reduction, notes: list[str]) -> Any:
+    """(L/r)_trans in x (orange line) and y (green line) over each varying parameter,
+    with the regimes shaded pink / orange / green (paper Fig. 4c). Without a varying
+    parameter: the regimes along L/r of the one series."""
+    if not red.transitions:
+        raise SkipFigure("needs analysed sweeps (no transitions found)")
+    by_key = {(tuple(t[p] for p in SERIES_PARAMS), t["direction"]): t for t in red.transitions}
+    keys = sorted({k for k, _ in by_key})
+    panels = []
+    for pi, p in enumerate(SERIES_PARAMS):
+        if p not in red.varying:
+            continue
+        groups: dict[tuple, list] = {}
+        for k in keys:
+            groups.setdefault(k[:pi] + k[pi + 1 :], []).append(k)
+        panels += [(p, pi, g, sorted(ks, key=lambda k: k[pi]))
+                   for g, ks in groups.items() if len(ks) >= 2]  # fmt: skip
+    if not panels:
+        return _regime_strip(red, keys[0], by_key)
+    panels = limit_panels(panels, "fig4c", notes)
+    ncols = min(len(panels), 2)
+    fig = new_figure(max(8.0, 5.0 * ncols + 0.3), 3.6 * -(-len(panels) // ncols) + 1.3)
+    lim = _lim(red)
+    for ax, (p, pi, _, ks) in zip(grid_of_panels(fig, len(panels), ncols), panels, strict=True):
+        xs = np.array([k[pi] for k in ks])
+        rx = [by_key.get((k, "x")) for k in ks]
+        ry = [by_key.get((k, "y")) for k in ks]
+        tx = np.array([_trans_value(t, lim[1], lim[0]) for t in rx])
+        ty = np.array([_trans_value(t, lim[1], lim[0]) for t in ry])
+        _regime_panel(ax, xs, tx, ty, lim)
+        for d, rows in (("x", rx), ("y", ry)):
+            if any(t is not None for t in rows):
+                _transition_marks(ax, xs, rows, d, lim, label=False)
+        parameter_axis(ax, xs)
+        sym, unit = MATH_SYMBOL[p], PARAM_SYMBOLS[p][1]
+        ax.set_xlabel(f"${sym}$" + (f" ({unit})" if unit else ""))
+        ax.set_ylabel(L_OVER_R)
+        ax.grid(False)
+        fixed = dict(zip(SERIES_PARAMS, ks[0], strict=True))
+        others = series_label(fixed, [q for q in red.varying if q != p])
+        ax.set_title(f"at {others}" if others else rf"$(L/r)_{{\rm trans}}$ against ${sym}$")
+    _regime_legend(fig, [], with_lines=True)
+    title(fig, red, r"Phase diagram: onset of unjamming $(L/r)_{\rm trans}$ and regimes")
+    return fig
+
+
+def _regime_strip(red: Reduction, key: tuple, by_key: dict) -> Any:
+    """One series: the regimes along L/r, with the sampled sweeps marked."""
+    lim = _lim(red)
+    fig = new_figure(8.0, 3.6)
+    ax = fig.subplots()
+    tx = _trans_value(by_key.get((key, "x")), np.inf, -np.inf)
+    ty = _trans_value(by_key.get((key, "y")), np.inf, -np.inf)
+    if not (np.isnan(tx) or np.isnan(ty)):
+        low, high = np.clip(min(tx, ty), *lim), np.clip(max(tx, ty), *lim)
+        ax.axvspan(lim[0], low, color=REGIME_FILL["jammed_xy"], lw=0)
+        mid = "jammed_y_only" if tx <= ty else "jammed_x_only"
+        ax.axvspan(low, high, color=REGIME_FILL[mid], lw=0)
+        ax.axvspan(high, lim[1], color=REGIME_FILL["unjammed"], lw=0)
+    for yi, d in ((1.0, "x"), (0.0, "y")):
+        rows = [r for r in red.sweeps if r["direction"] == d
+                and tuple(r[p] for p in SERIES_PARAMS) == key]  # fmt: skip
+        if not rows:
+            continue
+        xs = [r["L_over_r"] for r in rows]
+        face = [TRANSITION_LINE[d] if r["jammed"] else "white" for r in rows]
+        ax.scatter(xs, [yi] * len(xs), s=60, c=face, edgecolors=TRANSITION_LINE[d], zorder=4,
+                   marker="o" if d == "x" else "s", linewidths=1.5)  # fmt: skip
+        t = by_key.get((key, d))
+        if t is not None and t["status"] == "transition":
+            ax.plot([t["L_over_r_trans"]] * 2, [yi - 0.3, yi + 0.3], color=TRANSITION_LINE[d],
+                    lw=2.2, zorder=3)  # fmt: skip
+            ax.text(t["L_over_r_trans"], yi + 0.34, f"{t['L_over_r_trans']:.2f}", ha="center",
+                    va="bottom", color=TRANSITION_LINE[d], fontsize=10)  # fmt: skip
+    ax.set_xlim(*lim)
+    ax.set_ylim(-0.6, 1.75)
+    ax.set_yticks([1.0, 0.0])
+    ax.set_yticklabels(["pulled in x", "pulled in y"])
+    ax.grid(False)
+    ax.set_xlabel(L_OVER_R)
+    ax.text(0.99, 0.02, "filled: jammed (gap ≥ threshold), open: unjammed",
+            transform=ax.transAxes, ha="right", va="bottom", fontsize=9, color="0.3")  # fmt: skip
+    _regime_legend(fig, [ax], with_lines=False)
+    title(fig, red, r"Regimes along $L/r$ (one series: no parameter varies)")
+    return fig

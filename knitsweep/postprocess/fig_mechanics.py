@@ -1,0 +1,301 @@
+"""Mechanical and geometric figures: stress–strain curves (paper Fig. 1b), Y_sec and σ0
+against L/r (Fig. 2e,f), the zero-force aspect ratio against (L/r)² (Fig. 5a), area
+strain of y pulls (Fig. 5b), thickness strain of x pulls (Fig. 6g) and the ratio of
+contact forces |F_x|/|F_y| at zero strain (Fig. 6h).
+
+Each function takes a :class:`~.reduce.Reduction` and a list for notes, and returns a
+matplotlib Figure or raises :class:`~.plotting.SkipFigure` saying what is missing.
+Stress in N/mm (2D), strains and L/r dimensionless, forces in N.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .plotting import (
+    DIRECTION_COLOUR,
+    L_OVER_R,
+    LINESTYLES,
+    MARKERS,
+    REGIME_FILL,
+    REGIME_LABEL,
+    STRAIN,
+    TRANSITION_LINE,
+    L_colourbar,
+    L_colours,
+    SkipFigure,
+    grid_of_panels,
+    jammed_legend,
+    label_of,
+    limit_panels,
+    new_figure,
+    series_keys,
+    title,
+)
+from .reduce import CONTACT_CLASSES, SERIES_PARAMS, Reduction, SweepCurves
+
+SMALL_STRAIN = 0.1
+"""Strain range of the small-strain figures (the jammed regime)."""
+
+CLASS_COLOUR = {  # paper Fig. 6a–d: self green, same row magenta, NN lavender, NNN yellow
+    "self": "#2ca02c",
+    "same_row": "#c51bd6",
+    "nn_column": "#7b68d9",
+    "nnn_column": "#d4a20f",
+    "other": "#888888",
+}
+CLASS_LABEL = {
+    "self": "self",
+    "same_row": "same row",
+    "nn_column": "NN same column",
+    "nnn_column": "NNN same column",
+    "other": "other",
+}
+
+
+def _key(row: dict) -> tuple[float, ...]:
+    return tuple(row[p] for p in SERIES_PARAMS)
+
+
+def _curves(red: Reduction, key: tuple, direction: str) -> list[SweepCurves]:
+    return sorted((c for c in red.curves if c.series == key and c.direction == direction),
+                  key=lambda c: c.L_mm)  # fmt: skip
+
+
+def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...], what: str,
+                  y_of: Any, ylabel: str, heading: str, zero_line: bool,
+                  upto: float | None = None) -> Any:  # fmt: skip
+    """Panels (series × directions) of one per-step quantity against strain,
+    coloured by L, solid when jammed in that direction and dashed when not; with
+    ``upto``, only strains up to it (the jammed regime at small strain)."""
+    present = tuple(d for d in directions if any(c.direction == d for c in red.curves))
+    if not present:
+        pulls = " or ".join(directions)
+        raise SkipFigure(f"needs analysed sweeps pulled in {pulls}")
+    keys = sorted({c.series for c in red.curves if c.direction in present})
+    keys = limit_panels(keys, what, notes)
+    n = len(keys) * len(present)
+    ncols = len(present) if len(present) > 1 else min(len(keys), 2)
+    fig = new_figure(max(7.6, 4.9 * ncols + 1.2), 3.3 * -(-n // ncols) + 1.3)
+    axes = grid_of_panels(fig, n, ncols)
+    cmap, norm = L_colours(red)
+    for i, (key, d) in enumerate((k, d) for k in keys for d in present):
+        ax = axes[i]
+        lo, hi = 0.0, 0.0
+        for c in _curves(red, key, d):
+            keep = c.strain <= upto * (1.0 + 1e-9) if upto is not None else slice(None)
+            y = y_of(c)[keep]
+            ax.plot(c.strain[keep], y, color=cmap(norm(c.L_mm)), ls="-" if c.jammed else "--",
+                    lw=1.5, marker="." if upto is not None else None, ms=4)  # fmt: skip
+            lo, hi = min(lo, float(np.min(y))), max(hi, float(np.max(y)))
+        if upto is not None:
+            pad = 0.05 * (hi - lo) if hi > lo else 1.0
+            ax.set_xlim(0.0, upto)
+            ax.set_ylim(lo - pad if lo < 0.0 else 0.0, hi + pad)
+        if zero_line:
+            ax.axhline(0.0, color="0.55", lw=1.0, zorder=0)
+        lab = label_of(red, key)
+        ax.set_title(f"pulled in {d}" + (f"; {lab}" if lab else ""))
+        ax.set_xlabel(STRAIN[d])
+        ax.set_ylabel(ylabel)
+    jammed_legend(fig, present)
+    L_colourbar(fig, axes, cmap, norm)
+    title(fig, red, heading)
+    return fig
+
+
+def fig1b_stress_strain(red: Reduction, notes: list[str]) -> Any:
+    """Stress σ (N/mm) against strain, coloured by L (paper Fig. 1b)."""
+    return _curve_panels(red, notes, ("x", "y"), "fig1b", lambda c: c.stress,
+                         r"stress $\sigma$ (N/mm)", "Stress–strain curves", False)  # fmt: skip
+
+
+def fig1b_stress_strain_small(red: Reduction, notes: list[str]) -> Any:
+    """Stress–strain curves at small strain, ε ≤ SMALL_STRAIN, where a jammed fabric shows its
+    high tangent modulus (paper Fig. 1b, pink line); dots are the sweep's steps."""
+    return _curve_panels(red, notes, ("x", "y"), "fig1b", lambda c: c.stress,
+                         r"stress $\sigma$ (N/mm)", r"Stress–strain curves at small strain",
+                         False, upto=SMALL_STRAIN)  # fmt: skip
+
+
+def fig5b_area_strain_y(red: Reduction, notes: list[str], upto: float | None = None) -> Any:
+    """Area strain a_x a_y/(a_x0 a_y0) − 1 against ε_y for y pulls (paper Fig. 5b):
+    unjammed fabrics dip below zero, jammed ones do not; ``upto``: small strains only."""
+    heading = "Area strain of pulls in y" + (" at small strain" if upto else "")
+    return _curve_panels(red, notes, ("y",), "fig5b", lambda c: c.area_strain,
+                         r"area strain $A/A_0 - 1$", heading, True, upto)  # fmt: skip
+
+
+def fig6g_thickness_strain_x(red: Reduction, notes: list[str], upto: float | None = None) -> Any:
+    """Thickness strain Δz/Δz0 − 1 against ε_x for x pulls (paper Fig. 6g): jammed
+    fabrics first shrink in z, unjammed ones expand; ``upto``: small strains only."""
+    heading = "Thickness (z) strain of pulls in x" + (" at small strain" if upto else "")
+    return _curve_panels(red, notes, ("x",), "fig6g", lambda c: c.thickness_strain,
+                         r"thickness strain $\Delta z/\Delta z_0 - 1$", heading, True,
+                         upto)  # fmt: skip
+
+
+def _series_legend(ax: Any, red: Reduction, keys: list, loc: str = "best") -> None:
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], color="0.35", marker=MARKERS[i % len(MARKERS)],
+                      ls=LINESTYLES[i % len(LINESTYLES)], label=label_of(red, k))
+               for i, k in enumerate(keys)]  # fmt: skip
+    if len(keys) > 1:
+        ax.add_artist(ax.legend(handles=handles, loc=loc, frameon=False))
+
+
+def fig2ef_secant_offset(red: Reduction, notes: list[str]) -> Any:
+    """Secant modulus Y_sec at ε = 0.02 and offset stress σ0 (N/mm) against L/r, x pulls
+    purple and y pulls blue (paper Fig. 2e,f and S4); ✕ at zero marks a sweep without
+    a linear (softened) regime, whose σ0 is undefined."""
+    if not any(r["Y_sec_N_per_mm"] is not None for r in red.sweeps):
+        raise SkipFigure("needs sweeps that reach the secant strain 0.02")
+    from matplotlib.lines import Line2D
+
+    keys = series_keys(red)
+    fig = new_figure(11.0, 4.6)
+    ax_y, ax_s = fig.subplots(1, 2)
+    no_regime = False
+    for i, key in enumerate(keys):
+        for d in ("x", "y"):
+            rows = sorted((r for r in red.sweeps if _key(r) == key and r["direction"] == d),
+                          key=lambda r: r["L_over_r"])  # fmt: skip
+            if not rows:
+                continue
+            st = {"color": DIRECTION_COLOUR[d], "marker": MARKERS[i % len(MARKERS)],
+                  "ls": LINESTYLES[i % len(LINESTYLES)]}  # fmt: skip
+            ys = [
+                (r["L_over_r"], r["Y_sec_N_per_mm"])
+                for r in rows
+                if r["Y_sec_N_per_mm"] is not None
+            ]
+            if ys:
+                ax_y.plot(*zip(*ys, strict=True), **st)
+            s0 = [(r["L_over_r"], r["sigma0_N_per_mm"]) for r in rows if r["has_linear_regime"]]
+            if s0:
+                ax_s.plot(*zip(*s0, strict=True), **st)
+            miss = [r["L_over_r"] for r in rows if not r["has_linear_regime"]]
+            if miss:
+                no_regime = True
+                ax_s.plot(miss, np.zeros(len(miss)), ls="none", marker="x", ms=7, mew=1.6,
+                          color=DIRECTION_COLOUR[d], clip_on=False, zorder=5)  # fmt: skip
+    ax_y.set_ylabel(r"secant modulus $Y_{\rm sec}$ (N/mm)")
+    ax_s.set_ylabel(r"offset stress $\sigma_0$ (N/mm)")
+    ax_y.set_title(r"(e) $Y_{\rm sec} = \sigma(0.02)/0.02$")
+    ax_s.set_title(r"(f) $\sigma_0$: intercept of the softened-regime line")
+    for ax in (ax_y, ax_s):
+        ax.set_xlabel(L_OVER_R)
+        ax.set_ylim(bottom=0.0)
+    handles = [Line2D([], [], color=DIRECTION_COLOUR[d], lw=2, label=f"pulled in {d}")
+               for d in ("x", "y")]  # fmt: skip
+    if no_regime:
+        handles.append(Line2D([], [], color="0.3", marker="x", ls="none", ms=7, mew=1.6,
+                              label=r"no linear regime ($\sigma_0$ undefined)"))  # fmt: skip
+    ax_s.legend(handles=handles, loc="upper right", frameon=False)
+    _series_legend(ax_y, red, keys, "upper right")
+    title(fig, red, "Stress–strain jamming metrics against $L/r$")
+    return fig
+
+
+def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
+    """Zero-force aspect ratio a_y0/a_x0 against (L/r)², symbols filled by regime
+    (pink jammed in x and y, orange only in y, green unjammed; paper Fig. 5a)."""
+    rows = [r for r in red.points if r.get("aspect_ratio") is not None]
+    if len(rows) < 2:
+        raise SkipFigure("needs ≥ 2 relaxed points")
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    keys = sorted({_key(r) for r in rows})
+    fig = new_figure(8.0, 5.2)
+    ax = fig.subplots()
+    if len(keys) == 1:  # one series: shade the regimes along (L/r)², as the paper does
+        pts = sorted(rows, key=lambda r: r["L_over_r"])
+        x2 = np.array([r["L_over_r"] ** 2 for r in pts])
+        edges = np.concatenate([[x2[0] - (x2[1] - x2[0]) / 2], (x2[1:] + x2[:-1]) / 2,
+                                [x2[-1] + (x2[-1] - x2[-2]) / 2]])  # fmt: skip
+        for r, a, b in zip(pts, edges[:-1], edges[1:], strict=True):
+            if r["regime"] is not None:
+                ax.axvspan(a, b, color=REGIME_FILL[r["regime"]], alpha=0.55, lw=0)
+    regimes = set()
+    for i, key in enumerate(keys):
+        pts = sorted((r for r in rows if _key(r) == key), key=lambda r: r["L_over_r"])
+        x2 = [r["L_over_r"] ** 2 for r in pts]
+        ar = [r["aspect_ratio"] for r in pts]
+        ax.plot(x2, ar, color="0.45", lw=1.1, ls=LINESTYLES[i % len(LINESTYLES)], zorder=2)
+        face = [REGIME_FILL[r["regime"]] if r["regime"] else "white" for r in pts]
+        regimes |= {r["regime"] for r in pts if r["regime"]}
+        ax.scatter(x2, ar, c=face, edgecolors="0.15", s=55, marker=MARKERS[i % len(MARKERS)],
+                   linewidths=1.0, zorder=3)  # fmt: skip
+    ax.set_xlabel(r"$(L/r)^2$")
+    ax.set_ylabel(r"aspect ratio $a_{y}/a_{x}$ at zero force")
+    handles = [Patch(facecolor=REGIME_FILL[g], edgecolor="0.15", label=REGIME_LABEL[g])
+               for g in REGIME_FILL if g in regimes]  # fmt: skip
+    if len(keys) > 1:
+        handles += [Line2D([], [], color="0.45", marker=MARKERS[i % len(MARKERS)], mfc="white",
+                           mec="0.15", ls=LINESTYLES[i % len(LINESTYLES)], label=label_of(red, k))
+                    for i, k in enumerate(keys)]  # fmt: skip
+    if not regimes:
+        notes.append("fig5a: regimes need sweeps in both x and y; symbols left white")
+    ax.legend(handles=handles, loc="best", frameon=True, framealpha=0.9)
+    title(fig, red, "Zero-force stitch aspect ratio against $(L/r)^2$")
+    return fig
+
+
+def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
+    """(h) |F_x|/|F_y| of the contact forces at zero strain against L/r (paper Fig. 6h),
+    from the sums over all contact classes of |F_x| and |F_y|; dashed line: equal
+    forces. Right: the sums by contact class (N) for the first series."""
+    rows = [r for r in red.points if r.get("force_ratio_xy") is not None]
+    if not rows:
+        raise SkipFigure("the results file stores no contact forces "
+                         "(set [store] contact_forces = true in the job)")  # fmt: skip
+    from matplotlib.lines import Line2D
+
+    keys = sorted({_key(r) for r in rows})
+    fig = new_figure(12.0, 4.9)
+    ax, ax_c = fig.subplots(1, 2, width_ratios=(1.15, 1.0))
+    for i, key in enumerate(keys):
+        pts = sorted((r for r in rows if _key(r) == key), key=lambda r: r["L_over_r"])
+        colour = f"C{i % 10}" if len(keys) > 1 else "0.15"
+        ax.plot([r["L_over_r"] for r in pts], [r["force_ratio_xy"] for r in pts], color=colour,
+                marker=MARKERS[i % len(MARKERS)], label=label_of(red, key) or "simulation")  # fmt: skip
+        t = red.transition_of.get((key, "y"))
+        if t is not None and t.status == "transition":
+            ax.axvline(t.L_over_r_trans, color=colour if len(keys) > 1 else TRANSITION_LINE["y"],
+                       ls=":", lw=1.4)  # fmt: skip
+    series_handles = ax.get_legend_handles_labels()
+    ax.axhline(1.0, color="0.4", ls="--", lw=1.2)
+    ax.set_ylim(bottom=0.0)
+    ax.set_xlabel(L_OVER_R)
+    ax.set_ylabel(r"contact-force ratio $|F_x|/|F_y|$")
+    ax.set_title("(h) ratio of total contact forces at zero strain")
+    ax.legend(handles=[Line2D([], [], color="0.4", ls="--", label=r"$|F_x| = |F_y|$"),
+                       Line2D([], [], color="0.4", ls=":", label=r"$(L/r)_{\rm trans}$ in y")],
+              loc="lower right", frameon=True, framealpha=0.9)  # fmt: skip
+    if len(keys) > 1:
+        fig.legend(*series_handles, loc="outside lower center", ncols=min(len(keys), 4),
+                   frameon=False)  # fmt: skip
+
+    pts = sorted((r for r in rows if _key(r) == keys[0]), key=lambda r: r["L_over_r"])
+    x = [r["L_over_r"] for r in pts]
+    for j, cls in enumerate(CONTACT_CLASSES):
+        for a, ls in (("x", "-"), ("y", "--")):
+            ax_c.plot(x, [r[f"F_{cls}_{a}_N"] for r in pts], color=CLASS_COLOUR[cls], ls=ls,
+                      marker=MARKERS[j], ms=4)  # fmt: skip
+    handles = [Line2D([], [], color=CLASS_COLOUR[c], marker=MARKERS[j], label=CLASS_LABEL[c])
+               for j, c in enumerate(CONTACT_CLASSES)]  # fmt: skip
+    handles += [Line2D([], [], color="0.3", ls="-", label=r"$|F_x|$"),
+                Line2D([], [], color="0.3", ls="--", label=r"$|F_y|$")]  # fmt: skip
+    ax_c.legend(handles=handles, loc="upper right", frameon=True, framealpha=0.9, ncols=2,
+                fontsize=9)  # fmt: skip
+    ax_c.set_xlabel(L_OVER_R)
+    ax_c.set_ylabel("sum of |force components| (N)")
+    lab = label_of(red, keys[0])
+    ax_c.set_title("by contact class" + (f" ({lab})" if lab else ""))
+    ax_c.set_ylim(bottom=0.0)
+    title(fig, red, "Contact forces at zero strain, x against y")
+    return fig

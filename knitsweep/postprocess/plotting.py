@@ -1,0 +1,178 @@
+"""Shared look of the phase-diagram figures: colours, fonts, panels, labels.
+
+matplotlib is imported here lazily (inside functions), and only through its
+object-oriented API with the Agg canvas: no pyplot, no global backend switch, no
+display. Colours follow the paper: contact energy coral and bending energy blue
+(Fig. 3); regimes pink (jammed in x and y), orange (jammed only in y) and green
+(unjammed) (Fig. 4c, 5a); pulls in x purple and in y blue (Fig. S4, S5).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+import numpy as np
+
+from .reduce import SERIES_PARAMS, Reduction
+from .tables import series_label
+
+CONTACT_COLOUR = "#ee6a50"  # coral: contact energy gap ΔE_c
+BENDING_COLOUR = "#2f6db5"  # blue: bending energy gap ΔE_b
+DIRECTION_COLOUR = {"x": "#7b3fa0", "y": "#2f8fd0"}  # paper SI: x purple, y blue
+REGIME_FILL = {
+    "jammed_xy": "#f6c4d6",  # pink
+    "jammed_y_only": "#fbd5a5",  # orange
+    "jammed_x_only": "#cfc8e8",  # lavender: the converse the paper finds very unlikely
+    "unjammed": "#cde9c3",  # green
+}
+REGIME_LABEL = {
+    "jammed_xy": "jammed in x and y",
+    "jammed_y_only": "jammed only in y",
+    "jammed_x_only": "jammed only in x (rare)",
+    "unjammed": "unjammed",
+}
+TRANSITION_LINE = {"x": "#d9730d", "y": "#2e8b46"}  # paper Fig. 4c: x orange, y green
+BRACKET_FILL = "#b9e3b0"  # light green: the transition bracket (paper Fig. 3)
+THRESHOLD_COLOUR = "#555555"
+PARTIAL_COLOUR = "#b00020"
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h")
+LINESTYLES = ("-", "--", "-.", ":")
+
+STYLE = {
+    "font.family": "DejaVu Sans",
+    "mathtext.fontset": "dejavusans",
+    "font.size": 11,
+    "axes.titlesize": 11,
+    "axes.labelsize": 11,
+    "xtick.labelsize": 10,
+    "ytick.labelsize": 10,
+    "legend.fontsize": 10,
+    "legend.title_fontsize": 10,
+    "figure.titlesize": 12,
+    "axes.grid": True,
+    "grid.alpha": 0.25,
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+    "lines.linewidth": 1.6,
+    "lines.markersize": 5.5,
+    "savefig.dpi": 150,
+}
+
+L_OVER_R = "$L/r$"
+STRAIN = {"x": r"strain $\varepsilon_x$", "y": r"strain $\varepsilon_y$"}
+MAX_PANELS = 8
+
+
+class SkipFigure(Exception):
+    """A figure the results file has no data for; the message says why."""
+
+
+@contextlib.contextmanager
+def style() -> Iterator[None]:
+    """The figures' rcParams, for the duration of drawing and saving."""
+    import matplotlib
+
+    with matplotlib.rc_context(STYLE):
+        yield
+
+
+def new_figure(width: float, height: float) -> Any:
+    """A matplotlib Figure on an Agg canvas (constrained layout), size in inches."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def title(fig: Any, red: Reduction, text: str) -> None:
+    """Figure title: what it shows and the fixed parameters; for a partial results
+    file, a first line saying so, and the whole title in red."""
+    fixed = series_label(red.constants, red.constants)
+    lines = [text] + ([fixed] if fixed else [])
+    if red.partial:
+        lines.insert(0, f"PARTIAL RESULTS ({red.partial_reason})")
+    fig.suptitle("\n".join(lines), fontsize=12,
+                 color=PARTIAL_COLOUR if red.partial else "black")  # fmt: skip
+
+
+def series_keys(red: Reduction, direction: str | None = None) -> list[tuple[float, ...]]:
+    """The series (values of k, B, r_core, r, p) with analysed sweeps, sorted."""
+    keys = {c.series for c in red.curves if direction is None or c.direction == direction}
+    return sorted(keys)
+
+
+def label_of(red: Reduction, key: Sequence[float]) -> str:
+    """Label of a series by the parameters that vary in the file ('' if none vary)."""
+    return series_label(dict(zip(SERIES_PARAMS, key, strict=True)), red.varying)
+
+
+def limit_panels(keys: list, what: str, notes: list[str]) -> list:
+    """At most :data:`MAX_PANELS` series; a note says how many were left out."""
+    if len(keys) > MAX_PANELS:
+        notes.append(f"{what}: showing the first {MAX_PANELS} of {len(keys)} series")
+        return keys[:MAX_PANELS]
+    return keys
+
+
+def L_colours(red: Reduction) -> tuple[Any, Any]:
+    """(colormap, norm) colouring curves by L in mm over the file's range."""
+    import matplotlib as mpl
+    from matplotlib.colors import ListedColormap, Normalize
+
+    base = mpl.colormaps["viridis"]
+    cmap = ListedColormap(base(np.linspace(0.0, 0.88, 256)))  # keep the light end readable
+    Ls = [c.L_mm for c in red.curves] or [0.0, 1.0]
+    lo, hi = min(Ls), max(Ls)
+    if hi == lo:
+        lo, hi = lo - 0.5, hi + 0.5
+    return cmap, Normalize(lo, hi)
+
+
+def L_colourbar(fig: Any, axes: Any, cmap: Any, norm: Any) -> None:
+    """A colourbar labelled L (mm), shared by ``axes``."""
+    from matplotlib.cm import ScalarMappable
+
+    cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.6, aspect=25)
+    cb.set_label("yarn length per stitch $L$ (mm)")
+
+
+def jammed_legend(fig: Any, directions: Sequence[str]) -> None:
+    """Figure legend for the line styles: jammed (solid) and unjammed (dashed)."""
+    from matplotlib.lines import Line2D
+
+    gaps = ", ".join(
+        r"$\Delta E_c$ for x" if d == "x" else r"$\Delta E_b$ for y" for d in directions
+    )
+    handles = [
+        Line2D([], [], color="0.3", ls="-", label=f"jammed (gap ≥ threshold: {gaps})"),
+        Line2D([], [], color="0.3", ls="--", label="unjammed"),
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncols=2, frameon=False)
+
+
+def grid_of_panels(fig: Any, n: int, ncols: int) -> list[Any]:
+    """``n`` axes in a grid of ``ncols`` columns; unused cells are removed."""
+    nrows = -(-n // ncols)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    flat = list(axes.ravel())
+    for ax in flat[n:]:
+        ax.remove()
+    return flat[:n]
+
+
+def parameter_axis(ax: Any, values: Sequence[float]) -> None:
+    """x axis over a swept parameter: log scale when it spans ≥ a decade, ticks at
+    the sampled values."""
+    from matplotlib.ticker import NullFormatter
+
+    xs = sorted(set(values))
+    if xs[0] > 0.0 and xs[-1] / xs[0] >= 10.0:
+        ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+    if len(xs) <= 8:
+        ax.set_xticks(xs)
+        ax.set_xticklabels([f"{v:g}" for v in xs])

@@ -1,0 +1,464 @@
+"""Reduce a results file to the paper's tables (MODEL.md §9; paper Sections IV–VII).
+
+One pass over a results file (``knitsweep run``; schema in :mod:`knitsweep.storage`),
+read through :func:`knitsweep.storage.iter_entries`, so that results still in a
+running job's journal count too. Out come plain rows (dicts of str, float, int, bool
+or None), ready for CSV, printing and the figures of :mod:`.figures`:
+
+* one row per sweep: Y_sec at ε = 0.02 (N/mm), σ0 (N/mm) and whether a linear regime
+  exists, the gaps ΔE_b and ΔE_c (mJ = N·mm, the paper's "J"), the zero-force
+  aspect ratio a_y0/a_x0, extremes of the area and thickness strains, and the contact
+  forces by class at zero strain (N) when the file stores them;
+* one row per series (fixed k, B, r_core, r, p and direction): (L/r)_trans, its
+  bracket, the Table S4 line fit of the jamming gap and ΔL/r (paper Fig. 4a);
+* one row per point: the zero-force state and its regime (paper Fig. 4c, 5a);
+* one row per task that failed or was not knittable (listed, never fatal).
+
+Units throughout: L in mm, L/r dimensionless, k in mN/mm², B in mN·mm², r and
+r_core in mm, energies in mJ, stresses in N/mm, forces in N.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickness_strain
+from ..analysis.transitions import Transition, transition
+from ..params import InputError
+from ..storage import POINTS, SWEEPS, Entry, iter_entries, read_root
+
+SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p")
+"""The parameters held fixed along a series in L (the paper's k, B, r_core, r, p)."""
+
+PARAM_SYMBOLS = {
+    "k_mN_per_mm2": ("k", "mN/mm²"),
+    "B_mN_mm2": ("B", "mN·mm²"),
+    "r_core_mm": ("r_core", "mm"),
+    "r_mm": ("r", "mm"),
+    "p": ("p", ""),
+}
+
+CONTACT_CLASSES = ("self", "same_row", "nn_column", "nnn_column", "other")
+"""Rows of a stored ``contact_forces`` (5, 3) array; the same tuple as
+``knitsweep.model.CONTACT_CLASSES`` (not imported: it would load the numba kernels)."""
+
+CONTACT_COLUMNS = tuple(f"F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
+
+JAMMING_GAP_COLUMN = {"x": "delta_E_c", "y": "delta_E_b"}
+"""The gap that marks jamming per pulling direction (paper Fig. 3)."""
+
+_SWEEP_ARRAYS = ("strain", "stress", "bending_energy", "contact_energy", "a_x", "a_y", "thickness")
+_REQUIRED_META = ("status", "L_mm", "L_over_r", *SERIES_PARAMS)
+
+
+@dataclass(frozen=True)
+class SweepCurves:
+    """Per-step arrays of one analysed sweep, shape (n,) each, for the figures.
+
+    ``strain`` (dimensionless), ``stress`` (N/mm), ``area_strain`` and
+    ``thickness_strain`` (dimensionless), ``bending_energy``/``contact_energy`` (mJ).
+    """
+
+    task_id: str
+    direction: str
+    L_mm: float
+    L_over_r: float
+    series: tuple[float, ...]
+    jammed: bool
+    strain: np.ndarray
+    stress: np.ndarray
+    area_strain: np.ndarray
+    thickness_strain: np.ndarray
+    bending_energy: np.ndarray
+    contact_energy: np.ndarray
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """Everything the phase-diagram command prints, writes and plots.
+
+    Attributes:
+        path: the results file.
+        job_name, run_status: from the file's root attributes.
+        partial: True unless the run is 'complete' and every planned task is present.
+        partial_reason: why it is partial (None when it is not).
+        n_expected: tasks the job plans (points + sweeps); n_found: tasks present.
+        threshold: the energy-gap threshold, mJ.
+        sweeps, transitions, points, problems: the table rows (see module docstring).
+        curves: per-step arrays of every analysed sweep.
+        transition_of: {(series values, direction): Transition}.
+        varying: the series parameters that take more than one value in the file.
+        constants: the series parameters that take one value, with it.
+        notes: remarks worth printing (e.g. an adaptive bracket that disagrees).
+    """
+
+    path: Path
+    job_name: str
+    run_status: str
+    partial: bool
+    partial_reason: str | None
+    n_expected: int
+    n_found: int
+    threshold: float
+    sweeps: list[dict[str, Any]] = field(default_factory=list)
+    transitions: list[dict[str, Any]] = field(default_factory=list)
+    points: list[dict[str, Any]] = field(default_factory=list)
+    problems: list[dict[str, Any]] = field(default_factory=list)
+    curves: list[SweepCurves] = field(default_factory=list)
+    transition_of: dict[tuple[tuple[float, ...], str], Transition] = field(default_factory=dict)
+    varying: tuple[str, ...] = ()
+    constants: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def status_line(self) -> str:
+        """One line: job, run status and counts (with 'PARTIAL' and why, if so)."""
+        n_sw = sum(1 for p in self.problems if p["kind"] == "sweep")
+        text = (
+            f"{self.path.name}: job {self.job_name}, run_status {self.run_status}; "
+            f"{len(self.points)} points, {len(self.sweeps)} sweeps analysed"
+            f"{f', {len(self.problems)} tasks not analysed ({n_sw} sweeps)' if self.problems else ''}"
+            f"; gap threshold {self.threshold:g} mJ"
+        )
+        return f"PARTIAL ({self.partial_reason}) — {text}" if self.partial else text
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, bytes):
+        return value.decode()
+    return value
+
+
+def _check_meta(path: Path, entry: Entry) -> dict[str, Any]:
+    meta = {k: _plain(v) for k, v in entry.meta.items()}
+    need = _REQUIRED_META + (("direction",) if entry.kind == SWEEPS else ())
+    missing = [k for k in need if k not in meta]
+    if missing:
+        raise InputError(
+            f"{path}: {entry.kind[:-1]} {entry.task_id} lacks attribute(s) "
+            f"{', '.join(missing)}: not a knitsweep results file of this schema"
+        )
+    return meta
+
+
+def _base_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
+    row = {"task_id": entry.task_id, "status": str(meta["status"])}
+    if entry.kind == SWEEPS:
+        row |= {"point_id": str(meta.get("point_id", "")), "direction": str(meta["direction"])}
+    row |= {"L_mm": float(meta["L_mm"]), "L_over_r": float(meta["L_over_r"])}
+    row |= {k: float(meta[k]) for k in SERIES_PARAMS}
+    return row
+
+
+def _force_columns(forces: Any) -> dict[str, Any]:
+    """Contact forces (5, 3) at zero strain → flat columns, totals and |F_x|/|F_y|."""
+    if forces is None:
+        return {c: None for c in (*CONTACT_COLUMNS, "F_x_N", "F_y_N", "F_z_N", "force_ratio_xy")}
+    f = np.asarray(forces, dtype=float).reshape(len(CONTACT_CLASSES), 3)
+    out: dict[str, Any] = dict(zip(CONTACT_COLUMNS, map(float, f.ravel()), strict=True))
+    fx, fy, fz = (float(v) for v in f.sum(axis=0))
+    out |= {"F_x_N": fx, "F_y_N": fy, "F_z_N": fz}
+    out["force_ratio_xy"] = fx / fy if fy > 0.0 else None
+    return out
+
+
+def _point_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
+    """Zero-force state of one point: periods (mm), aspect ratio, energies (mJ)."""
+    row = _base_row(entry, meta)
+    rec = entry.record
+    x = rec.get("x")
+    winner = int(meta.get("winner", rec.get("winner", 0)) or 0)
+    if x is not None and np.ndim(x) == 2 and row["status"] == "done":
+        best = np.asarray(x[winner], dtype=float)
+        a_x0, a_y0 = float(best[-2]), float(best[-1])
+        row |= {
+            "a_x0_mm": a_x0,
+            "a_y0_mm": a_y0,
+            "aspect_ratio": a_y0 / a_x0,
+            "E_b_rest_mJ": float(rec["bending_energy"][winner]),
+            "E_c_rest_mJ": float(rec["contact_energy"][winner]),
+            "thickness0_mm": _plain(meta.get("thickness")),
+        }
+    row |= _force_columns(rec.get("contact_forces"))
+    return row
+
+
+def _analyse_sweep(
+    entry: Entry, meta: Mapping[str, Any], point_forces: Any, threshold: float
+) -> tuple[dict[str, Any], SweepCurves]:
+    """Metrics row and curves of one done sweep; ValueError if its arrays are unusable."""
+    rec = entry.record
+    missing = [k for k in _SWEEP_ARRAYS if k not in rec]
+    if missing:
+        raise ValueError(f"no array(s) {', '.join(missing)}")
+    arrays = {k: np.asarray(rec[k], dtype=float) for k in _SWEEP_ARRAYS}
+    direction = str(meta["direction"])
+    m = sweep_metrics(direction, **arrays)
+    row = _base_row(entry, meta)
+    row |= {
+        "sweep_status": str(meta.get("sweep_status", "")),
+        "n_steps": m.n_steps,
+        "max_strain": m.max_strain,
+        "max_stress_N_per_mm": m.max_stress,
+        "Y_sec_N_per_mm": m.secant.Y_sec,
+        "stress_at_secant_N_per_mm": m.secant.stress_at,
+        "sigma0_N_per_mm": m.offset.sigma0,
+        "softened_slope_N_per_mm": m.offset.slope,
+        "has_linear_regime": m.offset.has_linear_regime,
+        "delta_E_b": m.gaps.delta_E_b,
+        "delta_E_c": m.gaps.delta_E_c,
+        "jamming_gap": m.jamming_gap,
+        "E_b_rest_mJ": m.gaps.E_b_rest,
+        "E_c_rest_mJ": m.gaps.E_c_rest,
+        "a_x0_mm": m.a_x0,
+        "a_y0_mm": m.a_y0,
+        "aspect_ratio": m.aspect_ratio,
+        "thickness0_mm": m.thickness0,
+        "area_strain_min": m.area_strain_min,
+        "area_strain_max": m.area_strain_max,
+        "min_area_at_zero_force": m.min_area_at_zero_force,
+        "thickness_strain_min": m.thickness_strain_min,
+        "thickness_strain_max": m.thickness_strain_max,
+        "thickness_strain_at_secant": m.thickness_strain_at,
+        "jammed": m.jamming_gap >= threshold,
+    }
+    stored = rec.get("contact_forces")
+    zero_forces = np.asarray(stored)[0] if stored is not None and len(stored) else point_forces
+    row |= _force_columns(zero_forces)
+    curves = SweepCurves(
+        task_id=entry.task_id,
+        direction=direction,
+        L_mm=row["L_mm"],
+        L_over_r=row["L_over_r"],
+        series=tuple(row[k] for k in SERIES_PARAMS),
+        jammed=row["jammed"],
+        strain=arrays["strain"],
+        stress=arrays["stress"],
+        area_strain=area_strain(arrays["a_x"], arrays["a_y"]),
+        thickness_strain=thickness_strain(arrays["thickness"]),
+        bending_energy=arrays["bending_energy"],
+        contact_energy=arrays["contact_energy"],
+    )
+    return row, curves
+
+
+def _problem(kind: str, row: Mapping[str, Any], meta: Mapping[str, Any], why: str) -> dict:
+    return {
+        "kind": kind,
+        "task_id": row["task_id"],
+        "status": row["status"],
+        "direction": row.get("direction", ""),
+        "L_mm": row["L_mm"],
+        **{k: row[k] for k in SERIES_PARAMS},
+        "message": why or str(meta.get("error_message", "")),
+    }
+
+
+def transition_row(
+    values: tuple[float, ...], direction: str, t: Transition, n_missing: int
+) -> dict[str, Any]:
+    """One row of transitions.csv: the series, (L/r)_trans, bracket, Table S4 fit, ΔL/r.
+
+    ``fit_slope_per_mm`` is the slope against L in mm (slope per unit L/r divided by
+    r), the form of paper Table S4; the intercept is the same in both.
+    """
+    params = dict(zip(SERIES_PARAMS, values, strict=True))
+    r = params["r_mm"]
+    trans = t.L_over_r_trans
+    fit = t.fit
+    return {
+        "direction": direction,
+        **params,
+        "gap": JAMMING_GAP_COLUMN[direction],
+        "status": t.status,
+        "L_over_r_trans": trans,
+        "bracket_lower": t.bracket_lower,
+        "bracket_upper": t.bracket_upper,
+        "L_trans_mm": trans * r if trans is not None else None,
+        "n_points": t.n_points,
+        "n_jammed": t.n_jammed,
+        "n_jammed_after": t.n_jammed_after,
+        "n_missing": n_missing,
+        "fit_slope_per_L_over_r": fit.slope if fit else None,
+        "fit_slope_per_mm": fit.slope / r if fit else None,
+        "fit_intercept": fit.intercept if fit else None,
+        "fit_n_points": fit.n_points if fit else None,
+        "fit_max_abs_residual": fit.max_abs_residual if fit else None,
+        "fit_mean_abs_residual": fit.mean_abs_residual if fit else None,
+        "fit_mse": fit.mse if fit else None,
+        "L_over_r_intercept": t.L_over_r_intercept,
+        "delta_L_over_r": t.delta_L_over_r,
+        "threshold": t.threshold,
+    }
+
+
+def _series_key(row: Mapping[str, Any]) -> tuple[float, ...]:
+    return tuple(row[k] for k in SERIES_PARAMS)
+
+
+def _transitions(
+    sweeps: list[dict[str, Any]], problems: list[dict[str, Any]], threshold: float
+) -> tuple[dict, list[dict[str, Any]]]:
+    """(L/r)_trans of every (series, direction) with at least one analysed sweep.
+
+    Every analysed L counts, so the series of an adaptive job (coarse grid plus
+    bisection points) gives its refined bracket here too."""
+    collected: dict[tuple[tuple[float, ...], str], list[tuple[float, float]]] = {}
+    for row in sweeps:
+        key = (_series_key(row), row["direction"])
+        collected.setdefault(key, []).append((row["L_over_r"], row["jamming_gap"]))
+    missing: dict[tuple[tuple[float, ...], str], int] = {}
+    for p in problems:
+        if p["kind"] == "sweep":
+            key = (_series_key(p), p["direction"])
+            missing[key] = missing.get(key, 0) + 1
+    out, rows = {}, []
+    for key in sorted(collected):
+        pts = sorted(collected[key])
+        t = transition([p[0] for p in pts], [max(p[1], 0.0) for p in pts], threshold)
+        out[key] = t
+        rows.append(transition_row(key[0], key[1], t, missing.get(key, 0)))
+    return out, rows
+
+
+def _adaptive(entries: list[Entry], rows: list[dict[str, Any]], notes: list[str]) -> None:
+    """Add the bracket an adaptive job recorded per series (``/series`` groups) to the
+    transition rows, and note where it disagrees with the one found here."""
+    found = {}
+    for e in entries:
+        meta = {k: _plain(v) for k, v in e.meta.items()}
+        if all(k in meta for k in ("direction", *SERIES_PARAMS)):
+            found[(tuple(float(meta[k]) for k in SERIES_PARAMS), meta["direction"])] = meta
+    for row in rows:
+        meta = found.get((_series_key(row), row["direction"]))
+        if meta is None:
+            continue
+        row["adaptive_status"] = meta.get("status")
+        row["adaptive_bracket_lower"] = meta.get("bracket_lower")
+        row["adaptive_bracket_upper"] = meta.get("bracket_upper")
+        hi = meta.get("bracket_upper")
+        if meta.get("status") == "done" and hi is not None and row["L_over_r_trans"] is not None:
+            if abs(float(hi) - row["L_over_r_trans"]) > 1e-9 * max(1.0, abs(float(hi))):
+                notes.append(
+                    f"{row['direction']} series {series_text(row)}: the adaptive run bracketed "
+                    f"(L/r)_trans at {float(hi):.4f}, this threshold gives "
+                    f"{row['L_over_r_trans']:.4f}"
+                )
+
+
+def series_text(row: Mapping[str, Any]) -> str:
+    """'k = 0.1, B = 90, r_core = 0.325, r = 0.74, p = 2.4' (no units)."""
+    return ", ".join(f"{PARAM_SYMBOLS[k][0]} = {row[k]:g}" for k in SERIES_PARAMS)
+
+
+def _partial_reasons(root: Mapping[str, Any], n_found: int) -> list[str]:
+    run_status = str(root.get("run_status", "unknown"))
+    n_expected = int(root.get("n_points", 0)) + int(root.get("n_sweeps", 0))
+    reasons = []
+    if run_status != "complete":
+        reasons.append(f"run_status '{run_status}'")
+    if n_found < n_expected:
+        reasons.append(f"{n_found} of {n_expected} tasks present")
+    return reasons
+
+
+def reduce_results(path: str | Path, threshold: float = GAP_THRESHOLD) -> Reduction:
+    """Reduce a results file (complete, partial, or still being written) to tables.
+
+    Args:
+        path: an HDF5 results file of ``knitsweep run`` (schema 1).
+        threshold: energy-gap threshold, mJ (paper: 5e-5): a sweep with jamming gap
+            (ΔE_c for x, ΔE_b for y) below it is unjammed.
+
+    Returns:
+        The :class:`Reduction`; tasks that failed, were not knittable, or whose
+        arrays cannot be analysed are in ``problems``, not raised.
+
+    Raises:
+        InputError: a missing or unreadable file, a wrong schema version, or task
+            groups without the attributes this schema guarantees; threshold ≤ 0.
+    """
+    path = Path(path)
+    if not (threshold > 0.0 and np.isfinite(threshold)):
+        raise InputError(f"threshold = {threshold!r}: must be a finite number > 0 (mJ)")
+    root = read_root(path)
+    entries = list(iter_entries(path, with_data=True))
+    tasks = {POINTS: [], SWEEPS: []}
+    for e in entries:
+        if e.kind in tasks:  # other kinds (an adaptive job's /series) are read below
+            tasks[e.kind].append((e, _check_meta(path, e)))
+    point_of = {e.task_id: e for e, _ in tasks[POINTS]}
+    points, sweeps, problems, curves = [], [], [], []
+    for e, meta in sorted(tasks[POINTS], key=lambda em: (_series_key(em[1]), em[1]["L_mm"])):
+        row = _point_row(e, meta)
+        points.append(row)
+        if row["status"] != "done":
+            problems.append(_problem("point", row, meta, str(meta.get("message", ""))))
+    for e, meta in sorted(
+        tasks[SWEEPS], key=lambda em: (em[1]["direction"], _series_key(em[1]), em[1]["L_mm"])
+    ):
+        base = _base_row(e, meta)
+        if base["status"] != "done":
+            problems.append(_problem("sweep", base, meta, str(meta.get("message", ""))))
+            continue
+        point = point_of.get(base["point_id"])
+        point_forces = point.record.get("contact_forces") if point is not None else None
+        try:
+            row, c = _analyse_sweep(e, meta, point_forces, threshold)
+        except ValueError as err:
+            problems.append(_problem("sweep", base, meta, f"not analysable: {err}"))
+            continue
+        sweeps.append(row)
+        curves.append(c)
+
+    transition_of, transitions = _transitions(sweeps, problems, threshold)
+    notes: list[str] = []
+    _adaptive([e for e in entries if e.kind not in tasks], transitions, notes)
+    for row in (*points, *sweeps):
+        row["regime"] = _regime(row, transition_of) if row["status"] == "done" else None
+    n_found = len(tasks[POINTS]) + len(tasks[SWEEPS])
+    reasons = _partial_reasons(root, n_found)
+    values = {k: sorted({row[k] for row in points + sweeps}) for k in SERIES_PARAMS}
+    return Reduction(
+        path=path,
+        job_name=str(root.get("job_name", "")) or _job_name(root),
+        run_status=str(root.get("run_status", "unknown")),
+        partial=bool(reasons),
+        partial_reason=", ".join(reasons) or None,
+        n_expected=int(root.get("n_points", 0)) + int(root.get("n_sweeps", 0)),
+        n_found=n_found,
+        threshold=float(threshold),
+        sweeps=sweeps,
+        transitions=transitions,
+        points=points,
+        problems=problems,
+        curves=curves,
+        transition_of=transition_of,
+        varying=tuple(k for k, v in values.items() if len(v) > 1),
+        constants={k: v[0] for k, v in values.items() if len(v) == 1},
+        notes=notes,
+    )
+
+
+def _job_name(root: Mapping[str, Any]) -> str:
+    try:
+        return str(json.loads(str(root.get("job_json", "{}"))).get("name", ""))
+    except json.JSONDecodeError:
+        return ""
+
+
+def _regime(row: Mapping[str, Any], transition_of: Mapping) -> str | None:
+    """Regime of a point from its series' transitions in x and y (None if one is absent)."""
+    key = _series_key(row)
+    tx, ty = transition_of.get((key, "x")), transition_of.get((key, "y"))
+    if tx is None or ty is None:
+        return None
+    return regime(row["L_over_r"], tx, ty)

@@ -1,0 +1,397 @@
+"""Pictures of a relaxed stitch: a patch of fabric like the paper's Fig. 1a.
+
+The yarn centre-line of one cell is the 8 quintic Bézier segments of
+:meth:`knitsweep.model.CellModel.control_points` (MODEL.md §3–4), in path order;
+segment 7 ends where segment 0 starts, shifted by the course period t_c = (a_x, 0, 0),
+so one row's yarn is the cell's path repeated along x, and the rows repeat along
+the wale period t_w = (0, a_y, 0). Each row is drawn as a tube of radius r around
+its centre-line, seen along a tilted direction in orthographic projection, shaded
+(Lambert + specular) and depth-sorted face by face (painter's algorithm), so that
+interlocking loops hide each other correctly. Lengths in mm.
+
+matplotlib is imported lazily, with the Agg canvas and no pyplot.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .kernels.bezier import basis_tables
+from .params import InputError, StitchParams
+
+ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
+"""Base colour of each row (course) of yarn, cycling."""
+
+OUT_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+@dataclass(frozen=True)
+class Stitch:
+    """What is drawn: the cell's control points (8, 6, 3), mm, its periods a_x, a_y
+    (mm), the yarn radius r (mm) and a one-line description."""
+
+    control_points: np.ndarray
+    a_x: float
+    a_y: float
+    r_mm: float
+    label: str
+
+
+def cell_path(control_points: np.ndarray, samples: int = 24) -> np.ndarray:
+    """The cell's yarn centre-line, shape (8·samples + 1, 3), mm: each segment sampled
+    at ``samples`` + 1 equally spaced t, joins not repeated."""
+    cp = np.asarray(control_points, dtype=float)
+    if cp.shape != (8, 6, 3):
+        raise ValueError(f"control points: expected shape (8, 6, 3), got {cp.shape}")
+    basis = basis_tables(np.linspace(0.0, 1.0, samples + 1))[0]  # (samples + 1, 6)
+    pts = np.einsum("ti,sik->stk", basis, cp)  # (8, samples + 1, 3)
+    return np.concatenate([pts[:, :-1].reshape(-1, 3), pts[-1, -1:]], axis=0)
+
+
+def frames(path: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit tangents, normals and binormals along ``path`` (n, 3), each (n, 3):
+    rotation-minimising frames (double reflection, Wang et al. 2008), so that a
+    tube built on them does not twist."""
+    p = np.asarray(path, dtype=float)
+    t = np.gradient(p, axis=0)
+    t /= np.linalg.norm(t, axis=1)[:, None]
+    n = len(p)
+    normal = np.empty((n, 3))
+    seed = np.array([0.0, 0.0, 1.0]) if abs(t[0, 2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    normal[0] = np.cross(t[0], np.cross(seed, t[0]))
+    normal[0] /= np.linalg.norm(normal[0])
+    v1 = np.diff(p, axis=0)
+    c1 = np.einsum("ij,ij->i", v1, v1)
+    for i in range(n - 1):
+        if c1[i] == 0.0:
+            normal[i + 1] = normal[i]
+            continue
+        rl = normal[i] - (2.0 / c1[i]) * (v1[i] @ normal[i]) * v1[i]
+        tl = t[i] - (2.0 / c1[i]) * (v1[i] @ t[i]) * v1[i]
+        v2 = t[i + 1] - tl
+        c2 = v2 @ v2
+        normal[i + 1] = rl - (2.0 / c2) * (v2 @ rl) * v2 if c2 > 0.0 else rl
+    return t, normal, np.cross(t, normal)
+
+
+SIDES = ("face", "back")
+"""Which side of the fabric faces the viewer: 'face' (the knit side, its V-shaped legs;
+seen from −z in this model's frame) or 'back' (the purl side, seen from +z)."""
+
+
+def _view_matrix(elevation_deg: float, azimuth_deg: float, side: str = "face") -> np.ndarray:
+    """Rotation taking fabric coordinates to (screen right, screen up, towards viewer):
+    the fabric seen from ``side`` with the wale (y) up, turned by ``azimuth`` about
+    its normal and tilted by 90° − ``elevation`` about the screen's horizontal axis."""
+    a = np.radians(azimuth_deg)
+    rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    flip = np.diag([-1.0, 1.0, -1.0]) if side == "face" else np.eye(3)
+    tilt = np.radians(90.0 - elevation_deg)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(tilt), -np.sin(tilt)],
+                   [0.0, np.sin(tilt), np.cos(tilt)]])  # fmt: skip
+    return rx @ flip @ rz
+
+
+def _shade(base: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Lambert + Blinn–Phong shading of face colours (m, 3) for view-space normals (m, 3)."""
+    light = np.array([-0.45, 0.55, 1.0])
+    light /= np.linalg.norm(light)
+    half = light + np.array([0.0, 0.0, 1.0])
+    half /= np.linalg.norm(half)
+    diffuse = np.clip(normals @ light, 0.0, 1.0)[:, None]
+    spec = np.clip(normals @ half, 0.0, 1.0)[:, None] ** 40
+    rgb = base * (0.3 + 0.7 * diffuse) + 0.35 * spec
+    return np.clip(rgb, 0.0, 1.0)
+
+
+def _cell_tint(row: int, column: int, centre: tuple[int, int]) -> np.ndarray:
+    """Row hue, lighter or darker by column; the central stitch saturated, the rest
+    washed towards grey so that the unit cell stands out."""
+    from matplotlib.colors import to_rgb
+
+    rgb = np.array(to_rgb(ROW_COLOURS[row % len(ROW_COLOURS)]))
+    rgb = rgb * (1.0 + 0.12 * ((column % 3) - 1))
+    if (row, column) != centre:
+        rgb = 0.55 * rgb + 0.45 * np.array([0.78, 0.76, 0.72])
+    return np.clip(rgb, 0.0, 1.0)
+
+
+def dense_cell_path(control_points: np.ndarray, spacing: float) -> np.ndarray:
+    """The cell's yarn centre-line sampled at most ``spacing`` mm apart (roughly), shape
+    (k, 3): each segment gets enough equally spaced t for its control-polygon length
+    (an upper bound on its arc length)."""
+    cp = np.asarray(control_points, dtype=float)
+    parts = []
+    for seg in cp:
+        polygon = float(np.sum(np.linalg.norm(np.diff(seg, axis=0), axis=1)))
+        n = max(8, int(np.ceil(polygon / spacing)))
+        basis = basis_tables(np.linspace(0.0, 1.0, n + 1))[0]
+        parts.append((basis @ seg)[:-1])
+    parts.append(cp[-1, -1:])
+    return np.concatenate(parts)
+
+
+def window(stitch: Stitch, cells: int, view: np.ndarray) -> np.ndarray:
+    """Screen box (x_lo, x_hi, y_lo, y_hi), mm, of ``cells`` × ``cells`` cell periods
+    centred on the patch."""
+    mid = cell_path(stitch.control_points, 8).mean(axis=0)
+    t_c = np.array([stitch.a_x, 0.0, 0.0])
+    t_w = np.array([0.0, stitch.a_y, 0.0])
+    corners = np.array([mid + (i - 0.5) * t_c + (j - 0.5) * t_w
+                        for i in (0, cells) for j in (0, cells)]) @ view.T  # fmt: skip
+    return np.array([corners[:, 0].min(), corners[:, 0].max(),
+                     corners[:, 1].min(), corners[:, 1].max()])  # fmt: skip
+
+
+def rasterize(stitch: Stitch, cells: int, radius: float, view: np.ndarray, box: np.ndarray,
+              width_px: int) -> np.ndarray:  # fmt: skip
+    """The fabric seen through ``box`` as an RGB image (H, width_px, 3) in [0, 1].
+
+    The tube surfaces are sampled more finely than a pixel and drawn with a depth
+    buffer, so that yarns pressed into each other (the model's compressible shell)
+    meet along their true intersection. ``cells`` × ``cells`` stitches plus a ring of
+    neighbours are drawn, so the window shows a continuous fabric.
+    """
+    px = (box[1] - box[0]) / width_px
+    height_px = int(np.ceil((box[3] - box[2]) / px))
+    zbuf = np.full(height_px * width_px, -np.inf)
+    image = np.ones((height_px * width_px, 3))
+    step = px / 1.6
+    one = dense_cell_path(stitch.control_points, step)
+    per_cell = len(one) - 1
+    eye = view[2]  # unit vector towards the viewer, fabric coordinates
+    offsets = np.linspace(-0.56 * np.pi, 0.56 * np.pi, int(np.ceil(1.12 * np.pi * radius / step)))
+    centre = (cells // 2, cells // 2)
+    t_c = np.array([stitch.a_x, 0.0, 0.0])
+    t_w = np.array([0.0, stitch.a_y, 0.0])
+    reach = radius + 2.0 * px
+    for row in range(-1, cells + 1):
+        path = np.concatenate([one[:-1] + m * t_c + row * t_w for m in range(-1, cells + 1)]
+                              + [one[-1:] + cells * t_c + row * t_w])  # fmt: skip
+        screen = path @ view.T
+        near = ((screen[:, 0] > box[0] - reach) & (screen[:, 0] < box[1] + reach)
+                & (screen[:, 1] > box[2] - reach) & (screen[:, 1] < box[3] + reach))  # fmt: skip
+        if not near.any():
+            continue
+        _, normal, binormal = frames(path)
+        tints = np.array([_cell_tint(row, c, centre) for c in range(-1, cells + 1)])
+        column = np.minimum(np.arange(len(path)) // per_cell, cells + 1)
+        idx = np.flatnonzero(near)
+        for chunk in np.array_split(idx, max(1, len(idx) // 1500)):
+            phi0 = np.arctan2(binormal[chunk] @ eye, normal[chunk] @ eye)
+            phi = phi0[:, None] + offsets[None, :]
+            ring = (np.cos(phi)[..., None] * normal[chunk, None, :]
+                    + np.sin(phi)[..., None] * binormal[chunk, None, :]).reshape(-1, 3)  # fmt: skip
+            pts = (np.repeat(path[chunk], len(offsets), axis=0) + radius * ring) @ view.T
+            ix = np.floor((pts[:, 0] - box[0]) / px).astype(np.int64)
+            iy = np.floor((box[3] - pts[:, 1]) / px).astype(np.int64)
+            ok = (ix >= 0) & (ix < width_px) & (iy >= 0) & (iy < height_px)
+            pix = (iy * width_px + ix)[ok]
+            depth = pts[ok, 2]
+            order = np.lexsort((depth, pix))
+            last = np.r_[pix[order][1:] != pix[order][:-1], True]
+            sel = order[last]
+            nearer = depth[sel] > zbuf[pix[sel]]
+            sel = sel[nearer]
+            zbuf[pix[sel]] = depth[sel]
+            base = tints[np.repeat(column[chunk], len(offsets))[ok][sel]]
+            image[pix[sel]] = _shade(base, ring[ok][sel] @ view.T)
+    image = image.reshape(height_px, width_px, 3)
+    return _fill_holes(image, zbuf.reshape(height_px, width_px))
+
+
+def _fill_holes(image: np.ndarray, zbuf: np.ndarray) -> np.ndarray:
+    """Pixels the sampling missed inside a surface (≥ 3 of 4 neighbours drawn) take
+    the mean colour of their drawn neighbours."""
+    empty = ~np.isfinite(zbuf)
+    pad_e = np.pad(~empty, 1, constant_values=False)
+    pad_i = np.pad(image, ((1, 1), (1, 1), (0, 0)))
+    shifts = ((0, 1), (2, 1), (1, 0), (1, 2))
+    count = sum(pad_e[a : a + empty.shape[0], b : b + empty.shape[1]] for a, b in shifts)
+    total = sum(pad_i[a:a + empty.shape[0], b:b + empty.shape[1]]
+                * pad_e[a:a + empty.shape[0], b:b + empty.shape[1], None] for a, b in shifts)  # fmt: skip
+    fill = empty & (count >= 3)
+    image[fill] = total[fill] / count[fill, None]
+    return image
+
+
+def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float | None = None,
+                elevation_deg: float = 72.0, azimuth_deg: float = 0.0, side: str = "face",
+                width_px: int = 1100) -> Path:  # fmt: skip
+    """Draw a window onto ``cells`` × ``cells`` stitches to ``out`` (.png, .pdf, .svg).
+
+    Args:
+        stitch: the cell to repeat.
+        cells: stitches per side of the window (the paper's Fig. 1a look: 3).
+        radius: tube radius, mm [the yarn radius r; the paper drew r = 0.5 mm instead
+            of 0.74 mm to show the structure better].
+        elevation_deg: angle between the viewing direction and the fabric plane
+            (90: straight onto the fabric).
+        azimuth_deg: rotation of the fabric about its normal.
+        side: 'face' (knit side) or 'back' (purl side), see :data:`SIDES`.
+        width_px: resolution of the rendering, pixels across (the saved figure is
+            7 inches wide at 160 dpi either way).
+    """
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    if side not in SIDES:
+        raise InputError(f"side = {side!r}: must be one of {', '.join(SIDES)}")
+    r = stitch.r_mm if radius is None else radius
+    view = _view_matrix(elevation_deg, azimuth_deg, side)
+    box = window(stitch, cells, view)
+    image = rasterize(stitch, cells, r, view, box, width_px)
+    out = Path(out)
+    width = 7.0  # inches at 160 dpi: the picture is shown 1120 px wide whatever width_px is
+    height = width * image.shape[0] / image.shape[1] + 0.8
+    with matplotlib.rc_context({"font.size": 11, "font.family": "DejaVu Sans"}):
+        fig = Figure(figsize=(width + 0.3, height), layout="constrained")
+        FigureCanvasAgg(fig)
+        ax = fig.subplots()
+        ax.imshow(image, extent=tuple(box), interpolation="antialiased")
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        for spine in ax.spines.values():
+            spine.set_color("0.6")
+        ax.set_title(stitch.label, fontsize=11)
+        ax.text(1.0, -0.01, f"{cells} × {cells} stitches, {side} side; tube radius {r:g} mm; "
+                "saturated: one unit cell", transform=ax.transAxes, ha="right", va="top",
+                fontsize=10, color="0.35")  # fmt: skip
+        fig.savefig(out, dpi=160, facecolor="white")
+    return out
+
+
+# ---- where the stitch comes from ---------------------------------------------------
+
+
+def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> Stitch:
+    """The stitch of a 30-entry state vector (MODEL.md §2) at the given parameters."""
+    from .model import CellModel
+
+    cp = CellModel(params).control_points(x)
+    text = label or f"L = {params.L_mm:g} mm, r = {params.r_mm:g} mm"
+    return Stitch(cp, float(x[-2]), float(x[-1]), params.r_mm, text)
+
+
+def _find_task(results: Path, task: str) -> Any:
+    from .storage import iter_entries, read_root
+
+    read_root(results)
+    matches = [e for e in iter_entries(results, with_data=True) if e.task_id.startswith(task)]
+    if not matches:
+        raise InputError(f"task = {task!r}: no point or sweep with this id in {results}")
+    if len(matches) > 1:
+        raise InputError(f"task = {task!r}: matches {len(matches)} tasks; give more characters")
+    return matches[0]
+
+
+def _params(meta: dict[str, Any]) -> StitchParams:
+    raw = meta.get("params")
+    data = json.loads(raw) if isinstance(raw, (str, bytes)) else raw
+    return StitchParams(**data)
+
+
+def stitch_from_results(results: str | Path, task: str, step: int | None = None) -> Stitch:
+    """The stitch of one task of a results file.
+
+    A point id gives its zero-force state (the lowest-energy start). A sweep id gives
+    the state at ``step`` (default 0, the zero-force state); steps other than 0 need
+    the sweep's stored ``states`` or ``control_points`` ([store] states or geometry).
+    Ids may be abbreviated to a unique prefix.
+    """
+    from .storage import POINTS, iter_entries
+
+    results = Path(results)
+    e = _find_task(results, task)
+    meta, rec = e.meta, e.record
+    if meta.get("status") != "done":
+        raise InputError(f"task {e.task_id} has status {meta.get('status')!r}: nothing to draw")
+    params = _params(meta)
+    what = f"L = {params.L_mm:g} mm, k = {params.k_mN_per_mm2:g} mN/mm², B = {params.B_mN_mm2:g} mN·mm²"
+    if e.kind == POINTS:
+        if step not in (None, 0):
+            raise InputError(f"step = {step}: a point has only its zero-force state (step 0)")
+        x = np.asarray(rec["x"][int(meta.get("winner", 0))], dtype=float)
+        return stitch_from_state(x, params, f"zero-force stitch, {what}")
+    step = 0 if step is None else step
+    n = len(rec.get("strain", []))
+    if not 0 <= step < n:
+        raise InputError(f"step = {step}: sweep {e.task_id} has steps 0..{n - 1}")
+    label = (f"pulled in {meta['direction']}, step {step} (strain {rec['strain'][step]:.3f}), "
+             f"{what}")  # fmt: skip
+    if "control_points" in rec:
+        cp = np.asarray(rec["control_points"][step], dtype=float)
+        return Stitch(cp, float(rec["a_x"][step]), float(rec["a_y"][step]), params.r_mm, label)
+    if "states" in rec:
+        return stitch_from_state(np.asarray(rec["states"][step], dtype=float), params, label)
+    if step == 0:
+        point = next((p for p in iter_entries(results, with_data=True)
+                      if p.kind == POINTS and p.task_id == meta.get("point_id")), None)  # fmt: skip
+        if point is not None:
+            x = np.asarray(point.record["x"][int(point.meta.get("winner", 0))], dtype=float)
+            return stitch_from_state(x, params, label)
+    raise InputError(
+        f"sweep {e.task_id} stores no states or control points; only step 0 can be drawn "
+        "(set [store] states = true or geometry = true in the job to keep every step)"
+    )
+
+
+def render(
+    out: str | Path,
+    *,
+    results: str | Path | None = None,
+    task: str | None = None,
+    step: int | None = None,
+    state: str | Path | None = None,
+    params: StitchParams | None = None,
+    radius: float | None = None,
+    cells: int = 3,
+    side: str = "face",
+    elevation_deg: float = 72.0,
+    width_px: int = 1100,
+) -> tuple[Path, Stitch]:
+    """Draw a stitch from a results-file task or from a state file (``knitsweep render``).
+
+    Give either ``results`` and ``task`` (and optionally ``step``), or ``state`` and
+    ``params`` (default parameters if None). Returns the file written and the stitch.
+
+    Raises:
+        InputError: both or neither source, unknown task, bad step, bad output suffix,
+            cells outside 1..8, radius ≤ 0, elevation outside (0, 90], unknown side.
+    """
+    out = Path(out)
+    if out.suffix.lower() not in OUT_SUFFIXES:
+        raise InputError(f"out = '{out}': must end in {', '.join(OUT_SUFFIXES)}")
+    if not 1 <= cells <= 8:
+        raise InputError(f"cells = {cells}: must be in 1..8")
+    if radius is not None and not radius > 0.0:
+        raise InputError(f"radius = {radius}: must be > 0 (mm)")
+    if not 0.0 < elevation_deg <= 90.0:
+        raise InputError(f"elevation = {elevation_deg}: must be in (0, 90] degrees")
+    if side not in SIDES:
+        raise InputError(f"side = {side!r}: must be one of {', '.join(SIDES)}")
+    if not 100 <= width_px <= 6000:
+        raise InputError(f"width = {width_px}: must be in 100..6000 pixels")
+    if (results is None) == (state is None):
+        raise InputError("give either --results FILE --task ID, or --state FILE")
+    if results is not None:
+        if task is None:
+            raise InputError("--results needs --task ID (a point or sweep id)")
+        stitch = stitch_from_results(results, task, step)
+    else:
+        from .formats import read_state
+
+        if step is not None:
+            raise InputError("--step applies to a sweep of a results file, not to --state")
+        x = read_state(state)
+        stitch = stitch_from_state(x, params or StitchParams(), f"state {Path(state).name}")
+    path = draw_stitch(stitch, out, cells, radius, elevation_deg=elevation_deg, side=side,
+                       width_px=width_px)  # fmt: skip
+    return path, stitch

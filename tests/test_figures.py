@@ -1,0 +1,221 @@
+"""The phase-diagram figures and the stitch renderer: every figure written and
+readable, skipped figures say why, partial files are labelled, bad input is refused."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from results_factory import write_results
+
+from knitsweep import service
+from knitsweep.formats import shipped_state, write_state
+from knitsweep.params import InputError, StitchParams
+from knitsweep.postprocess import phase_diagram, reduce_results
+from knitsweep.postprocess.figures import FIGURES
+
+TINY = Path(__file__).parent / "data" / "jobs" / "tiny.toml"
+MIN_BYTES = 20_000
+
+
+def knitsweep(*args):
+    return subprocess.run([sys.executable, "-m", "knitsweep", *args], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+
+
+def assert_image(path: Path, min_bytes: int = MIN_BYTES) -> np.ndarray:
+    from matplotlib.image import imread
+
+    assert path.is_file(), path
+    assert path.stat().st_size > min_bytes, (path, path.stat().st_size)
+    image = imread(path)
+    assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 200
+    assert float(np.std(image[..., :3])) > 0.02  # not a blank canvas
+    return image
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tiny") / "tiny.h5"
+    summary = service.run(TINY, out, executor="serial", show_progress=False)
+    assert summary.counts["done"] == summary.total == 6
+    return out
+
+
+@pytest.fixture(scope="module")
+def synthetic_report(tmp_path_factory):
+    d = tmp_path_factory.mktemp("syn")
+    return phase_diagram(write_results(d / "synthetic.h5"), d / "pd")
+
+
+def test_every_figure_is_written(synthetic_report):
+    outcomes = {f.name: f for f in synthetic_report.figures}
+    assert set(outcomes) == set(FIGURES)
+    for name, f in outcomes.items():
+        assert f.reason is None, (name, f.reason)
+        assert_image(f.path)
+        assert f.line == f"wrote {f.path}"
+
+
+def test_skipped_figures_say_why(tmp_path):
+    path = write_results(tmp_path / "one_k.h5", ks=(0.1,), contact_forces=False)
+    out = knitsweep("phase-diagram", str(path), "--out", str(tmp_path / "pd"))
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert ("fig4b_deltaL_vs_k.png skipped: needs ≥ 2 values of k with a transition "
+            "(and a jammed-regime fit) in one series") in lines  # fmt: skip
+    assert ("fig6h_contact_force_ratio.png skipped: the results file stores no contact forces "
+            "(set [store] contact_forces = true in the job)") in lines  # fmt: skip
+    assert not (tmp_path / "pd" / "fig4b_deltaL_vs_k.png").exists()
+    # with one series, the phase diagram is the regime strip along L/r
+    assert_image(tmp_path / "pd" / "fig4c_phase_diagram.png")
+    assert (
+        sum(line.startswith("wrote ") and line.endswith(".png") for line in lines)
+        == len(FIGURES) - 2
+    )
+
+
+def test_figures_without_sweeps_are_skipped(tmp_path):
+    path = write_results(tmp_path / "p.h5", ks=(0.1,))
+    with h5py.File(path, "a") as f:
+        del f["sweeps"]
+        f.create_group("sweeps")
+    report = phase_diagram(path, tmp_path / "pd")
+    skipped = {f.name for f in report.figures if f.path is None}
+    assert {"fig1b_stress_strain.png", "fig3_energy_gaps.png", "fig4c_phase_diagram.png",
+            "fig5b_area_strain_y.png", "fig6g_thickness_strain_x.png"} <= skipped  # fmt: skip
+    assert "fig5a_aspect_ratio.png" not in skipped  # points alone suffice
+    assert all(f.line.startswith(f"{f.name} skipped: ") for f in report.figures if f.path is None)
+
+
+def test_partial_file_is_labelled_in_figures(tmp_path):
+    from knitsweep.postprocess.fig_energy import fig3_energy_gaps
+    from knitsweep.postprocess.plotting import style
+
+    path = write_results(tmp_path / "run.h5", ks=(0.1,), run_status="running")
+    red = reduce_results(path)
+    with style():
+        fig = fig3_energy_gaps(red, [])
+    assert fig.get_suptitle().startswith("PARTIAL RESULTS (run_status 'running'")
+    report = phase_diagram(path, tmp_path / "pd")
+    assert report.lines()[0].startswith("PARTIAL")
+    assert all(f.path is not None for f in report.figures if f.name.startswith("fig3"))
+
+
+def test_tiny_job_figures_via_cli(tiny, tmp_path):
+    out = knitsweep("phase-diagram", str(tiny), "--out", str(tmp_path / "pd"))
+    assert out.returncode == 0, out.stderr
+    written = [Path(line.removeprefix("wrote ")) for line in out.stdout.splitlines()
+               if line.startswith("wrote ") and line.endswith(".png")]  # fmt: skip
+    assert len(written) >= 10
+    for path in written:
+        assert_image(path, 10_000)
+
+
+def test_figures_use_agg_without_pyplot(synthetic_report):
+    code = ("import sys; from knitsweep.postprocess import phase_diagram; "
+            f"phase_diagram({str(synthetic_report.reduction.path)!r}, "
+            f"{str(synthetic_report.reduction.path.parent / 'again')!r}); "
+            "print('matplotlib.pyplot' in sys.modules)")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, env={"MPLBACKEND": "TkAgg", "PATH": ""})  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
+
+
+# ---- knitsweep render ----------------------------------------------------------------
+
+
+def test_render_point_and_sweep(tiny, tmp_path):
+    from knitsweep.storage import iter_entries
+
+    entries = list(iter_entries(tiny))
+    point = next(e.task_id for e in entries if e.kind == "points")
+    sweep = next(e.task_id for e in entries if e.kind == "sweeps")
+    out = knitsweep("render", "--results", str(tiny), "--task", point[:6], "--out",
+                    str(tmp_path / "p.png"), "--width", "320")  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith(f"wrote {tmp_path / 'p.png'}: zero-force stitch, L = ")
+    assert_image(tmp_path / "p.png", 10_000)
+    out = knitsweep("render", "--results", str(tiny), "--task", sweep, "--out",
+                    str(tmp_path / "s.png"), "--width", "320", "--radius", "0.5")  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert_image(tmp_path / "s.png", 10_000)
+    out = knitsweep("render", "--results", str(tiny), "--task", sweep, "--step", "3",
+                    "--out", str(tmp_path / "s3.png"))  # fmt: skip
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == [
+        f"error: sweep {sweep} stores no states or control points; only step 0 can be drawn "
+        "(set [store] states = true or geometry = true in the job to keep every step)"
+    ]
+
+
+def test_render_stored_states_and_control_points(tmp_path):
+    from knitsweep.model import CellModel
+    from knitsweep.render import render
+
+    path = write_results(tmp_path / "st.h5", ks=(0.1,), not_knittable_L=None)
+    x = shipped_state(1)
+    params = StitchParams(r_mm=0.5, r_core_mm=0.22)
+    with h5py.File(path, "a") as f:
+        g = f["sweeps/s0.1_22_x"]
+        n = len(g["strain"])
+        g["states"] = np.tile(x, (n, 1))
+        g["a_x"][...] = x[28]
+        g["a_y"][...] = x[29]
+        h = f["sweeps/s0.1_22_y"]
+        h["control_points"] = np.tile(CellModel(params).control_points(x), (n, 1, 1, 1))
+        h["a_x"][...] = x[28]
+        h["a_y"][...] = x[29]
+    for task in ("s0.1_22_x", "s0.1_22_y"):
+        out, stitch = render(tmp_path / f"{task}.png", results=path, task=task, step=5,
+                             width_px=300)  # fmt: skip
+        assert "step 5" in stitch.label and stitch.r_mm == 0.5
+        assert stitch.control_points.shape == (8, 6, 3)
+        assert_image(out, 8_000)
+
+
+def test_render_state_file(tmp_path):
+    state = tmp_path / "s.dat"
+    write_state(state, shipped_state(1))
+    out = knitsweep("render", "--state", str(state), "--L", "11.6", "--out",
+                    str(tmp_path / "st.pdf"), "--cells", "2", "--side", "back",
+                    "--width", "400")  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "st.pdf").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        ([], "give either --results FILE --task ID, or --state FILE"),
+        (["--state", "S", "--results", "R"], "give either"),
+        (["--results", "R"], "--results needs --task"),
+        (["--state", "S", "--step", "2"], "--step applies to a sweep"),
+        (["--results", "R", "--task", "p", "--L", "11"], "apply to --state"),
+        (["--state", "S", "--radius", "0"], "radius = 0.0: must be > 0"),
+        (["--state", "S", "--side", "left"], "side = 'left'"),
+        (["--state", "S", "--k", "-1"], "k_mN_per_mm2 = -1.0"),
+        (["--results", "R", "--task", "nosuchid"], "task = 'nosuchid': no point or sweep"),
+    ],
+)
+def test_render_bad_input(tmp_path, args, fragment):
+    state = tmp_path / "s.dat"
+    write_state(state, shipped_state(1))
+    results = write_results(tmp_path / "r.h5", ks=(0.1,))
+    args = [str(state) if a == "S" else str(results) if a == "R" else a for a in args]
+    out = knitsweep("render", "--out", str(tmp_path / "x.png"), *args)
+    assert out.returncode == 2, out.stdout
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], lines
+
+
+def test_render_bad_suffix_and_cells(tmp_path):
+    from knitsweep.render import render
+
+    with pytest.raises(InputError, match="must end in"):
+        render(tmp_path / "x.jpg", state=tmp_path / "s.dat")
+    with pytest.raises(InputError, match="cells = 0"):
+        render(tmp_path / "x.png", state=tmp_path / "s.dat", cells=0)
