@@ -97,6 +97,7 @@ class ProcessExecutor:
     def __init__(self, job, workers: int) -> None:
         self.job = job
         self.capacity = workers
+        warm_up(job)  # compile once here; the workers then load numba's cache
         ctx = multiprocessing.get_context("spawn")
         self._pool = ctx.Pool(workers, initializer=_process_worker_init)
         self._replies: queue.Queue = queue.Queue()

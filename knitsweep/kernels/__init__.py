@@ -4,4 +4,33 @@ Pipeline: bezier (basis tables) -> crossover, geometry (state -> control points
 + Jacobian) -> bending, contact (energies + gradients; contact's candidate search
 in partition, its vectorisable pow in elementary, an optional Verlet list in
 neighbours) -> cell (their composition).
+
+Compiled kernels are cached on disk (``cache=True``). Numba keys a cached
+function on its own source file only, so a kernel that inlines another would
+keep stale code after an upgrade that changes only the callee. The cache
+directory is therefore keyed on every kernel source, numba's and Python's
+version: ``$NUMBA_CACHE_DIR/knitsweep-kernels-<hash>`` if ``NUMBA_CACHE_DIR`` is
+set (e.g. node-local on a cluster), else ``~/.cache/knitsweep/kernels-<hash>``.
 """
+
+import hashlib
+import os
+import platform
+from pathlib import Path
+
+import numba
+
+
+def _cache_dir() -> str:
+    digest = hashlib.sha256(f"{numba.__version__} {platform.python_version()}".encode())
+    for src in sorted(Path(__file__).parent.glob("*.py")):
+        digest.update(src.name.encode())
+        digest.update(src.read_bytes())
+    tag = digest.hexdigest()[:16]
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return os.path.join(os.environ["NUMBA_CACHE_DIR"], f"knitsweep-kernels-{tag}")
+    cache_home = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(cache_home, "knitsweep", f"kernels-{tag}")
+
+
+numba.config.CACHE_DIR = _cache_dir()
