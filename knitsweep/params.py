@@ -62,7 +62,7 @@ class StitchParams(BaseModel):
     L_mm: Positive = Field(11.6, description="yarn length per stitch L (mm)")
     B_mN_mm2: Positive = Field(90.0, description="bending modulus B (mN mm^2)")
     k_mN_per_mm2: Positive = Field(0.6, description="compression constant k (mN/mm^2)")
-    p: float = Field(2.4, description="contact exponent p (> 1)")
+    p: float = Field(2.4, description="contact exponent p, 1 < p <= 20")
     r_mm: Positive = Field(0.74, description="yarn radius r (mm)")
     r_core_mm: Positive = Field(0.325, description="incompressible core radius r_core (mm)")
     regularization_mN_mm4: NonNegative = Field(
@@ -75,8 +75,10 @@ class StitchParams(BaseModel):
     @field_validator("p")
     @classmethod
     def _p_above_one(cls, v: float) -> float:
-        if not v > 1.0:
-            raise ValueError("must be > 1")
+        # above 20 the contact kernel's zeta**(1-p) would leave its exp's range
+        # (|(1-p) log zeta| <= 708 for zeta >= 1e-5); fabrics have p of 2 to 4
+        if not 1.0 < v <= 20.0:
+            raise ValueError("must satisfy 1 < p <= 20")
         return v
 
     @field_validator("r_core_mm")

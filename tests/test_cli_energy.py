@@ -39,7 +39,7 @@ def test_energy_with_authors_config(data_dir):
     [
         (["--k", "-1"], "k_mN_per_mm2 = -1.0: must be a finite number > 0"),
         (["--r-core", "0.8"], "r_core_mm = 0.8"),
-        (["--p", "0.5"], "p = 0.5: must be > 1"),
+        (["--p", "0.5"], "p = 0.5: must satisfy 1 < p <= 20"),
         (["--samples", "1"], "samples_per_segment = 1"),
         (["--k", "abc"], "Invalid value for '--k'"),
     ],

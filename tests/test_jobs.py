@@ -62,7 +62,7 @@ def test_range_is_inclusive_and_decimal():
             MINIMAL + "r_core_mm = [0.3, 0.8]\n",
             "r_core_mm = 0.8: must satisfy 0 < r_core_mm < r_mm",
         ),
-        (MINIMAL + "p = 1.0\n", "p = 1.0: must be > 1"),
+        (MINIMAL + "p = 1.0\n", "p = 1.0: must satisfy 1 < p <= 20"),
         (MINIMAL + "[starts]\ncount = 0\n", "starts.count = 0"),
         (MINIMAL + "[run]\ntask_timeout_s = 0\n", "run.task_timeout_s = 0"),
         ("name = 'no grid'\nschema_version = 1\n", "grid: Field required"),

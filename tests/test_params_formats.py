@@ -27,7 +27,7 @@ def test_defaults_are_the_papers_table_1():
 @pytest.mark.parametrize(
     ("kw", "expected"),
     [
-        ({"p": 1.0}, "p = 1.0: must be > 1"),
+        ({"p": 1.0}, "p = 1.0: must satisfy 1 < p <= 20"),
         ({"r_core_mm": 0.74}, "r_core_mm = 0.74: must satisfy 0 < r_core_mm < r_mm = 0.74"),
         ({"k_mN_per_mm2": -0.1}, "k_mN_per_mm2 = -0.1: must be a finite number > 0"),
         ({"B_mN_mm2": 0.0}, "B_mN_mm2 = 0.0: must be a finite number > 0"),
