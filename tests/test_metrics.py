@@ -306,8 +306,22 @@ def test_offset_stress_short_or_falling_curve_is_flagged_not_raised():
     res = offset_stress([0.0, 0.01, 0.02], [0.0, 0.01, 0.02])
     assert not res.has_linear_regime and "fewer than min_points" in res.reason
     eps = np.linspace(0.0, 0.1, 21)
-    res = offset_stress(eps, 0.1 * eps - eps**2)  # tangent reaches 0.1 − 0.2 < 0
+    res = offset_stress(eps, 0.1 * eps - eps**2)  # softens all the way, tangent reaches < 0
+    assert not res.has_linear_regime and res.sigma0 is None
+    res = offset_stress(eps, -eps)  # falls from the start
     assert not res.has_linear_regime and "not positive" in res.reason
+
+
+def test_offset_stress_stops_at_a_stress_drop():
+    """A rearrangement (stress drop) after the softened regime ends the search: the
+    line is fitted before it, not abandoned (seen in x pulls at k = 0.1)."""
+    eps = np.linspace(0.0, 0.3, 61)
+    sig = np.where(eps < 0.01, 2.5 * eps, 0.02 + 0.5 * eps)
+    sig[eps > 0.2] -= 0.03  # a drop at 20 % strain
+    res = offset_stress(eps, sig)
+    assert res.has_linear_regime
+    assert res.sigma0 == pytest.approx(0.02, abs=1e-9)
+    assert res.window[1] < 0.2
 
 
 def test_tangent_modulus_smoothed_is_local_least_squares():

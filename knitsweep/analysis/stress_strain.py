@@ -169,7 +169,10 @@ def offset_stress(
        i.e. the first local maximum of E (s = 0 when E starts by falling or is flat).
        If E increases strictly over the whole sweep there is no initial rise (an
        unjammed, strain-stiffening curve) and s = 0.
-    3. E_min = min of E_i over i ≥ s. If E_min ≤ 0 there is no linear regime.
+    3. The search ends at the first step past s whose tangent modulus is not
+       positive: a stress drop is a rearrangement of the stitch (a switch of basin),
+       not part of an elastic regime. E_min = min of E_i over s ≤ i < that end. If
+       nothing positive remains there is no linear regime.
     4. In-band steps: (1 − band)·E_min ≤ E_i ≤ (1 + band)·E_min. Candidate regimes
        are the maximal contiguous runs of in-band steps that contain at least one
        step i ≥ s (a run may extend back before s when the "rise" is within the band,
@@ -222,13 +225,16 @@ def offset_stress(
     E = tangent_modulus(eps, sig, halfwidth)
     falls = np.flatnonzero(E[:-1] >= E[1:])
     s = int(falls[0]) if falls.size else 0
-    E_min = float(np.min(E[s:]))
+    drops = np.flatnonzero(E[s:] <= 0.0)
+    end = s + int(drops[0]) if drops.size else n
     search_start = float(eps[s])
-    if E_min <= 0.0:
-        reason = f"the tangent modulus past the initial rise is not positive (min {E_min:.6g} N/mm)"
-        return _no_regime(reason, E_min, search_start)
+    if end <= s:
+        reason = f"the tangent modulus past the initial rise is not positive ({E[s]:.6g} N/mm)"
+        return _no_regime(reason, float(E[s]), search_start)
+    E_min = float(np.min(E[s:end]))
 
     in_band = (E >= (1.0 - band) * E_min) & (E <= (1.0 + band) * E_min)
+    in_band[end:] = False
     candidates = [
         (float(eps[b] - eps[a]), b - a + 1, -a, a, b)
         for a, b in _runs(in_band)
