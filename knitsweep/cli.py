@@ -505,7 +505,7 @@ def slurm_render(
                                                       "per shard (array)")] = None,
     requeue: Annotated[bool, typer.Option("--requeue", help="requeue after the walltime "
                                           "signal, to resume (mpi, array)")] = False,
-    script: Annotated[Path | None, typer.Option("--script", help="write here [stdout]")] = None,
+    script: Annotated[Path | None, typer.Option("--script", help="write it here, not to stdout")] = None,
 ) -> None:  # fmt: skip
     """Print (or write) a ready-to-submit batch script: a shipped template with the job,
     output, resources and environment filled in."""
