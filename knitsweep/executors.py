@@ -7,10 +7,17 @@ so most sweep tests need no ``mpiexec``.
 
 MPI protocol (rank 0 is the master, ranks 1..N-1 work): the master broadcasts
 the job once, then sends ``(task, zero)`` values tagged TASK and receives
-``Reply`` values tagged REPLY; ``None`` tagged STOP ends a worker. Both sides
-wait with ``Iprobe`` and a short sleep instead of a blocking receive, because
-MPICH's blocking receive spins a core: with ``mpirun -n 3`` on 2 cores the
-master must leave both cores to the workers.
+``Reply`` values tagged REPLY; ``None`` tagged STOP ends a worker, which answers
+STOPPED before it leaves. Both sides wait with ``Iprobe`` and a short sleep
+instead of a blocking receive, because MPICH's blocking receive spins a core:
+with ``mpirun -n 3`` on 2 cores the master must leave both cores to the workers.
+
+Interrupts: a worker that gets SIGTERM/SIGINT while computing abandons the task
+(srun and mpirun deliver the signal to every rank); the master then stops every
+worker and waits for them, so the run ends through MPI_Finalize with the
+master's exit code. ``MPI_Abort`` is the last resort, for a worker that does not
+answer within the grace period (an aborted MPICH run loses its exit code under
+srun and leaves shared-memory segments behind).
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ from typing import Any
 
 from .tasks import Reply, execute
 
-TASK, REPLY, STOP = 1, 2, 3
+TASK, REPLY, STOP, STOPPED = 1, 2, 3, 4
 MPI_ENV_HINTS = ("PMI_RANK", "PMI_SIZE", "PMI_FD", "PMIX_RANK", "OMPI_COMM_WORLD_SIZE",
                  "MPI_LOCALNRANKS", "HYDRA_CONTROL_FD")  # fmt: skip
 
@@ -74,6 +81,10 @@ class SerialExecutor:
             return None
         task, zero = self._queue.popleft()
         return execute(self.job, task, zero, rank=0)
+
+    def interrupt(self, grace: float, on_reply) -> bool:
+        self._queue.clear()  # the task being computed was abandoned by the signal
+        return True
 
     def shutdown(self, abort: bool = False) -> None:
         self._queue.clear()
@@ -125,6 +136,12 @@ class ProcessExecutor:
             return None
         self._running -= 1
         return reply
+
+    def interrupt(self, grace: float, on_reply) -> bool:
+        """Local workers are simply ended; their tasks are redone on resume."""
+        self._pool.terminate()
+        self._pool.join()
+        return True
 
     def shutdown(self, abort: bool = False) -> None:
         if abort:
@@ -194,21 +211,62 @@ class MPIExecutor:
         self._free.append(source)
         return reply
 
+    def _stop_all(self, grace: float, on_reply=None) -> bool:
+        """STOP to every worker, then take replies (to ``on_reply``) and the
+        workers' STOPPED answers for up to ``grace`` seconds; True if all answered."""
+        from mpi4py import MPI
+
+        waiting = set(range(1, self.comm.Get_size()))
+        for rank in waiting:
+            self.comm.send(None, dest=rank, tag=STOP)
+        status = MPI.Status()
+        deadline = time.monotonic() + grace
+        while waiting and time.monotonic() < deadline:
+            if not self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=MPI.ANY_TAG, status=status):
+                time.sleep(0.005)
+                continue
+            source, tag = status.Get_source(), status.Get_tag()
+            message = self.comm.recv(source=source, tag=tag)
+            if tag == STOPPED:
+                waiting.discard(source)
+            elif tag == REPLY:
+                self._busy.pop(source, None)
+                if on_reply is not None:
+                    on_reply(message)
+        return not waiting
+
+    def interrupt(self, grace: float, on_reply) -> bool:
+        """Stop handing out work and end every worker; results that still arrive go
+        to ``on_reply``. False if some worker did not stop within ``grace``."""
+        self._stopped = self._stop_all(grace, on_reply)
+        return self._stopped
+
     def shutdown(self, abort: bool = False) -> None:
         if abort:
-            self.comm.Abort(3)
-        for rank in range(1, self.comm.Get_size()):
-            self.comm.send(None, dest=rank, tag=STOP)
+            self.comm.Abort(3)  # the last resort: a worker that would not stop
+        if not getattr(self, "_stopped", False):
+            self._stop_all(grace=60.0)
+
+
+class _Abandon(BaseException):
+    """A signal reached a worker while it computed: drop the task."""
 
 
 def mpi_worker_loop(comm) -> None:
-    """A worker rank: take tasks until told to stop. Interrupts are the master's."""
+    """A worker rank: take tasks until told to stop. On SIGTERM/SIGINT it abandons
+    the task it is computing (the master redoes it on resume) and waits for STOP."""
     from mpi4py import MPI
 
     from .jobs import JobSpec
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    busy = {"now": False}
+
+    def _on_signal(signum, frame):
+        if busy["now"]:
+            raise _Abandon
+
+    signal.signal(signal.SIGINT, _on_signal)
+    signal.signal(signal.SIGTERM, _on_signal)
     job_json = comm.bcast(None, root=0)
     if job_json is None:  # the master refused the job before any work
         return
@@ -221,6 +279,14 @@ def mpi_worker_loop(comm) -> None:
         _wait_for_message(comm, 0, MPI.ANY_TAG, status)
         message = comm.recv(source=0, tag=status.Get_tag())
         if status.Get_tag() == STOP:
+            comm.send(None, dest=0, tag=STOPPED)
             return
         task, zero = message
-        comm.send(execute(job, task, zero, rank), dest=0, tag=REPLY)
+        try:
+            busy["now"] = True
+            reply = execute(job, task, zero, rank)
+            busy["now"] = False
+        except _Abandon:
+            busy["now"] = False
+            continue
+        comm.send(reply, dest=0, tag=REPLY)

@@ -155,6 +155,9 @@ class RunSettings(BaseModel):
     checkpoint_s: float = Field(
         10.0, gt=0.0, description="seconds between consolidations of results into the HDF5 file"
     )
+    stop_grace_s: float = Field(
+        30.0, ge=0.0, description="on SIGTERM/SIGINT, how long to wait for the workers to stop"
+    )
 
 
 class AdaptiveSettings(BaseModel):

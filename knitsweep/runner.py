@@ -339,25 +339,31 @@ def run_job(
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
     status = "interrupted"
     master = None
+    stopped_cleanly = True
     try:
         master = _Master(job, points, writer, executor, summary, retry_failed, show_progress)
         status = master.run(stop)
     except Interrupted:
         pass
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-        summary.interrupted = status == "interrupted"
-        sizes = {}
-        if master is not None:
-            sizes = {"n_points": len(master.points), "n_sweeps": len(master.sweeps)}
-        writer.close(status, sizes)
-        progress_path(out).unlink(missing_ok=True)
-        summary.seconds = time.monotonic() - t0
+        try:
+            summary.interrupted = status == "interrupted"
+            if summary.interrupted and master is not None:
+                # results still arriving while the workers stop are kept
+                stopped_cleanly = executor.interrupt(job.run.stop_grace_s, master._handle)
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+            sizes = {}
+            if master is not None:
+                sizes = {"n_points": len(master.points), "n_sweeps": len(master.sweeps)}
+            writer.close(status, sizes)
+            progress_path(out).unlink(missing_ok=True)
+            summary.seconds = time.monotonic() - t0
     if summary.interrupted:
         written = sum(summary.counts.values())
         print(f"\ninterrupted by {signal.Signals(stop['signal'] or signal.SIGINT).name}: "
               f"{written} of {summary.total} tasks are in {out}; to resume, run the same "
               "command again (finished tasks are skipped)", file=sys.stderr, flush=True)  # fmt: skip
-    executor.shutdown(abort=summary.interrupted)
+    executor.shutdown(abort=not stopped_cleanly)
     return summary
