@@ -1,0 +1,150 @@
+"""Commands that read results or measure: phase-diagram, render, accuracy."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .common import (
+    BOpt,
+    ConfigOpt,
+    JsonOpt,
+    KOpt,
+    LOpt,
+    POpt,
+    RcOpt,
+    RegOpt,
+    ROpt,
+    app,
+    stitch_inputs,
+    user_errors,
+)
+
+
+@app.command("phase-diagram")
+def phase_diagram(
+    results: Annotated[Path, typer.Argument(help="results file written by knitsweep run")],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="directory for the CSV and PNG files [<results>_phase_diagram]"),
+    ] = None,
+    threshold: Annotated[
+        float, typer.Option("--threshold", help="energy-gap threshold, mJ [5e-5, the paper's]")
+    ] = 5e-5,
+    no_figures: Annotated[bool, typer.Option("--no-figures", help="write the tables only")] = False,
+    as_json: JsonOpt = False,
+) -> None:
+    """Jamming transitions (L/r)_trans, ΔL/r and regimes of a results file, as a printed
+    table, CSV files and the paper's figures; also on a file a run is still writing."""
+    from ..postprocess import phase_diagram as make_phase_diagram
+
+    with user_errors():
+        report = make_phase_diagram(results, out, threshold, figures=not no_figures)
+    if as_json:
+        red = report.reduction
+        typer.echo(json.dumps({
+            "file": str(red.path), "run_status": red.run_status, "partial": red.partial,
+            "partial_reason": red.partial_reason, "threshold": red.threshold,
+            "transitions": red.transitions, "problems": red.problems,
+            "tables": [str(p) for p in report.tables],
+            "figures": {f.name: str(f.path) if f.path else f"skipped: {f.reason}"
+                        for f in report.figures},
+        }))  # fmt: skip
+        return
+    for line in report.lines():
+        typer.echo(line)
+
+
+@app.command()
+def render(
+    out: Annotated[Path, typer.Option("--out", help="image to write: .png, .pdf or .svg")],
+    results: Annotated[
+        Path | None, typer.Option("--results", help="results file written by knitsweep run")
+    ] = None,
+    task: Annotated[
+        str | None, typer.Option("--task", help="point or sweep id in --results (a unique prefix)")
+    ] = None,
+    step: Annotated[
+        int | None, typer.Option("--step", help="strain step of a sweep [0: the zero-force state]")
+    ] = None,
+    state: Annotated[
+        Path | None, typer.Option("--state", help="a 30-line state (Init) file instead")
+    ] = None,
+    L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
+    r_core: RcOpt = None, config: ConfigOpt = None,
+    radius: Annotated[
+        float | None,
+        typer.Option("--radius", help="tube radius to draw, mm (default: r; the paper drew 0.5)"),
+    ] = None,
+    cells: Annotated[int, typer.Option("--cells", help="stitches per side of the picture")] = 3,
+    side: Annotated[str, typer.Option("--side", help="face (knit side) or back (purl side)")] = "face",
+    elevation: Annotated[
+        float, typer.Option("--elevation", help="view angle above the fabric plane, degrees")
+    ] = 72.0,
+    width: Annotated[int, typer.Option("--width", help="rendering resolution, pixels across")] = 1100,
+) -> None:  # fmt: skip
+    """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a: a task of a results
+    file (point, or sweep at --step) or a state file."""
+    from .. import render as rendering
+    from ..params import InputError
+
+    with user_errors():
+        params = None
+        flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core}
+        if state is not None:
+            params, _ = stitch_inputs(config, **flags)
+        elif config is not None or any(v is not None for v in flags.values()):
+            raise InputError("--L, --B, --k, --p, --r, --r-core and --config apply to --state; "
+                             "a results file holds its own parameters")  # fmt: skip
+        path, stitch = rendering.render(
+            out, results=results, task=task, step=step, state=state, params=params,
+            radius=radius, cells=cells, side=side, elevation_deg=elevation, width_px=width,
+        )  # fmt: skip
+    typer.echo(f"wrote {path}: {stitch.label}")
+
+
+@app.command()
+def accuracy(
+    L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
+    r_core: RcOpt = None, regularization: RegOpt = None,
+    settings: Annotated[
+        str, typer.Option("--settings", help="comma-separated presets, coarse to fine, each "
+                          "optionally 'preset:field=value+field=value'; errors are against the last")
+    ] = "draft,paper,converged,fine",
+    series: Annotated[
+        str | None, typer.Option("--series", help="L values (mm) of the (L/r)_trans series, "
+                                 "comma-separated [L-0.2 … L+0.2 in 0.1 steps]")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="directory for accuracy.csv/png")] = Path(
+        "accuracy"
+    ),
+    workers: Annotated[int, typer.Option("--workers", help="settings computed in parallel")] = 1,
+) -> None:  # fmt: skip
+    """Measure the speed/accuracy trade: one point at rising fidelity, with time per
+    relaxation and per sweep and the error of each observable against the finest."""
+    from ..accuracy import accuracy_study, table, write_report
+    from ..params import InputError
+
+    with user_errors():
+        params, _ = stitch_inputs(None, L=L if L is not None else 11.0, B=B,
+                                  k=k if k is not None else 0.1, p=p, r=r, r_core=r_core,
+                                  regularization=regularization)  # fmt: skip
+        specs = [s.strip() for s in settings.split(",") if s.strip()]
+        if len(specs) < 2:
+            raise InputError("settings: give at least two, coarse to fine")
+        try:
+            Ls = None if series is None else [float(v) for v in series.split(",")]
+        except ValueError:
+            raise InputError(f"series = {series!r}: comma-separated numbers (mm)") from None
+        from ..accuracy import setting
+
+        for spec in specs:
+            setting(spec)  # validate every setting before any compute
+    results = accuracy_study(params, specs, Ls, workers=workers,
+                             progress=lambda m: typer.echo(m, err=True))  # fmt: skip
+    typer.echo(table(results))
+    for path in write_report(results, out):
+        typer.echo(f"wrote {path}", err=True)

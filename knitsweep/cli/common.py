@@ -1,0 +1,136 @@
+"""What every ``knitsweep`` command shares: the app, the parameter options in
+paper units, one-line errors (exit code 2) and the entry point."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from pydantic import ValidationError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Simulate jammed stockinette fabric: energies, relaxations, strain sweeps, "
+    "MPI parameter sweeps and phase diagrams (Gonzalez et al. 2025).",
+)
+
+
+@app.callback()
+def _root() -> None:
+    """knitsweep: stockinette unit-cell simulations (MODEL.md)."""
+
+
+# ---- shared options (paper units) -------------------------------------------------
+LOpt = Annotated[float | None, typer.Option("--L", help="yarn length per stitch L, mm [11.6]")]
+BOpt = Annotated[float | None, typer.Option("--B", help="bending modulus B, mN mm^2 [90]")]
+KOpt = Annotated[float | None, typer.Option("--k", help="compression constant k, mN/mm^2 [0.6]")]
+POpt = Annotated[float | None, typer.Option("--p", help="contact exponent p > 1 [2.4]")]
+ROpt = Annotated[float | None, typer.Option("--r", help="yarn radius r, mm [0.74]")]
+RcOpt = Annotated[float | None, typer.Option("--r-core", help="core radius r_core < r, mm [0.325]")]
+RegOpt = Annotated[
+    float | None,
+    typer.Option("--regularization", help="curvature-derivative regularisation, mN mm^4 [2]"),
+]
+SamplesOpt = Annotated[
+    int | None, typer.Option("--samples", help="contact samples per segment N [10]")
+]
+NodesOpt = Annotated[
+    int | None, typer.Option("--quadrature-nodes", help="Gauss–Legendre nodes per segment [32]")
+]
+ImagesOpt = Annotated[
+    str | None,
+    typer.Option("--images", help="periodic images: 'cutoff' (all that touch) or 'reference'"),
+]
+ConfigOpt = Annotated[
+    Path | None,
+    typer.Option("--config", help="an authors' *key value config file (jammed-knits format)"),
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
+
+
+@contextlib.contextmanager
+def user_errors():
+    """Turn bad input into one line on stderr and exit code 2, never a traceback."""
+    from ..params import InputError, describe_validation_error
+
+    try:
+        yield
+    except (InputError, ValidationError) as e:
+        typer.echo(f"error: {describe_validation_error(e)}", err=True)
+        raise typer.Exit(2) from None
+
+
+def stitch_inputs(config, **flags):
+    """(StitchParams, Fidelity) from defaults < an authors' config < explicit flags."""
+    from ..formats import read_authors_config
+    from ..params import Fidelity, StitchParams
+
+    names = {
+        "L": "L_mm", "B": "B_mN_mm2", "k": "k_mN_per_mm2", "p": "p", "r": "r_mm",
+        "r_core": "r_core_mm", "regularization": "regularization_mN_mm4",
+    }  # fmt: skip
+    phys: dict = {}
+    fid: dict = {}
+    if config is not None:
+        cfg = read_authors_config(config)
+        phys.update(cfg.params.model_dump())
+        if cfg.samples_per_segment is not None:
+            fid["samples_per_segment"] = cfg.samples_per_segment
+    for flag, field in names.items():
+        if flags.get(flag) is not None:
+            phys[field] = flags[flag]
+    for flag, field in (("samples", "samples_per_segment"), ("quadrature_nodes", "quadrature_nodes"),
+                        ("images", "images")):  # fmt: skip
+        if flags.get(flag) is not None:
+            fid[field] = flags[flag]
+    return StitchParams(**phys), Fidelity(**fid)
+
+
+def _print_result(result: dict, as_json: bool, units: dict[str, str]) -> None:
+    if as_json:
+        typer.echo(json.dumps(result))
+        return
+    width = max(len(k) for k in result)
+    for key, value in result.items():
+        unit = units.get(key, "")
+        text = f"{value:.12g}" if isinstance(value, float) else str(value)
+        typer.echo(f"{key:<{width}}  {text} {unit}".rstrip())
+
+
+ENERGY_UNITS = {
+    "bending_energy": "mJ",
+    "contact_energy": "mJ",
+    "total_energy": "mJ",
+    "length": "mm",
+    "a_x": "mm",
+    "a_y": "mm",
+    "seconds": "s",
+}
+
+
+def main() -> None:
+    """Console-script entry point: usage errors become one line and exit code 2."""
+    try:
+        rc = app(prog_name="knitsweep", standalone_mode=False)
+    except typer.Exit as e:
+        rc = e.exit_code
+    except typer.Abort:
+        typer.echo("aborted", err=True)
+        rc = 130
+    except Exception as e:  # click's usage errors (typer vendors click privately)
+        if not (hasattr(e, "format_message") and hasattr(e, "exit_code")):
+            raise
+        ctx = getattr(e, "ctx", None)
+        if type(e).__name__ == "NoArgsIsHelpError":
+            rc = 0  # typer has printed the help already
+        else:
+            where = f"{ctx.command_path}: " if ctx is not None else ""
+            typer.echo(f"error: {where}{e.format_message()}", err=True)
+            rc = e.exit_code
+    sys.exit(rc if isinstance(rc, int) else 0)

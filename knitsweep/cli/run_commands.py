@@ -1,0 +1,139 @@
+"""Commands on jobs and results files: run, status, merge, slurm render."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .common import (
+    JsonOpt,
+    app,
+    user_errors,
+)
+
+
+@app.command()
+def run(
+    job: Annotated[Path, typer.Argument(help="job file (TOML), e.g. jobs/demo.toml")],
+    out: Annotated[Path | None, typer.Option("--out", help="results file [<job name>.h5]")] = None,
+    workers: Annotated[int, typer.Option("--workers", help="local worker processes (no MPI)")] = 1,
+    executor: Annotated[
+        str, typer.Option("--executor", help="auto (MPI under mpirun), serial, processes, mpi")
+    ] = "auto",
+    shard: Annotated[str | None, typer.Option("--shard", help="run shard i/N of the grid")] = None,
+    retry_failed: Annotated[bool, typer.Option("--retry-failed", help="rerun failed tasks")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", help="no progress bar")] = False,
+) -> None:  # fmt: skip
+    """Run a job: every grid point's zero-force state and its x/y strain sweeps, into
+    one HDF5 file. Under mpirun -n N, rank 0 schedules and N-1 ranks work."""
+    from .. import service
+    from ..params import InputError
+
+    with user_errors():
+        if executor not in ("auto", "serial", "processes", "mpi"):
+            raise InputError(f"executor = {executor!r}: must be auto, serial, processes or mpi")
+        summary = service.run(job, out, executor=executor, workers=workers, shard=shard,
+                              retry_failed=retry_failed, show_progress=not quiet)  # fmt: skip
+    if summary is None:  # an MPI worker rank
+        return
+    c = summary.counts
+    typer.echo(f"{summary.out}: {c['done']} done, {c['failed']} failed, {c['not_knittable']} not "
+               f"knittable of {summary.total} tasks ({summary.skipped} already finished) in "
+               f"{summary.seconds:.1f} s", err=True)  # fmt: skip
+    for line in summary.failures[:10]:
+        typer.echo(f"  failed: {line}", err=True)
+    raise typer.Exit(summary.exit_code)
+
+
+@app.command()
+def status(
+    results: Annotated[Path, typer.Argument(help="results file written by knitsweep run")],
+    as_json: JsonOpt = False,
+) -> None:
+    """Counts of a results file (done, failed, running, pending, rate, ETA), also
+    while a run is writing it."""
+    from .. import service
+    from ..runner import progress_line
+
+    with user_errors():
+        s = service.status(results)
+    if as_json:
+        typer.echo(json.dumps(s))
+        return
+    state = (
+        " (live)"
+        if s["live"]
+        else " (its writer is gone: rerun the job to resume)"
+        if s["stale"]
+        else ""
+    )
+    typer.echo(f"{s['file']}  job {s['job']}  {s['run_status']}{state}")
+    typer.echo(progress_line(s))
+    for line in s["failures"][:20]:
+        typer.echo(f"  failed {line}")
+
+
+@app.command()
+def merge(
+    out: Annotated[Path, typer.Argument(help="merged results file to write")],
+    inputs: Annotated[list[Path], typer.Argument(help="shard files of one job")],
+) -> None:
+    """Combine the shard files of one job (knitsweep run --shard i/N) into one file."""
+    from .. import service
+
+    with user_errors():
+        r = service.merge(out, inputs)
+    state = (
+        "complete"
+        if r["complete"]
+        else f"partial: {r['points'] + r['sweeps']} of {r['expected']} tasks"
+    )
+    typer.echo(f"{r['file']}: {r['points']} points, {r['sweeps']} sweeps ({state})")
+
+
+# ---- knitsweep slurm … (batch scripts; knitsweep/slurm.py, slurm/README.md) -------
+slurm_app = typer.Typer(
+    no_args_is_help=True, help="SLURM batch scripts for knitsweep runs (slurm/README.md)."
+)
+app.add_typer(slurm_app, name="slurm")
+
+
+@slurm_app.command("render")
+def slurm_render(
+    job: Annotated[Path, typer.Argument(help="job file (TOML)")],
+    out: Annotated[Path, typer.Option("--out", help="results file (mpi) or shard directory "
+                                      "(array, merge)")],
+    template: Annotated[str, typer.Option("--template", help="mpi, array or merge")] = "mpi",
+    nodes: Annotated[int | None, typer.Option("--nodes", help="nodes (mpi)")] = None,
+    ntasks: Annotated[int | None, typer.Option("--ntasks", help="MPI ranks, >= 2 (mpi)")] = None,
+    time: Annotated[str | None, typer.Option("--time", help="walltime HH:MM:SS")] = None,
+    partition: Annotated[str | None, typer.Option("--partition", help="partition")] = None,
+    launcher: Annotated[str | None, typer.Option("--launcher", help="srun or mpirun (mpi)")] = None,
+    venv: Annotated[Path | None, typer.Option("--venv", help="virtualenv to activate")] = None,
+    modules: Annotated[str | None, typer.Option("--modules", help="modules to load, "
+                                                "space-separated")] = None,
+    shards: Annotated[int | None, typer.Option("--shards", help="array tasks (array)")] = None,
+    cpus_per_task: Annotated[int | None, typer.Option("--cpus-per-task", help="local workers "
+                                                      "per shard (array)")] = None,
+    requeue: Annotated[bool, typer.Option("--requeue", help="requeue after the walltime "
+                                          "signal, to resume (mpi, array)")] = False,
+    script: Annotated[Path | None, typer.Option("--script", help="write it here, not to stdout")] = None,
+) -> None:  # fmt: skip
+    """Print (or write) a ready-to-submit batch script: a shipped template with the job,
+    output, resources and environment filled in."""
+    from ..slurm import SlurmScript, render, write_script
+
+    with user_errors():
+        text = render(SlurmScript(
+            template=template, job=str(job), out=str(out), nodes=nodes, ntasks=ntasks,
+            time=time, partition=partition, launcher=launcher,
+            venv=None if venv is None else str(venv), modules=modules, shards=shards,
+            cpus_per_task=cpus_per_task, requeue=requeue,
+        ))  # fmt: skip
+    if script is None:
+        typer.echo(text, nl=False)
+    else:
+        typer.echo(f"wrote {write_script(script, text)}: submit it with sbatch", err=True)
