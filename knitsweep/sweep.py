@@ -123,8 +123,10 @@ def centred_stress(energy: np.ndarray, a: np.ndarray, a_perp0: float) -> np.ndar
         hm = a[1:-1] - a[:-2]
         hp = a[2:] - a[1:-1]
         s[1:-1] = (
-            hm**2 * energy[2:] - hp**2 * energy[:-2] + (hp**2 - hm**2) * energy[1:-1]
-        ) / (hm * hp * (hm + hp)) / a_perp0
+            (hm**2 * energy[2:] - hp**2 * energy[:-2] + (hp**2 - hm**2) * energy[1:-1])
+            / (hm * hp * (hm + hp))
+            / a_perp0
+        )
     if n >= 2:
         s[-1] = (energy[-1] - energy[-2]) / (a[-1] - a[-2]) / a_perp0
     return s

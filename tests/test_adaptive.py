@@ -70,6 +70,7 @@ def test_far_fewer_evaluations_than_a_uniform_grid():
 def test_noisy_gaps_still_bracket():
     rng = np.random.default_rng(3)
     for _ in range(20):
+
         def gap(L, noise={}):  # noqa: B006 - one noise draw per L within this series
             noise.setdefault(L, 2e-6 * rng.standard_normal())
             return max(0.0, 0.016 * (11.5 - L)) + noise[L]
