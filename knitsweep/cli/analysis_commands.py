@@ -116,7 +116,7 @@ def accuracy(
     ] = "draft,paper,converged,fine",
     series: Annotated[
         str | None, typer.Option("--series", help="L values (mm) of the (L/r)_trans series, "
-                                 "comma-separated [L-0.2 … L+0.2 in 0.1 steps]")
+                                 "comma-separated [11.3,…,11.7: the k = 0.1 transition]")
     ] = None,
     out: Annotated[Path, typer.Option("--out", help="directory for accuracy.csv/png")] = Path(
         "accuracy"

@@ -29,12 +29,11 @@ from typing import Any
 import numpy as np
 
 from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickness_strain
+from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition, transition
 from ..params import InputError
 from ..storage import POINTS, SWEEPS, Entry, iter_entries, read_root
 
-SIGMA0_HALFWIDTH = 5  # steps each side in the tangent modulus of the offset-stress search
-SIGMA0_MIN_SPAN = 0.01  # shortest softened regime, in strain
 SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p")
 """The parameters held fixed along a series in L (the paper's k, B, r_core, r, p)."""
 
@@ -203,12 +202,7 @@ def _analyse_sweep(
         raise ValueError(f"no array(s) {', '.join(missing)}")
     arrays = {k: np.asarray(rec[k], dtype=float) for k in _SWEEP_ARRAYS}
     direction = str(meta["direction"])
-    # the stored stress is a finite difference of the energy, so its tangent
-    # modulus is a numerical second derivative: smooth it over 11 steps and ask
-    # for a softened regime spanning at least 1 % strain (measured on the
-    # phase_small job: sigma0 then exists for every sweep and falls smoothly to
-    # zero at the transition, as in paper Fig. 2f; unsmoothed, a third had none)
-    m = sweep_metrics(direction, **arrays, halfwidth=SIGMA0_HALFWIDTH, min_span=SIGMA0_MIN_SPAN)
+    m = sweep_metrics(direction, **arrays, **FD_STRESS_SMOOTHING)
     row = _base_row(entry, meta)
     row |= {
         "sweep_status": str(meta.get("sweep_status", "")),
