@@ -118,3 +118,25 @@ def test_cell_energy_with_a_list_is_cell_energy():
         assert tuple(got) == want
         np.testing.assert_array_equal(ge2, ge1)
         np.testing.assert_array_equal(gl2, gl1)
+
+
+def test_model_with_a_neighbour_list_gives_the_same_numbers():
+    """CellModel's listed path (used by every relaxation) equals the plain one bit for
+    bit, and rebuilds its list when the state moves beyond the skin."""
+    import numpy as np
+
+    from knitsweep.formats import shipped_state
+    from knitsweep.model import CellModel
+    from knitsweep.params import StitchParams
+
+    model = CellModel(StitchParams(L_mm=11.6, k_mN_per_mm2=0.1))
+    x = shipped_state(1)
+    nl = model.neighbour_list(x, skin=0.05)
+    rng = np.random.default_rng(5)
+    for scale in (1e-4, 1e-3, 3e-2):
+        y = x * (1 + scale * rng.standard_normal(30))
+        plain = model.energy_and_gradients(y)
+        listed = model.energy_and_gradients(y, nl)
+        assert plain[0] == listed[0]
+        assert np.array_equal(plain[1], listed[1]) and np.array_equal(plain[2], listed[2])
+    assert nl.rebuilds >= 2  # the 3 % move went beyond the 0.05 mm skin
