@@ -8,7 +8,8 @@ so most sweep tests need no ``mpiexec``.
 MPI protocol (rank 0 is the master, ranks 1..N-1 work): the master broadcasts
 the job once, then sends ``(task, zero)`` values tagged TASK and receives
 ``Reply`` values tagged REPLY; ``None`` tagged STOP ends a worker, which answers
-STOPPED before it leaves. Both sides wait with ``Iprobe`` and a short sleep
+STOPPED before it leaves; a task a worker dropped on a signal comes back as
+ABANDONED (the master queues it again unless it is stopping). Both sides wait with ``Iprobe`` and a short sleep
 instead of a blocking receive, because MPICH's blocking receive spins a core:
 with ``mpirun -n 3`` on 2 cores the master must leave both cores to the workers.
 
@@ -29,11 +30,13 @@ import queue
 import signal
 import socket
 import time
-from typing import Any
 
 from .tasks import Reply, execute
 
-TASK, REPLY, STOP, STOPPED = 1, 2, 3, 4
+TASK, REPLY, STOP, STOPPED, ABANDONED = 1, 2, 3, 4, 5
+PREFETCH = 2  # tasks held by each MPI worker: the one it computes and the next
+POLL_MAX_S = 0.005  # longest sleep between polls while waiting for a message
+ABANDON_WAIT_S = 2.0  # after dropping a task on a signal, wait this long for STOP
 MPI_ENV_HINTS = ("PMI_RANK", "PMI_SIZE", "PMI_FD", "PMIX_RANK", "OMPI_COMM_WORLD_SIZE",
                  "MPI_LOCALNRANKS", "HYDRA_CONTROL_FD")  # fmt: skip
 
@@ -160,7 +163,7 @@ def _lost(task, exc: BaseException) -> Reply:
     return Reply(task.task_id, None, error, -1, socket.gethostname(), 0.0)
 
 
-def _wait_for_message(comm, source: int, tag: int, status, poll_max: float = 0.02) -> bool:
+def _wait_for_message(comm, source: int, tag: int, status, poll_max: float = POLL_MAX_S) -> bool:
     """Sleep-poll until a message is there (True) or never (it does not return False
     unless interrupted by the caller's timeout logic)."""
     delay = 0.0005
@@ -178,21 +181,26 @@ class MPIExecutor:
     def __init__(self, job, comm) -> None:
         self.job = job
         self.comm = comm
-        self.capacity = comm.Get_size() - 1
-        self._free = list(range(comm.Get_size() - 1, 0, -1))
-        self._busy: dict[int, Any] = {}
+        workers = range(1, comm.Get_size())
+        # each worker holds its running task and one queued behind it, so that it
+        # starts the next one the moment it replies (no round trip to the master)
+        self.capacity = PREFETCH * len(workers)
+        self._outstanding: dict[int, int] = dict.fromkeys(workers, 0)
         comm.bcast(job.model_dump_json(), root=0)
         warm_up(job)  # compile once, into numba's cache, before the workers load it
         comm.Barrier()
 
     @property
     def in_flight(self) -> int:
-        return len(self._busy)
+        return sum(self._outstanding.values())
 
     def submit(self, task, zero: dict | None) -> None:
-        rank = self._free.pop()
+        rank = min(self._outstanding, key=self._outstanding.__getitem__)
         self.comm.send((task, zero), dest=rank, tag=TASK)
-        self._busy[rank] = task
+        self._outstanding[rank] += 1
+
+    def _received(self, source: int) -> None:
+        self._outstanding[source] = max(0, self._outstanding[source] - 1)
 
     def next_reply(self, timeout: float) -> Reply | None:
         from mpi4py import MPI
@@ -200,16 +208,26 @@ class MPIExecutor:
         status = MPI.Status()
         deadline = time.monotonic() + timeout
         delay = 0.0005
-        while not self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=REPLY, status=status):
+        while not (
+            self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=REPLY, status=status)
+            or self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=ABANDONED, status=status)
+        ):
             if time.monotonic() >= deadline:
                 return None
             time.sleep(delay)
-            delay = min(2 * delay, 0.02)
+            delay = min(2 * delay, POLL_MAX_S)
         source = status.Get_source()
-        reply = self.comm.recv(source=source, tag=REPLY)
-        self._busy.pop(source, None)
-        self._free.append(source)
-        return reply
+        return self._take(source, status.Get_tag())
+
+    def _take(self, source: int, tag: int) -> Reply:
+        """Receive a REPLY or ABANDONED message; an abandoned task becomes a Reply
+        with error kind 'abandoned', which the runner queues again."""
+        message = self.comm.recv(source=source, tag=tag)
+        self._received(source)
+        if tag == ABANDONED:
+            error = {"kind": "abandoned", "message": "a signal stopped it", "traceback": ""}
+            return Reply(message, None, error, source, socket.gethostname(), 0.0)
+        return message
 
     def _stop_all(self, grace: float, on_reply=None) -> bool:
         """STOP to every worker, then take replies (to ``on_reply``) and the
@@ -226,13 +244,13 @@ class MPIExecutor:
                 time.sleep(0.005)
                 continue
             source, tag = status.Get_source(), status.Get_tag()
-            message = self.comm.recv(source=source, tag=tag)
             if tag == STOPPED:
+                self.comm.recv(source=source, tag=tag)
                 waiting.discard(source)
-            elif tag == REPLY:
-                self._busy.pop(source, None)
+            else:
+                reply = self._take(source, tag)
                 if on_reply is not None:
-                    on_reply(message)
+                    on_reply(reply)
         return not waiting
 
     def interrupt(self, grace: float, on_reply) -> bool:
@@ -282,11 +300,20 @@ def mpi_worker_loop(comm) -> None:
             comm.send(None, dest=0, tag=STOPPED)
             return
         task, zero = message
+        if comm.Iprobe(source=0, tag=STOP):
+            comm.send(task.task_id, dest=0, tag=ABANDONED)  # stopping: not started
+            continue
         try:
             busy["now"] = True
             reply = execute(job, task, zero, rank)
             busy["now"] = False
         except _Abandon:
             busy["now"] = False
+            comm.send(task.task_id, dest=0, tag=ABANDONED)
+            # the whole run is probably stopping: give the master's STOP a moment
+            # to overtake the task queued behind this one
+            deadline = time.monotonic() + ABANDON_WAIT_S
+            while time.monotonic() < deadline and not comm.Iprobe(source=0, tag=STOP):
+                time.sleep(0.01)
             continue
         comm.send(reply, dest=0, tag=REPLY)

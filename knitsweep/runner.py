@@ -256,6 +256,13 @@ class _Master:
 
     def _handle(self, reply: Reply) -> None:
         task = self.points.get(reply.task_id) or self.sweeps[reply.task_id]
+        if reply.error is not None and reply.error["kind"] == "abandoned":
+            # a worker dropped it on a signal: not a result; queue it again
+            if isinstance(task, PointTask):
+                self.ready_points.appendleft((task, None))
+            else:
+                self.ready_sweeps.appendleft((task, self._payload(task.point_id)))
+            return
         self.finished_now += 1
         if reply.error is not None:
             status = FAILED

@@ -70,10 +70,29 @@ def execute(job: JobSpec, task: PointTask | SweepTask, zero: dict | None, rank: 
                 assert zero is not None, "a sweep needs its point's zero-force record"
                 record = run_sweep(job, task, zero)
         return Reply(task.task_id, record, None, rank, host, time.perf_counter() - t0)
-    except Exception as e:
+    except Exception as e:  # isolation: a failing task never takes the run down
+        e = _signal_cause(e)
         kind = "timeout" if isinstance(e, TaskTimeout) else type(e).__name__
         error = {"kind": kind, "message": str(e), "traceback": traceback.format_exc()}
         return Reply(task.task_id, None, error, rank, host, time.perf_counter() - t0)
+
+
+def _signal_cause(e: Exception) -> Exception:
+    """The exception a signal handler raised, if ``e`` wraps one.
+
+    A handler that raises while a numba dispatcher returns surfaces as
+    "SystemError: ... returned a result with an exception set", with the handler's
+    exception in the cause chain. An interrupt (a BaseException) is re-raised as
+    itself; a timeout is returned so that it is recorded as one.
+    """
+    seen: BaseException | None = e
+    while seen is not None:
+        if not isinstance(seen, Exception):
+            raise seen from None
+        if isinstance(seen, TaskTimeout):
+            return seen
+        seen = seen.__cause__ or seen.__context__
+    return e
 
 
 # ---- zero-force -----------------------------------------------------------------

@@ -5,6 +5,8 @@ import numpy as np
 import pytest
 
 DATA = Path(__file__).parent / "data"
+TINY = DATA / "jobs" / "tiny.toml"  # 2 points, 4 sweeps, coarse numerics: ~2 s serially
+VOLATILE = {"seconds", "relax_seconds", "wall_seconds", "rank", "host"}
 
 
 def golden_cases():
@@ -28,3 +30,38 @@ def init1() -> np.ndarray:
     from knitsweep.formats import read_state
 
     return read_state(DATA / "init" / "Init_1.dat")
+
+
+def physics(path):
+    """Every task's stored arrays and status, minus timings and placement."""
+    import h5py
+
+    out = {}
+    with h5py.File(path, "r") as f:
+        for kind in ("points", "sweeps"):
+            for tid, g in f[kind].items():
+                rec = {k: g[k][()] for k in g if k not in VOLATILE}
+                rec["status"] = g.attrs["status"]
+                out[(kind, tid)] = rec
+    return out
+
+
+def assert_same_results(a, b):
+    """Two results files hold the same tasks with bit-identical arrays."""
+    pa, pb = physics(a), physics(b)
+    assert pa.keys() == pb.keys()
+    for key in pa:
+        assert pa[key].keys() == pb[key].keys(), key
+        for name in pa[key]:
+            assert np.array_equal(pa[key][name], pb[key][name]), (key, name)
+
+
+@pytest.fixture(scope="session")
+def tiny_reference(tmp_path_factory):
+    """The tiny job, run serially and uninterrupted (do not modify the file)."""
+    from knitsweep import service
+
+    out = tmp_path_factory.mktemp("tiny_reference") / "tiny.h5"
+    summary = service.run(TINY, out, executor="serial", show_progress=False)
+    assert summary.counts["done"] == summary.total == 6
+    return out

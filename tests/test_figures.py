@@ -10,13 +10,11 @@ import numpy as np
 import pytest
 from results_factory import write_results
 
-from knitsweep import service
 from knitsweep.formats import shipped_state, write_state
 from knitsweep.params import InputError, StitchParams
 from knitsweep.postprocess import phase_diagram, reduce_results
 from knitsweep.postprocess.figures import FIGURES
 
-TINY = Path(__file__).parent / "data" / "jobs" / "tiny.toml"
 MIN_BYTES = 20_000
 
 
@@ -37,11 +35,8 @@ def assert_image(path: Path, min_bytes: int = MIN_BYTES) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tiny") / "tiny.h5"
-    summary = service.run(TINY, out, executor="serial", show_progress=False)
-    assert summary.counts["done"] == summary.total == 6
-    return out
+def tiny(tiny_reference):
+    return tiny_reference
 
 
 @pytest.fixture(scope="module")

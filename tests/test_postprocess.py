@@ -5,20 +5,16 @@ import csv
 import pickle
 import subprocess
 import sys
-from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 from results_factory import write_results
 
-from knitsweep import service
 from knitsweep.params import InputError
 from knitsweep.postprocess import phase_diagram, reduce_results
 from knitsweep.postprocess.reduce import CONTACT_CLASSES, SERIES_PARAMS
 from knitsweep.storage import Entry, journal_dir
-
-TINY = Path(__file__).parent / "data" / "jobs" / "tiny.toml"
 
 
 def knitsweep(*args):
@@ -32,12 +28,8 @@ def read_csv(path):
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    """The tiny job (2 points, 4 sweeps), run serially."""
-    out = tmp_path_factory.mktemp("tiny") / "tiny.h5"
-    summary = service.run(TINY, out, executor="serial", show_progress=False)
-    assert summary.counts["done"] == summary.total == 6
-    return out
+def tiny(tiny_reference):
+    return tiny_reference
 
 
 @pytest.fixture

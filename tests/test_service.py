@@ -13,6 +13,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from conftest import TINY, assert_same_results
 
 from knitsweep import SCHEMA_VERSION, service
 from knitsweep.executors import SerialExecutor
@@ -21,32 +22,8 @@ from knitsweep.params import InputError
 from knitsweep.runner import run_job
 from knitsweep.storage import journal_dir, lock_path
 
-DATA = Path(__file__).parent / "data"
-TINY = DATA / "jobs" / "tiny.toml"
 VENV_BIN = Path(sys.executable).parent
 MPIRUN = shutil.which("mpirun", path=str(VENV_BIN)) or shutil.which("mpirun")
-VOLATILE = {"seconds", "relax_seconds", "wall_seconds", "rank", "host"}
-
-
-def physics(path):
-    """Every task's stored arrays and status, minus timings and placement."""
-    out = {}
-    with h5py.File(path, "r") as f:
-        for kind in ("points", "sweeps"):
-            for tid, g in f[kind].items():
-                rec = {k: g[k][()] for k in g if k not in VOLATILE}
-                rec["status"] = g.attrs["status"]
-                out[(kind, tid)] = rec
-    return out
-
-
-def assert_same_results(a, b):
-    pa, pb = physics(a), physics(b)
-    assert pa.keys() == pb.keys()
-    for key in pa:
-        assert pa[key].keys() == pb[key].keys(), key
-        for name in pa[key]:
-            assert np.array_equal(pa[key][name], pb[key][name]), (key, name)
 
 
 def knitsweep(*args, mpi=0, **kw):
@@ -58,28 +35,20 @@ def knitsweep(*args, mpi=0, **kw):
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    """The tiny job, run serially and uninterrupted."""
-    out = tmp_path_factory.mktemp("ref") / "tiny.h5"
-    summary = service.run(TINY, out, executor="serial", show_progress=False)
-    assert summary.counts["done"] == summary.total == 6
-    return out
-
-
-@pytest.fixture(scope="module")
 def six(tmp_path_factory):
-    """An 18-task job (6 points): enough work left to interrupt, with its serial
-    uninterrupted reference."""
+    """An 18-task job (6 points, fine steps): seconds of work left to interrupt, with
+    its serial uninterrupted reference."""
     d = tmp_path_factory.mktemp("six")
     job = d / "six.toml"
-    job.write_text(TINY.read_text().replace("[11.4, 12.0]", "[11.2, 11.4, 11.6, 11.8, 12.0, 12.2]"))
+    text = TINY.read_text().replace("[11.4, 12.0]", "[11.2, 11.4, 11.6, 11.8, 12.0, 12.2]")
+    job.write_text(text.replace("step_mm = 0.02", "step_mm = 0.005"))  # long enough to stop
     reference = d / "reference.h5"
     service.run(job, reference, executor="serial", show_progress=False)
     return job, reference
 
 
-def test_file_schema(reference):
-    with h5py.File(reference, "r") as f:
+def test_file_schema(tiny_reference):
+    with h5py.File(tiny_reference, "r") as f:
         for key in ("schema_version", "knitsweep_version", "git_commit", "job_json", "job_hash",
                     "numpy_version", "scipy_version", "numba_version", "h5py_version",
                     "hdf5_version", "mpi4py_version", "mpi_library_version", "host",
@@ -96,25 +65,25 @@ def test_file_schema(reference):
             assert {"seed", "rank", "host", "seconds"} <= set(
                 f["points"][g.attrs["point_id"]].attrs
             )
-    assert not journal_dir(reference).exists() and not lock_path(reference).exists()
+    assert not journal_dir(tiny_reference).exists() and not lock_path(tiny_reference).exists()
 
 
-def test_rerun_skips_finished_tasks(reference, tmp_path):
+def test_rerun_skips_finished_tasks(tiny_reference, tmp_path):
     out = tmp_path / "again.h5"
-    shutil.copy(reference, out)
+    shutil.copy(tiny_reference, out)
     summary = service.run(TINY, out, executor="serial", show_progress=False)
     assert summary.skipped == summary.total == 6
-    assert_same_results(reference, out)
+    assert_same_results(tiny_reference, out)
 
 
-def test_different_job_is_refused_and_file_kept(reference, tmp_path):
+def test_different_job_is_refused_and_file_kept(tiny_reference, tmp_path):
     out = tmp_path / "kept.h5"
-    shutil.copy(reference, out)
+    shutil.copy(tiny_reference, out)
     other = tmp_path / "other.toml"
     other.write_text(TINY.read_text().replace("[11.4, 12.0]", "[11.4, 12.1]"))
     with pytest.raises(InputError, match=r"different job \(differs in grid.L_mm\)"):
         service.run(other, out, executor="serial", show_progress=False)
-    assert_same_results(reference, out)
+    assert_same_results(tiny_reference, out)
 
 
 def test_failing_task_is_isolated(tmp_path, monkeypatch):
@@ -158,7 +127,7 @@ def test_task_wall_time_budget(tmp_path):
                    for g in f["sweeps"].values())  # fmt: skip
 
 
-def test_shards_merge_into_the_whole_job(reference, tmp_path):
+def test_shards_merge_into_the_whole_job(tiny_reference, tmp_path):
     shards = [tmp_path / f"s{i}.h5" for i in range(2)]
     for i, path in enumerate(shards):
         service.run(TINY, path, executor="serial", shard=f"{i}/2", show_progress=False)
@@ -166,12 +135,12 @@ def test_shards_merge_into_the_whole_job(reference, tmp_path):
     merged = tmp_path / "merged.h5"
     r = service.merge(merged, shards)
     assert r["complete"] and (r["points"], r["sweeps"]) == (2, 4)
-    assert_same_results(reference, merged)
+    assert_same_results(tiny_reference, merged)
     with pytest.raises(InputError, match="also an input"):
         service.merge(shards[0], shards)
 
 
-def test_merge_refuses_other_jobs(reference, tmp_path):
+def test_merge_refuses_other_jobs(tiny_reference, tmp_path):
     other = tmp_path / "other.toml"
     other.write_text(
         TINY.read_text()
@@ -181,11 +150,11 @@ def test_merge_refuses_other_jobs(reference, tmp_path):
     out = tmp_path / "o.h5"
     service.run(other, out, executor="serial", shard="0/2", show_progress=False)
     with pytest.raises(InputError, match="different jobs"):
-        service.merge(tmp_path / "m.h5", [reference, out])
+        service.merge(tmp_path / "m.h5", [tiny_reference, out])
 
 
-def test_status_of_a_finished_file(reference):
-    s = service.status(reference)
+def test_status_of_a_finished_file(tiny_reference):
+    s = service.status(tiny_reference)
     assert (s["done"], s["failed"], s["pending"], s["total"]) == (6, 0, 0, 6)
     assert s["run_status"] == "complete" and not s["live"]
 
@@ -233,20 +202,20 @@ def test_sigterm_writes_what_arrived_and_resumes(six, tmp_path, ranks):
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("ranks", [2, 3])
-def test_mpi_run_matches_serial(reference, tmp_path, ranks):
+def test_mpi_run_matches_serial(tiny_reference, tmp_path, ranks):
     if MPIRUN is None:
         pytest.fail("mpirun not found: install the mpich wheel")
     out = tmp_path / f"mpi{ranks}.h5"
     proc = knitsweep("run", str(TINY), "--out", str(out), mpi=ranks)
     assert proc.returncode == 0, proc.stderr
-    assert_same_results(reference, out)
+    assert_same_results(tiny_reference, out)
 
 
-def test_local_processes_match_serial(reference, tmp_path):
+def test_local_processes_match_serial(tiny_reference, tmp_path):
     out = tmp_path / "proc.h5"
     summary = service.run(TINY, out, workers=2, show_progress=False)
     assert summary.counts["done"] == 6
-    assert_same_results(reference, out)
+    assert_same_results(tiny_reference, out)
 
 
 @pytest.mark.slow
@@ -283,3 +252,28 @@ def test_kill_9_at_random_moments_then_resume(six, tmp_path):
         assert len(f["points"]) == 6 and len(f["sweeps"]) == 12  # each task exactly once
     assert not journal_dir(out).exists()
     assert_same_results(reference, out)
+
+
+def test_signal_exceptions_are_unwrapped_from_numba_system_errors():
+    """A signal handler raising while a numba dispatcher returns surfaces as a
+    SystemError with the handler's exception as its cause: an interrupt must still
+    propagate, and a timeout still count as a timeout (not a failed task)."""
+    from knitsweep.tasks import TaskTimeout, _signal_cause
+
+    class Stop(BaseException):
+        pass
+
+    def wrapped(inner):
+        try:
+            try:
+                raise inner
+            except BaseException as cause:
+                raise SystemError("returned a result with an exception set") from cause
+        except SystemError as e:
+            return e
+
+    assert isinstance(_signal_cause(wrapped(TaskTimeout("late"))), TaskTimeout)
+    with pytest.raises(Stop):
+        _signal_cause(wrapped(Stop()))
+    plain = ValueError("a bug")
+    assert _signal_cause(plain) is plain

@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 import h5py
-import numpy as np
 import pytest
+from conftest import TINY, assert_same_results
 
 import knitsweep
 from knitsweep import service
@@ -26,36 +26,13 @@ from knitsweep.slurm import TEMPLATE_FILES, SlurmScript, render, template_path
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data"
-TINY = DATA / "jobs" / "tiny.toml"
 VENV = Path(sys.executable).parent.parent
-VOLATILE = {"seconds", "relax_seconds", "wall_seconds", "rank", "host"}
 FINAL = {"COMPLETED", "FAILED", "CANCELLED", "TIMEOUT", "NODE_FAIL", "OUT_OF_MEMORY",
          "PREEMPTED", "BOOT_FAIL", "DEADLINE"}  # fmt: skip
 START_SLURM = "start it with: sudo bash .ci/slurm-up.sh"
 
 
 # ---- helpers -------------------------------------------------------------------
-def physics(path):
-    """Every task's stored arrays and status, minus timings and placement."""
-    out = {}
-    with h5py.File(path, "r") as f:
-        for kind in ("points", "sweeps"):
-            for tid, g in f[kind].items():
-                rec = {k: g[k][()] for k in g if k not in VOLATILE}
-                rec["status"] = g.attrs["status"]
-                out[(kind, tid)] = rec
-    return out
-
-
-def assert_same_results(a, b):
-    pa, pb = physics(a), physics(b)
-    assert pa.keys() == pb.keys()
-    for key in pa:
-        assert pa[key].keys() == pb[key].keys(), key
-        for name in pa[key]:
-            assert np.array_equal(pa[key][name], pb[key][name]), (key, name)
-
-
 def ranks_used(path):
     with h5py.File(path, "r") as f:
         return {int(g.attrs["rank"]) for kind in ("points", "sweeps") for g in f[kind].values()}
@@ -169,12 +146,8 @@ def slurm():
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    """The tiny job, run serially in this process."""
-    out = tmp_path_factory.mktemp("ref") / "tiny.h5"
-    summary = service.run(TINY, out, executor="serial", show_progress=False)
-    assert summary.counts["done"] == summary.total == 6
-    return out
+def reference(tiny_reference):
+    return tiny_reference
 
 
 def assert_tiny_done(out, reference, job_id):
