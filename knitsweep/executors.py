@@ -9,9 +9,11 @@ MPI protocol (rank 0 is the master, ranks 1..N-1 work): the master broadcasts
 the job once, then sends ``(task, zero)`` values tagged TASK and receives
 ``Reply`` values tagged REPLY; ``None`` tagged STOP ends a worker, which answers
 STOPPED before it leaves; a task a worker dropped on a signal comes back as
-ABANDONED (the master queues it again unless it is stopping). Both sides wait with ``Iprobe`` and a short sleep
-instead of a blocking receive, because MPICH's blocking receive spins a core:
-with ``mpirun -n 3`` on 2 cores the master must leave both cores to the workers.
+ABANDONED (the master queues it again unless it is stopping). Each worker holds
+up to PREFETCH tasks, so it starts the next one without a round trip. Both sides
+wait with ``Iprobe`` and a short sleep instead of a blocking receive, because
+MPICH's blocking receive spins a core: with ``mpirun -n 3`` on 2 cores the
+master must leave both cores to the workers.
 
 Interrupts: a worker that gets SIGTERM/SIGINT while computing abandons the task
 (srun and mpirun deliver the signal to every rank); the master then stops every
