@@ -130,7 +130,10 @@ def test_gaps_and_metrics_per_sweep(synthetic):
         assert row["jamming_gap"] == pytest.approx(expected, rel=1e-9, abs=1e-15)
         assert row["jammed"] == (expected >= 5e-5)
         assert row["Y_sec_N_per_mm"] is not None and row["Y_sec_N_per_mm"] > 0.0
-        assert row["force_ratio_xy"] == pytest.approx(row["F_x_N"] / row["F_y_N"])
+        widen_x = row["F_self_x_N"] + row["F_same_row_x_N"]
+        column_y = row["F_nn_column_y_N"] + row["F_nnn_column_y_N"]
+        assert row["force_ratio_xy"] == pytest.approx(abs(widen_x / column_y))
+        assert row["force_ratio_xy"] != pytest.approx(abs(row["F_x_N"] / row["F_y_N"]))
         assert row["F_self_x_N"] == pytest.approx(0.02)
     unjammed_y = [r for r in red.sweeps if r["direction"] == "y" and not r["jammed"]]
     assert unjammed_y and all(not r["min_area_at_zero_force"] for r in unjammed_y)

@@ -246,9 +246,11 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
 
 
 def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
-    """(h) |F_x|/|F_y| of the contact forces at zero strain against L/r (paper Fig. 6h),
-    from the sums over all contact classes of |F_x| and |F_y|; dashed line: equal
-    forces. Right: the sums by contact class (N) for the first series."""
+    """(h) Contact-force ratio at zero strain against L/r (paper Fig. 6h): the x force
+    of the self and same-row contacts over the y force of the NN and NNN same-column
+    contacts (``reduce._force_columns``); dashed line: equal forces. Right: each
+    class's generalised force on a_x and a_y (N; positive widens the cell) for the
+    first series."""
     rows = [r for r in red.points if r.get("force_ratio_xy") is not None]
     if not rows:
         raise SkipFigure("the results file stores no contact forces "
@@ -271,31 +273,34 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
     ax.axhline(1.0, color="0.4", ls="--", lw=1.2)
     ax.set_ylim(bottom=0.0)
     ax.set_xlabel(L_OVER_R)
-    ax.set_ylabel(r"contact-force ratio $|F_x|/|F_y|$")
-    ax.set_title("(h) ratio of total contact forces at zero strain")
+    ax.set_ylabel(r"$|F_x^{\rm self+row}| \,/\, |F_y^{\rm NN+NNN\ column}|$")
+    ax.set_title("(h) widening x force against same-column y force, zero strain")
     ax.legend(handles=[Line2D([], [], color="0.4", ls="--", label=r"$|F_x| = |F_y|$"),
                        Line2D([], [], color="0.4", ls=":", label=r"$(L/r)_{\rm trans}$ in y")],
-              loc="lower right", frameon=True, framealpha=0.9)  # fmt: skip
+              loc="upper right", frameon=True, framealpha=0.9)  # fmt: skip
     if len(keys) > 1:
         fig.legend(*series_handles, loc="outside lower center", ncols=min(len(keys), 4),
                    frameon=False)  # fmt: skip
 
     pts = sorted((r for r in rows if _key(r) == keys[0]), key=lambda r: r["L_over_r"])
     x = [r["L_over_r"] for r in pts]
+    # hollow markers of falling size, so that classes with equal forces (self and same
+    # row coincide in x for the stockinette cell) stay visible on top of each other
+    sizes = {c: 11 - 1.5 * j for j, c in enumerate(CONTACT_CLASSES)}
     for j, cls in enumerate(CONTACT_CLASSES):
         for a, ls in (("x", "-"), ("y", "--")):
             ax_c.plot(x, [r[f"F_{cls}_{a}_N"] for r in pts], color=CLASS_COLOUR[cls], ls=ls,
-                      marker=MARKERS[j], ms=4)  # fmt: skip
-    handles = [Line2D([], [], color=CLASS_COLOUR[c], marker=MARKERS[j], label=CLASS_LABEL[c])
-               for j, c in enumerate(CONTACT_CLASSES)]  # fmt: skip
-    handles += [Line2D([], [], color="0.3", ls="-", label=r"$|F_x|$"),
-                Line2D([], [], color="0.3", ls="--", label=r"$|F_y|$")]  # fmt: skip
+                      marker=MARKERS[j], ms=sizes[cls], mfc="none")  # fmt: skip
+    handles = [Line2D([], [], color=CLASS_COLOUR[c], marker=MARKERS[j], mfc="none",
+                      label=CLASS_LABEL[c]) for j, c in enumerate(CONTACT_CLASSES)]  # fmt: skip
+    handles += [Line2D([], [], color="0.3", ls="-", label=r"$F_x$"),
+                Line2D([], [], color="0.3", ls="--", label=r"$F_y$")]  # fmt: skip
     ax_c.legend(handles=handles, loc="upper right", frameon=True, framealpha=0.9, ncols=2,
                 fontsize=9)  # fmt: skip
     ax_c.set_xlabel(L_OVER_R)
-    ax_c.set_ylabel("sum of |force components| (N)")
+    ax_c.set_ylabel(r"force on the cell period, $-\partial E_c/\partial a$ (N)")
     lab = label_of(red, keys[0])
     ax_c.set_title("by contact class" + (f" ({lab})" if lab else ""))
-    ax_c.set_ylim(bottom=0.0)
+    ax_c.axhline(0.0, color="0.6", lw=0.8)
     title(fig, red, "Contact forces at zero strain, x against y")
     return fig

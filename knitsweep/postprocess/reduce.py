@@ -160,14 +160,27 @@ def _base_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _force_columns(forces: Any) -> dict[str, Any]:
-    """Contact forces (5, 3) at zero strain → flat columns, totals and |F_x|/|F_y|."""
+    """Contact forces (5, 3) at zero strain → flat columns, totals and the paper's
+    Fig. 6h ratio.
+
+    ``force_ratio_xy`` = |F_x(self) + F_x(same row)| / |F_y(NN column) + F_y(NNN column)|:
+    the x push of the contacts that widen the stitch against the y push of the
+    same-column contacts (paper, "Reducing or Inducing Jamming": "the sum of the self
+    contacts and same-row contacts ... become larger than the NNN same-column and NN
+    same-column contacts in the y-direction, shown in Fig. 6h"). None if the
+    denominator vanishes.
+    """
+    keys = (*CONTACT_COLUMNS, "F_x_N", "F_y_N", "F_z_N", "force_ratio_xy")
     if forces is None:
-        return {c: None for c in (*CONTACT_COLUMNS, "F_x_N", "F_y_N", "F_z_N", "force_ratio_xy")}
+        return dict.fromkeys(keys)
     f = np.asarray(forces, dtype=float).reshape(len(CONTACT_CLASSES), 3)
     out: dict[str, Any] = dict(zip(CONTACT_COLUMNS, map(float, f.ravel()), strict=True))
     fx, fy, fz = (float(v) for v in f.sum(axis=0))
     out |= {"F_x_N": fx, "F_y_N": fy, "F_z_N": fz}
-    out["force_ratio_xy"] = fx / fy if fy > 0.0 else None
+    row = dict(zip(CONTACT_CLASSES, f, strict=True))
+    widen_x = abs(float(row["self"][0] + row["same_row"][0]))
+    column_y = abs(float(row["nn_column"][1] + row["nnn_column"][1]))
+    out["force_ratio_xy"] = widen_x / column_y if column_y > 0.0 else None
     return out
 
 
