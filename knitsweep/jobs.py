@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import math
 import sys
 from dataclasses import dataclass
 from decimal import Decimal
@@ -117,10 +118,14 @@ class Grid(BaseModel):
                 raise ValueError("empty list: give at least one value")
             if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
                 raise ValueError("a list of numbers is expected")
+            if not all(math.isfinite(x) for x in v):
+                raise ValueError("every value must be a finite number")
             if len(set(v)) != len(v):
                 raise ValueError("repeated values")
             return [float(x) for x in v]
         if isinstance(v, (int, float)) and not isinstance(v, bool):
+            if not math.isfinite(v):
+                raise ValueError("must be a finite number")
             return float(v)
         if isinstance(v, Range):
             return v

@@ -188,9 +188,11 @@ def describe_validation_error(err: ValidationError | InputError) -> str:
         return str(err)
     parts = []
     for e in err.errors():
-        loc = ".".join(str(x) for x in e["loc"]) or "input"
+        loc = ".".join(str(x) for x in e["loc"])
         msg = e["msg"].removeprefix("Value error, ")
-        if e["type"] == "extra_forbidden":
+        if not loc:  # a model-level check: its message names the fields itself
+            parts.append(msg)
+        elif e["type"] == "extra_forbidden":
             parts.append(f"{loc}: unknown field")
         elif "input" in e and e["type"] != "missing":
             parts.append(f"{loc} = {e['input']!r}: {msg}")

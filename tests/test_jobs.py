@@ -63,6 +63,8 @@ def test_range_is_inclusive_and_decimal():
             "r_core_mm = 0.8: must satisfy 0 < r_core_mm < r_mm",
         ),
         (MINIMAL + "p = 1.0\n", "p = 1.0: must satisfy 1 < p <= 20"),
+        (MINIMAL + "B_mN_mm2 = inf\n", "grid.B_mN_mm2 = inf: must be a finite number"),
+        (MINIMAL + "B_mN_mm2 = [90.0, nan]\n", "every value must be a finite number"),
         (MINIMAL + "[starts]\ncount = 0\n", "starts.count = 0"),
         (MINIMAL + "[run]\ntask_timeout_s = 0\n", "run.task_timeout_s = 0"),
         ("name = 'no grid'\nschema_version = 1\n", "grid: Field required"),
@@ -73,6 +75,8 @@ def test_bad_job_specs_name_the_field(tmp_path, text, fragment):
     with pytest.raises(InputError) as e:
         load_job(_job(tmp_path, text))
     assert fragment in str(e.value)
+    assert "input =" not in str(e.value), "the whole input is noise, not a field"
+    assert str(e.value).count(" = ") <= 2, "one problem, one message"
 
 
 def test_bad_job_via_cli_writes_nothing(tmp_path):
