@@ -29,19 +29,12 @@ from numba import njit
 from .contact import (
     EXCLUSION_FACTOR,
     _accumulate,
-    _grow,
     _samples,
+    collect_pairs,
     contact_energy,
-    image_list,
     project_gradient,
 )
-from .partition import (
-    image_reaches,
-    search_pairs,
-    search_row,
-    segment_boxes_soa,
-    segment_gaps,
-)
+from .partition import search_row
 
 # meta layout: a_x, a_y, skin, max |m|, max |n|, r, image mode at the build
 _META = 7
@@ -56,35 +49,10 @@ def build_neighbour_list(cp, tab, ax, ay, r, mode, skin):
     (i, j_lo, j_hi, m, n), ref_pos (3, 8N) sample positions, meta (7,) float64);
     pass all three to ``contact_energy_listed``.
     """
-    nseg = cp.shape[0]
     n = tab.shape[1]
     pts, pos, _, _, s_mid, s_tot = _samples(cp, tab)
-    box = segment_boxes_soa(pos, nseg, n)
-    reach = 2.0 * r + skin
-    images = image_list(pts, ax, ay, 0.5 * reach, mode)
-    gaps = np.empty(nseg)
-    cap = 4 * nseg * n * n
-    ib = np.empty((4, cap), dtype=np.int64)
-    fb = np.empty((4, cap))
-    c = 0
-    for im in range(-1, images.shape[0]):
-        m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
-        ox = m * ax
-        oy = nn * ay
-        if im >= 0 and not image_reaches(box, ox, oy, reach):
-            continue
-        for sa in range(nseg):
-            segment_gaps(box, sa, ox, oy, gaps)
-            for sb in range(sa if im < 0 else 0, nseg):
-                if not gaps[sb] < reach * reach:
-                    continue
-                if c + n * n > cap:
-                    cap *= 2
-                    ib = _grow(ib, cap)
-                    fb = _grow(fb, cap)
-                # s_excl < 0: no pair is excluded here, the exclusion is tested per call
-                c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, ox, oy, m * s_tot,
-                                 reach * reach, -1.0, ib, fb, c)  # fmt: skip
+    # s_excl < 0: no pair is excluded here, the exclusion is tested per call
+    ib, _, c = collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, 2.0 * r + skin, -1.0, mode)
     # runs of one i against one segment in one image (consecutive in search order)
     rows = np.empty((c, 5), dtype=np.int64)
     k = 0
