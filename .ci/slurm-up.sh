@@ -275,31 +275,30 @@ fi
 
 ctld_up() { timeout 5 scontrol ping 2>/dev/null | grep -q 'is UP'; }
 
-if pidfile_alive "$CTLD_PID" slurmctld; then
-    log "slurmctld already running (pid $(cat "$CTLD_PID"))"
-else
-    [[ -z $(pids_of slurmctld) ]] ||
-        die "a slurmctld is running ($(pids_of slurmctld | tr '\n' ' ')) that does not match $CTLD_PID; stop it first"
-    log "starting slurmctld"
-    rm -f "$CTLD_PID"
-    # Daemonizes; errors before daemonizing go to stderr, later ones to $CTLD_LOG.
-    slurmctld || die "slurmctld exited with status $?"
-    record_started slurmctld
-fi
+# start_daemon NAME PIDFILE: start a SLURM daemon unless PIDFILE names a live one.
+# (Called as a plain command, so that set -e holds inside.)
+start_daemon() {
+    local name=$1 pidfile=$2
+    if pidfile_alive "$pidfile" "$name"; then
+        log "$name already running (pid $(cat "$pidfile"))"
+        return 0
+    fi
+    [[ -z $(pids_of "$name") ]] ||
+        die "a $name is running ($(pids_of "$name" | tr '\n' ' ')) that does not match $pidfile; stop it first"
+    log "starting $name"
+    rm -f "$pidfile"
+    # Daemonizes; errors before daemonizing go to stderr, later ones to its log file.
+    "$name" || die "$name exited with status $?"
+    record_started "$name"
+}
+
+start_daemon slurmctld "$CTLD_PID"
 wait_for 30 "slurmctld to answer 'scontrol ping'" ctld_up
 log "slurmctld is UP"
 
-if pidfile_alive "$SLURMD_PID" slurmd; then
-    log "slurmd already running (pid $(cat "$SLURMD_PID"))"
-else
-    [[ -z $(pids_of slurmd) ]] ||
-        die "a slurmd is running ($(pids_of slurmd | tr '\n' ' ')) that does not match $SLURMD_PID; stop it first"
-    log "starting slurmd"
-    rm -f "$SLURMD_PID"
-    SLURMD_STARTED_AT=$(date +%s)
-    slurmd || die "slurmd exited with status $?"
-    record_started slurmd
-fi
+SLURMD_STARTED_AT=0
+pidfile_alive "$SLURMD_PID" slurmd || SLURMD_STARTED_AT=$(date +%s)
+start_daemon slurmd "$SLURMD_PID"
 
 # --------------------------------------------------------------------------
 # 5. Wait for the node to be usable
@@ -308,7 +307,6 @@ node_state() { timeout 5 sinfo -h -N -n "$HOST" -o '%T' 2>/dev/null | head -n 1;
 # After a restart slurmctld may report the node's saved state (e.g. idle) before
 # the new slurmd has registered, so when we started slurmd ourselves also
 # require that slurmctld has seen this slurmd's registration.
-SLURMD_STARTED_AT=${SLURMD_STARTED_AT:-0}
 slurmd_registered() {
     local t
     ((SLURMD_STARTED_AT == 0)) && return 0
