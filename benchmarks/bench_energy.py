@@ -31,6 +31,7 @@ import numba
 import numpy as np
 from numba import njit
 
+from knitsweep.config import Fidelity, StitchParams
 from knitsweep.kernels.bending import SEGMENT_WEIGHTS, bending_and_length
 from knitsweep.kernels.bezier import basis_tables, gauss_legendre, midpoints
 from knitsweep.kernels.cell import cell_energy, cell_energy_listed
@@ -47,7 +48,6 @@ from knitsweep.kernels.contact import (
 from knitsweep.kernels.geometry import IDX_AX, IDX_AY, N_STATE, state_to_control_points
 from knitsweep.kernels.neighbours import build_neighbour_list, contact_energy_listed
 from knitsweep.model import CellModel
-from knitsweep.params import Fidelity, StitchParams
 
 DATA = Path(__file__).resolve().parent.parent / "tests" / "data"
 MODES = {"cutoff": IMAGES_CUTOFF, "reference": IMAGES_REFERENCE}  # Fidelity.images -> kernel

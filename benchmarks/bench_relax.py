@@ -19,13 +19,13 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from knitsweep.config import Fidelity, SolverSettings, StitchParams
 from knitsweep.formats import read_state
 from knitsweep.model import CellModel
-from knitsweep.multistart import StartSettings, zero_force
-from knitsweep.params import Fidelity, SolverSettings, StitchParams
 from knitsweep.presets import preset_settings
 from knitsweep.relax import relax
-from knitsweep.sweep import SweepProtocol, strain_sweep
+from knitsweep.strain_sweep import SweepProtocol, strain_sweep
+from knitsweep.zero_force import StartSettings, zero_force
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data"
 

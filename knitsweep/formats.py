@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
+from .config import InputError, StitchParams, describe_validation_error
 from .kernels.geometry import IDX_AX, IDX_AY, N_STATE
-from .params import InputError, StitchParams, describe_validation_error
 
 SHIPPED_STATES = tuple(f"Init_{i}.dat" for i in range(1, 8))
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .config import Fidelity, InternalParams, StitchParams
 from .kernels.bending import SEGMENT_WEIGHTS
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
@@ -24,7 +25,6 @@ from .kernels.contact import (
 )
 from .kernels.geometry import IDX_AX, IDX_AY, N_STATE, state_to_control_points
 from .kernels.neighbours import build_neighbour_list
-from .params import Fidelity, InternalParams, StitchParams
 
 
 class NeighbourList:

@@ -48,7 +48,7 @@ DEFAULT_PRESET = "converged"
 def preset_settings(name: str, section: str) -> dict[str, Any]:
     """The preset's values for one section ('fidelity', 'solver' or 'protocol')."""
     if name not in PRESETS:
-        from .params import InputError
+        from .config import InputError
 
         raise InputError(f"preset = {name!r}: must be one of {', '.join(PRESETS)}")
     return dict(PRESETS[name][section])

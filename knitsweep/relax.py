@@ -17,10 +17,10 @@ from typing import Literal
 import numpy as np
 from scipy.optimize import minimize
 
+from .config import Fidelity, SolverSettings, StitchParams
 from .kernels.contact import CORE_EPS
 from .kernels.geometry import IDX_AX, IDX_AY, IDX_TW, N_STATE
 from .model import CellModel
-from .params import Fidelity, SolverSettings, StitchParams
 
 Direction = Literal["x", "y"]
 PERIOD_INDEX = {"x": IDX_AX, "y": IDX_AY}

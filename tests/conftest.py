@@ -14,7 +14,7 @@ def golden_cases():
 
 
 def golden_params(case):
-    from knitsweep.params import StitchParams
+    from knitsweep.config import StitchParams
 
     P = case["params"]
     return StitchParams.from_internal(P["L"], P["bend"], P["reg"], P["r"], P["rc"], P["k"], P["p"])

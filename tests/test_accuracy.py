@@ -5,8 +5,8 @@ import math
 
 import pytest
 
-from knitsweep.accuracy import METRICS, accuracy_study, setting, table, write_report
-from knitsweep.params import StitchParams
+from knitsweep.config import StitchParams
+from knitsweep.studies.accuracy import METRICS, accuracy_study, setting, table, write_report
 
 CHEAP = "draft:step_mm=0.02+stop_stress_N_per_mm=0.05+max_strain=0.2"
 

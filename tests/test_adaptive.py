@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from knitsweep import service
-from knitsweep.adaptive import JAMMED_GAP, series_state
-from knitsweep.params import InputError
+from knitsweep.config import InputError
+from knitsweep.service.adaptive import JAMMED_GAP, series_state
 
 DATA = Path(__file__).parent / "data"
 JOB = DATA / "jobs" / "tiny_adaptive.toml"

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from knitsweep.jobs import JobSpec, plan
 from knitsweep.kernels.contact import CORE_EPS
-from knitsweep.tasks import execute
+from knitsweep.service.jobs import JobSpec, plan
+from knitsweep.service.worker import execute
 
 BASE = {"L_mm": 11.6, "k_mN_per_mm2": 0.1}
 EXTREMES = {

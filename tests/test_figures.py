@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from results_factory import write_results
 
+from knitsweep.config import InputError, StitchParams
 from knitsweep.formats import shipped_state, write_state
-from knitsweep.params import InputError, StitchParams
-from knitsweep.postprocess import phase_diagram, reduce_results
-from knitsweep.postprocess.figures import FIGURES
+from knitsweep.report import phase_diagram, reduce_results
+from knitsweep.report.figures import FIGURES
 
 MIN_BYTES = 20_000
 
@@ -86,8 +86,8 @@ def test_figures_without_sweeps_are_skipped(tmp_path):
 
 
 def test_partial_file_is_labelled_in_figures(tmp_path):
-    from knitsweep.postprocess.fig_energy import fig3_energy_gaps
-    from knitsweep.postprocess.plotting import style
+    from knitsweep.report.fig_energy import fig3_energy_gaps
+    from knitsweep.report.plotting import style
 
     path = write_results(tmp_path / "run.h5", ks=(0.1,), run_status="running")
     red = reduce_results(path)
@@ -110,7 +110,7 @@ def test_tiny_job_figures_via_cli(tiny, tmp_path):
 
 
 def test_figures_use_agg_without_pyplot(synthetic_report):
-    code = ("import sys; from knitsweep.postprocess import phase_diagram; "
+    code = ("import sys; from knitsweep.report import phase_diagram; "
             f"phase_diagram({str(synthetic_report.reduction.path)!r}, "
             f"{str(synthetic_report.reduction.path.parent / 'again')!r}); "
             "print('matplotlib.pyplot' in sys.modules)")  # fmt: skip
@@ -124,7 +124,7 @@ def test_figures_use_agg_without_pyplot(synthetic_report):
 
 
 def test_render_point_and_sweep(tiny, tmp_path):
-    from knitsweep.storage import iter_entries
+    from knitsweep.service.results_file import iter_entries
 
     entries = list(iter_entries(tiny))
     point = next(e.task_id for e in entries if e.kind == "points")
@@ -149,7 +149,7 @@ def test_render_point_and_sweep(tiny, tmp_path):
 
 def test_render_stored_states_and_control_points(tmp_path):
     from knitsweep.model import CellModel
-    from knitsweep.render import render
+    from knitsweep.report.render import render
 
     path = write_results(tmp_path / "st.h5", ks=(0.1,), not_knittable_L=None)
     x = shipped_state(1)
@@ -208,7 +208,7 @@ def test_render_bad_input(tmp_path, args, fragment):
 
 
 def test_render_bad_suffix_and_cells(tmp_path):
-    from knitsweep.render import render
+    from knitsweep.report.render import render
 
     with pytest.raises(InputError, match="must end in"):
         render(tmp_path / "x.jpg", state=tmp_path / "s.dat")

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from conftest import golden_cases, golden_params
 
+from knitsweep.config import Fidelity
 from knitsweep.model import CellModel
-from knitsweep.params import Fidelity
 
 CASES = golden_cases()
 IDS = [c["name"] for c in CASES]

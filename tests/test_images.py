@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from conftest import golden_cases, golden_params
 
+from knitsweep.config import Fidelity
 from knitsweep.kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, image_list
 from knitsweep.model import CellModel
-from knitsweep.params import Fidelity
 
 
 def _models(case):

@@ -125,9 +125,9 @@ def test_model_with_a_neighbour_list_gives_the_same_numbers():
     bit, and rebuilds its list when the state moves beyond the skin."""
     import numpy as np
 
+    from knitsweep.config import StitchParams
     from knitsweep.formats import shipped_state
     from knitsweep.model import CellModel
-    from knitsweep.params import StitchParams
 
     model = CellModel(StitchParams(L_mm=11.6, k_mN_per_mm2=0.1))
     x = shipped_state(1)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+from knitsweep.config import Fidelity, InputError, StitchParams, describe_validation_error
 from knitsweep.formats import read_authors_config, read_state, shipped_state, write_state
-from knitsweep.params import Fidelity, InputError, StitchParams, describe_validation_error
 
 
 def _message(**kw):

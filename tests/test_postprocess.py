@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from results_factory import write_results
 
-from knitsweep.params import InputError
-from knitsweep.postprocess import phase_diagram, reduce_results
-from knitsweep.postprocess.reduce import CONTACT_CLASSES, SERIES_PARAMS
-from knitsweep.storage import Entry, journal_dir
+from knitsweep.config import InputError
+from knitsweep.report import phase_diagram, reduce_results
+from knitsweep.report.reduce import CONTACT_CLASSES, SERIES_PARAMS
+from knitsweep.service.results_file import Entry, journal_dir
 
 
 def knitsweep(*args):
@@ -249,7 +249,7 @@ def test_cli_json(synthetic, tmp_path):
 
 
 def test_no_matplotlib_at_import():
-    code = ("import sys, knitsweep.cli, knitsweep.postprocess, knitsweep.render; "
+    code = ("import sys, knitsweep.cli, knitsweep.report, knitsweep.report.render; "
             "print('matplotlib' in sys.modules)")  # fmt: skip
     out = subprocess.run([sys.executable, "-W", "error", "-c", code], capture_output=True,
                          text=True, timeout=120)  # fmt: skip
@@ -264,10 +264,6 @@ def test_contact_classes_match_the_model():
 
 
 def test_adaptive_series_bracket_is_reported(tmp_path):
-    from knitsweep import storage
-
-    if not hasattr(storage, "SERIES"):
-        pytest.skip("this storage has no /series groups (adaptive jobs)")
     path = write_results(tmp_path / "a.h5", ks=(0.1,), not_knittable_L=None)
     with h5py.File(path, "a") as f:
         g = f.create_group("series/s0.1x")

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from conftest import DATA
 
+from knitsweep.config import Fidelity, SolverSettings, StitchParams
 from knitsweep.formats import read_state
 from knitsweep.model import CellModel
-from knitsweep.multistart import StartSettings, start_states, zero_force
-from knitsweep.params import Fidelity, SolverSettings, StitchParams
 from knitsweep.relax import CONVERGED, NOT_CONVERGED, continuation_path, relax
-from knitsweep.sweep import SweepProtocol, first_grid_value, strain_sweep
+from knitsweep.strain_sweep import SweepProtocol, first_grid_value, strain_sweep
+from knitsweep.zero_force import StartSettings, start_states, zero_force
 
 REF = json.loads((DATA / "relaxed_reference.json").read_text())["cases"][0]
 PAPER = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)

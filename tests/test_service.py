@@ -16,11 +16,11 @@ import pytest
 from conftest import TINY, assert_same_results
 
 from knitsweep import SCHEMA_VERSION, service
-from knitsweep.executors import SerialExecutor
-from knitsweep.jobs import load_job
-from knitsweep.params import InputError
-from knitsweep.runner import run_job
-from knitsweep.storage import journal_dir, lock_path
+from knitsweep.config import InputError
+from knitsweep.service.executors import SerialExecutor
+from knitsweep.service.jobs import load_job
+from knitsweep.service.master import run_job
+from knitsweep.service.results_file import journal_dir, lock_path
 
 VENV_BIN = Path(sys.executable).parent
 MPIRUN = shutil.which("mpirun", path=str(VENV_BIN)) or shutil.which("mpirun")
@@ -87,7 +87,7 @@ def test_different_job_is_refused_and_file_kept(tiny_reference, tmp_path):
 
 
 def test_failing_task_is_isolated(tmp_path, monkeypatch):
-    import knitsweep.tasks as tasks
+    import knitsweep.service.worker as tasks
 
     real = tasks.run_point
 
@@ -258,7 +258,7 @@ def test_signal_exceptions_are_unwrapped_from_numba_system_errors():
     """A signal handler raising while a numba dispatcher returns surfaces as a
     SystemError with the handler's exception as its cause: an interrupt must still
     propagate, and a timeout still count as a timeout (not a failed task)."""
-    from knitsweep.tasks import TaskTimeout, _signal_cause
+    from knitsweep.service.worker import TaskTimeout, _signal_cause
 
     class Stop(BaseException):
         pass

@@ -1,4 +1,4 @@
-"""SLURM batch templates (slurm/*.sbatch = knitsweep/templates/*.sbatch) and
+"""SLURM batch templates (slurm/*.sbatch = knitsweep/service/templates/*.sbatch) and
 ``knitsweep slurm render``.
 
 The tests marked ``slurm`` submit the templates to a real SLURM (a single node
@@ -22,7 +22,7 @@ from conftest import TINY, assert_same_results
 
 import knitsweep
 from knitsweep import service
-from knitsweep.slurm import TEMPLATE_FILES, SlurmScript, render, template_path
+from knitsweep.service.slurm import TEMPLATE_FILES, SlurmScript, render, template_path
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data"

@@ -39,7 +39,7 @@ def phase_diagram(
 ) -> None:
     """Jamming transitions (L/r)_trans, ΔL/r and regimes of a results file, as a printed
     table, CSV files and the paper's figures; also on a file a run is still writing."""
-    from ..postprocess import phase_diagram as make_phase_diagram
+    from ..report import phase_diagram as make_phase_diagram
 
     with user_errors():
         report = make_phase_diagram(results, out, threshold, figures=not no_figures)
@@ -88,8 +88,8 @@ def render(
 ) -> None:  # fmt: skip
     """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a: a task of a results
     file (point, or sweep at --step) or a state file."""
-    from .. import render as rendering
-    from ..params import InputError
+    from ..config import InputError
+    from ..report import render as rendering
 
     with user_errors():
         params = None
@@ -125,8 +125,8 @@ def accuracy(
 ) -> None:  # fmt: skip
     """Measure the speed/accuracy trade: one point at rising fidelity, with time per
     relaxation and per sweep and the error of each observable against the finest."""
-    from ..accuracy import accuracy_study, table, write_report
-    from ..params import InputError
+    from ..config import InputError
+    from ..studies.accuracy import accuracy_study, table, write_report
 
     with user_errors():
         params, _ = stitch_inputs(None, L=L if L is not None else 11.0, B=B,
@@ -139,7 +139,7 @@ def accuracy(
             Ls = None if series is None else [float(v) for v in series.split(",")]
         except ValueError:
             raise InputError(f"series = {series!r}: comma-separated numbers (mm)") from None
-        from ..accuracy import setting
+        from ..studies.accuracy import setting
 
         for spec in specs:
             setting(spec)  # validate every setting before any compute

@@ -57,7 +57,7 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
 @contextlib.contextmanager
 def user_errors():
     """Turn bad input into one line on stderr and exit code 2, never a traceback."""
-    from ..params import InputError, describe_validation_error
+    from ..config import InputError, describe_validation_error
 
     try:
         yield
@@ -68,8 +68,8 @@ def user_errors():
 
 def stitch_inputs(config, **flags):
     """(StitchParams, Fidelity) from defaults < an authors' config < explicit flags."""
+    from ..config import Fidelity, StitchParams
     from ..formats import read_authors_config
-    from ..params import Fidelity, StitchParams
 
     names = {
         "L": "L_mm", "B": "B_mN_mm2", "k": "k_mN_per_mm2", "p": "p", "r": "r_mm",

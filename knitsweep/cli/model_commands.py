@@ -95,10 +95,10 @@ def relax(
     """Relax the zero-force state at fixed yarn length (both periods free)."""
     import time
 
+    from ..config import Fidelity, SolverSettings
     from ..formats import read_state
-    from ..multistart import SHIPPED_SOURCE, StartSettings, zero_force
-    from ..params import Fidelity, SolverSettings
     from ..relax import relax_with_continuation
+    from ..zero_force import SHIPPED_SOURCE, StartSettings, zero_force
 
     with user_errors():
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
@@ -144,10 +144,10 @@ def sweep(
     out: Annotated[Path | None, typer.Option("--out", help="write the table: .csv or .h5")] = None,
 ) -> None:  # fmt: skip
     """One point's strain sweep, with a progress bar; prints the stress–strain table."""
-    from ..multistart import StartSettings, zero_force
-    from ..params import Fidelity, InputError, SolverSettings
-    from ..sweep import SweepProtocol, strain_sweep
-    from ..tables import sweep_table, write_sweep
+    from ..config import Fidelity, InputError, SolverSettings
+    from ..report.sweep_table import sweep_table, write_sweep
+    from ..strain_sweep import SweepProtocol, strain_sweep
+    from ..zero_force import StartSettings, zero_force
 
     with user_errors():
         if direction not in ("x", "y"):

@@ -30,7 +30,7 @@ def run(
     """Run a job: every grid point's zero-force state and its x/y strain sweeps, into
     one HDF5 file. Under mpirun -n N, rank 0 schedules and N-1 ranks work."""
     from .. import service
-    from ..params import InputError
+    from ..config import InputError
 
     with user_errors():
         if executor not in ("auto", "serial", "processes", "mpi"):
@@ -56,7 +56,7 @@ def status(
     """Counts of a results file (done, failed, running, pending, rate, ETA), also
     while a run is writing it."""
     from .. import service
-    from ..runner import progress_line
+    from ..service.master import progress_line
 
     with user_errors():
         s = service.status(results)
@@ -124,7 +124,7 @@ def slurm_render(
 ) -> None:  # fmt: skip
     """Print (or write) a ready-to-submit batch script: a shipped template with the job,
     output, resources and environment filled in."""
-    from ..slurm import SlurmScript, render, write_script
+    from ..service.slurm import SlurmScript, render, write_script
 
     with user_errors():
         text = render(SlurmScript(

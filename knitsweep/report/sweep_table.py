@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .params import StitchParams
-from .sweep import SweepResult
+from ..config import StitchParams
+from ..strain_sweep import SweepResult
 
 COLUMNS = (
     ("strain", "strain", "1"),

@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from ..relax import CONVERGED, NOT_KNITTABLE, Relaxation
 from .jobs import JobSpec, PointTask, SweepTask
-from .relax import CONVERGED, NOT_KNITTABLE, Relaxation
 
 DONE, FAILED = "done", "failed"
 _STATUS = {CONVERGED: DONE, NOT_KNITTABLE: NOT_KNITTABLE}
@@ -99,8 +99,8 @@ def _signal_cause(e: Exception) -> Exception:
 
 
 def run_point(job: JobSpec, task: PointTask) -> dict[str, Any]:
-    from .model import CellModel
-    from .multistart import zero_force
+    from ..model import CellModel
+    from ..zero_force import zero_force
 
     zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed)
     record = zero_force_record(zf)
@@ -140,7 +140,7 @@ def zero_force_record(zf) -> dict[str, Any]:
 
 def zero_force_from_record(rec: dict[str, Any]):
     """Rebuild the ``ZeroForce`` a sweep needs from a stored record."""
-    from .multistart import ZeroForce
+    from ..zero_force import ZeroForce
 
     rs = []
     for i in range(len(rec["x"])):
@@ -173,8 +173,8 @@ def zero_force_from_record(rec: dict[str, Any]):
 
 
 def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, Any]:
-    from .model import CellModel
-    from .sweep import strain_sweep
+    from ..model import CellModel
+    from ..strain_sweep import strain_sweep
 
     params = zero["params"]
     zf = zero_force_from_record(zero)

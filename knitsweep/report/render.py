@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from .kernels.bezier import basis_tables
-from .params import InputError, StitchParams
+from ..config import InputError, StitchParams
+from ..kernels.bezier import basis_tables
 
 ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
 """Base colour of each row (course) of yarn, cycling."""
@@ -273,7 +273,7 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
 
 def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> Stitch:
     """The stitch of a 30-entry state vector (MODEL.md §2) at the given parameters."""
-    from .model import CellModel
+    from ..model import CellModel
 
     cp = CellModel(params).control_points(x)
     text = label or f"L = {params.L_mm:g} mm, r = {params.r_mm:g} mm"
@@ -281,7 +281,7 @@ def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> S
 
 
 def _find_task(results: Path, task: str) -> Any:
-    from .storage import iter_entries, read_root
+    from ..service.results_file import iter_entries, read_root
 
     read_root(results)
     matches = [e for e in iter_entries(results, with_data=True) if e.task_id.startswith(task)]
@@ -306,7 +306,7 @@ def stitch_from_results(results: str | Path, task: str, step: int | None = None)
     the sweep's stored ``states`` or ``control_points`` ([store] states or geometry).
     Ids may be abbreviated to a unique prefix.
     """
-    from .storage import POINTS, iter_entries
+    from ..service.results_file import POINTS, iter_entries
 
     results = Path(results)
     e = _find_task(results, task)
@@ -386,7 +386,7 @@ def render(
             raise InputError("--results needs --task ID (a point or sweep id)")
         stitch = stitch_from_results(results, task, step)
     else:
-        from .formats import read_state
+        from ..formats import read_state
 
         if step is not None:
             raise InputError("--step applies to a sweep of a results file, not to --state")

@@ -33,7 +33,7 @@ import signal
 import socket
 import time
 
-from .tasks import Reply, execute
+from .worker import Reply, execute
 
 TASK, REPLY, STOP, STOPPED, ABANDONED = 1, 2, 3, 4, 5
 PREFETCH = 2  # tasks held by each MPI worker: the one it computes and the next
@@ -51,9 +51,9 @@ def launched_by_mpi() -> bool:
 def warm_up(job) -> None:
     """Compile (or load from numba's cache) every kernel a task uses, once,
     before the work fans out."""
-    from .formats import shipped_state
-    from .model import CellModel
-    from .params import StitchParams
+    from ..config import StitchParams
+    from ..formats import shipped_state
+    from ..model import CellModel
 
     model = CellModel(StitchParams(), job.fidelity)
     x = shipped_state(1)

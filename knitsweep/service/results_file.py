@@ -46,8 +46,8 @@ from typing import Any
 
 import numpy as np
 
-from . import SCHEMA_VERSION, __version__
-from .params import InputError
+from .. import SCHEMA_VERSION, __version__
+from ..config import InputError
 
 POINTS, SWEEPS, SERIES = "points", "sweeps", "series"
 KINDS = (POINTS, SWEEPS, SERIES)

@@ -25,11 +25,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .analysis.metrics import energy_gaps
+from ..analysis.metrics import energy_gaps
+from ..config import InputError
 from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, sweep_task
-from .params import InputError
-from .refine import Refiner
-from .storage import (
+from .refiner import Refiner
+from .results_file import (
     POINTS,
     SERIES,
     SWEEPS,
@@ -39,7 +39,7 @@ from .storage import (
     progress_path,
     read_entry,
 )
-from .tasks import DONE, FAILED, Reply
+from .worker import DONE, FAILED, Reply
 
 EXIT_INTERRUPTED = 3
 

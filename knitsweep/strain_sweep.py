@@ -28,11 +28,11 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from .config import Fidelity, SolverSettings, StitchParams
 from .kernels.geometry import IDX_AX, IDX_AY
 from .model import CellModel
-from .multistart import ZeroForce, pick_lowest
-from .params import Fidelity, SolverSettings, StitchParams
 from .relax import CONVERGED, NOT_KNITTABLE, Direction, Relaxation, relax
+from .zero_force import ZeroForce, pick_lowest
 
 
 class SweepProtocol(BaseModel):

@@ -1,6 +1,6 @@
 """Ready-to-submit SLURM batch scripts (``knitsweep slurm render``).
 
-The templates are shipped as package data, ``knitsweep/templates/*.sbatch``, and
+The templates are shipped as package data, ``knitsweep/service/templates/*.sbatch``, and
 are the only copy: ``slurm/*.sbatch`` in the repository are symlinks to them.
 Each is a working script on its own (``sbatch knitsweep-mpi.sbatch JOB OUT``);
 ``render`` fills in what a user would otherwise pass each time: the job file
@@ -19,8 +19,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from . import __version__
-from .params import InputError
+from .. import __version__
+from ..config import InputError
 
 TemplateName = Literal["mpi", "array", "merge"]
 TEMPLATE_FILES = {
@@ -48,7 +48,7 @@ def template_path(name: str) -> Path:
     """The shipped template file for ``name`` (mpi, array or merge)."""
     if name not in TEMPLATE_FILES:
         raise InputError(f"template = {name!r}: must be one of {', '.join(TEMPLATE_FILES)}")
-    return Path(str(resources.files("knitsweep") / "templates" / TEMPLATE_FILES[name]))
+    return Path(str(resources.files("knitsweep") / "service" / "templates" / TEMPLATE_FILES[name]))
 
 
 def walltime_seconds(text: str) -> int:

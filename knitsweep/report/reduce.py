@@ -1,7 +1,7 @@
 """Reduce a results file to the paper's tables (MODEL.md §9; paper Sections IV–VII).
 
-One pass over a results file (``knitsweep run``; schema in :mod:`knitsweep.storage`),
-read through :func:`knitsweep.storage.iter_entries`, so that results still in a
+One pass over a results file (``knitsweep run``; schema in :mod:`knitsweep.service.results_file`),
+read through :func:`knitsweep.service.results_file.iter_entries`, so that results still in a
 running job's journal count too. Out come plain rows (dicts of str, float, int, bool
 or None), ready for CSV, printing and the figures of :mod:`.figures`:
 
@@ -31,8 +31,8 @@ import numpy as np
 from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickness_strain
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition, transition
-from ..params import InputError
-from ..storage import POINTS, SWEEPS, Entry, iter_entries, read_root
+from ..config import InputError
+from ..service.results_file import POINTS, SWEEPS, Entry, iter_entries, read_root
 
 SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p")
 """The parameters held fixed along a series in L (the paper's k, B, r_core, r, p)."""

@@ -14,10 +14,10 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from .config import Fidelity, SolverSettings, StitchParams
 from .formats import SHIPPED_STATES, shipped_state
 from .kernels.geometry import N_SHAPE
 from .model import CellModel
-from .params import Fidelity, SolverSettings, StitchParams
 from .relax import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, Relaxation, relax_with_continuation
 
 # the parameters the shipped Init files were made for (the authors' k = 0.1 mN/mm^2

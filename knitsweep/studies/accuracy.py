@@ -20,14 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from .analysis import energy_gaps, offset_stress, secant_modulus
-from .analysis.stress_strain import FD_STRESS_SMOOTHING
-from .formats import shipped_state
-from .model import CellModel
-from .multistart import StartSettings, zero_force
-from .params import Fidelity, SolverSettings, StitchParams
-from .presets import PRESETS, preset_settings
-from .sweep import SweepProtocol, strain_sweep
+from ..analysis import energy_gaps, offset_stress, secant_modulus
+from ..analysis.stress_strain import FD_STRESS_SMOOTHING
+from ..config import Fidelity, SolverSettings, StitchParams
+from ..formats import shipped_state
+from ..model import CellModel
+from ..presets import PRESETS, preset_settings
+from ..strain_sweep import SweepProtocol, strain_sweep
+from ..zero_force import StartSettings, zero_force
 
 # around the k = 0.1 mN/mm^2 transition (L = 11.4-11.5 mm in x and y, paper Fig. 3)
 DEFAULT_SERIES = [11.3, 11.4, 11.5, 11.6, 11.7]

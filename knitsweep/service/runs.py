@@ -12,10 +12,18 @@ import time
 from pathlib import Path
 from typing import Any, Literal
 
+from ..config import InputError
 from .jobs import JobSpec, load_job
-from .params import InputError
-from .storage import POINTS, SERIES, iter_entries, lock_path, read_progress, read_root, writer_alive
-from .tasks import DONE, FAILED
+from .results_file import (
+    POINTS,
+    SERIES,
+    iter_entries,
+    lock_path,
+    read_progress,
+    read_root,
+    writer_alive,
+)
+from .worker import DONE, FAILED
 
 ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
 
@@ -37,7 +45,7 @@ def run(
 ):
     """Run a job file; returns the ``RunSummary`` (None on MPI worker ranks)."""
     from .executors import ProcessExecutor, SerialExecutor, launched_by_mpi
-    from .runner import parse_shard, run_job
+    from .master import parse_shard, run_job
 
     if workers < 1:
         raise InputError(f"workers = {workers}: must be >= 1")
@@ -63,7 +71,7 @@ def run(
 
 def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress):
     from .executors import MPIExecutor, mpi_worker_loop
-    from .runner import parse_shard, run_job
+    from .master import parse_shard, run_job
 
     if comm.Get_rank() != 0:
         mpi_worker_loop(comm)
@@ -138,7 +146,7 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     failed one. Returns counts of what ``out`` holds.
     """
     from .jobs import JobSpec, plan
-    from .storage import SWEEPS, ResultWriter
+    from .results_file import SWEEPS, ResultWriter
 
     if not inputs:
         raise InputError("merge needs at least one input file")

@@ -13,10 +13,10 @@ import json
 from collections.abc import Iterator
 from typing import Any
 
+from ..config import StitchParams
 from .adaptive import JAMMED_GAP, SeriesState, series_state
 from .jobs import JobSpec, digest
-from .params import StitchParams
-from .tasks import DONE
+from .worker import DONE
 
 
 def _params_of(meta: dict[str, Any]) -> StitchParams:

@@ -24,17 +24,17 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from . import SCHEMA_VERSION
-from .multistart import StartSettings
-from .params import (
+from .. import SCHEMA_VERSION
+from ..config import (
     Fidelity,
     InputError,
     SolverSettings,
     StitchParams,
     describe_validation_error,
 )
-from .presets import DEFAULT_PRESET, PRESETS, preset_settings
-from .sweep import SweepProtocol
+from ..presets import DEFAULT_PRESET, PRESETS, preset_settings
+from ..strain_sweep import SweepProtocol
+from ..zero_force import StartSettings
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -168,7 +168,7 @@ class RunSettings(BaseModel):
 class AdaptiveSettings(BaseModel):
     """The adaptive search for (L/r)_trans (``mode = "adaptive"``): ``grid.L_mm`` is
     the coarse grid that brackets each series' transition, then the bracket
-    shrinks below ``tolerance_mm`` (see ``knitsweep.adaptive``)."""
+    shrinks below ``tolerance_mm`` (see ``knitsweep.service.adaptive``)."""
 
     model_config = _STRICT
 
