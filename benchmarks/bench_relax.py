@@ -19,13 +19,12 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from knitsweep.config import Fidelity, SolverSettings, StitchParams
-from knitsweep.formats import read_state
+from knitsweep.config import Numerics, StartSettings, StitchParams
+from knitsweep.formats import shipped_state
 from knitsweep.model import CellModel
-from knitsweep.presets import preset_settings
 from knitsweep.relax import relax
-from knitsweep.strain_sweep import SweepProtocol, strain_sweep
-from knitsweep.zero_force import StartSettings, zero_force
+from knitsweep.strain_sweep import strain_sweep
+from knitsweep.zero_force import zero_force
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data"
 
@@ -38,7 +37,7 @@ def main() -> None:
     ref = json.loads((DATA / "relaxed_reference.json").read_text())
     case = ref["cases"][0]
     params = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)
-    x0 = read_state(DATA / "init" / "Init_1.dat")
+    x0 = shipped_state(1)
     threadpool_limits(1)
 
     print("knitsweep relaxation benchmark (single-threaded, one core)")
@@ -48,8 +47,9 @@ def main() -> None:
     print(f"{'zero-force relaxation from Init_1':<44}{'median [ms]':>12}{'iters':>7}{'evals':>7}"
           f"{'E - E_ref [mJ]':>16}{'speed-up':>11}")  # fmt: skip
     for preset in ("paper", "converged"):
-        model = CellModel(params, Fidelity(**preset_settings(preset, "fidelity")))
-        solver = SolverSettings(**preset_settings(preset, "solver"))
+        numerics = Numerics.from_preset(preset)
+        model = CellModel(params, numerics.fidelity)
+        solver = numerics.solver
         relax(model, x0, settings=solver)  # JIT warm-up
         times, r = [], None
         for _ in range(args.repeats):
@@ -70,7 +70,7 @@ def main() -> None:
         times, s = [], None
         for _ in range(args.sweep_repeats):
             t = time.perf_counter()
-            s = strain_sweep(params, zero, direction, SweepProtocol())
+            s = strain_sweep(params, zero, direction)
             times.append(time.perf_counter() - t)
         med = statistics.median(times)
         evals = s.evaluations[1:].mean()

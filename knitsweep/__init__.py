@@ -4,4 +4,3 @@ Importing the package does no work: no MPI, no numba compilation, no file access
 """
 
 __version__ = "0.1.0"
-SCHEMA_VERSION = 1

@@ -1,16 +1,24 @@
-"""Validated parameters, in the paper's user-facing units (MODEL.md §1).
+"""Every setting of the library, validated; no numba, no scipy (docs/model.md §1, §7, §8).
 
-``StitchParams`` holds the physics of one stitch (yarn and cell), ``Fidelity``
-the numerical discretisation. Both are frozen pydantic models that refuse unknown
-fields and out-of-range values at construction, with a message that names the
-field, the value and the allowed range. ``StitchParams.internal()`` converts once
-to the internal units (N, mm) used by the kernels.
+* ``StitchParams``: the physics of one stitch, in the paper's user-facing units;
+  ``StitchParams.internal()`` converts once to the kernels' units (N, mm).
+* ``Fidelity``: the discretisation of one energy evaluation.
+* ``SolverSettings``: the constrained minimiser and the continuation in parameters.
+* ``SweepProtocol``: the strain schedule of a sweep.
+* ``StartSettings``: the starting states of a zero-force relaxation.
+* ``PRESETS`` and ``Numerics.from_preset``: the speed/accuracy trade in one word,
+  with explicit overrides field by field.
+
+All are frozen pydantic models that refuse unknown fields and out-of-range values
+at construction, with a message naming the field, the value and the allowed range.
+The status words shared by every layer are defined here too.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal, NamedTuple
+from collections.abc import Mapping
+from typing import Annotated, Any, Literal, NamedTuple
 
 from pydantic import (
     AfterValidator,
@@ -41,8 +49,16 @@ Positive = Annotated[float, AfterValidator(_positive)]
 NonNegative = Annotated[float, AfterValidator(_non_negative)]
 
 
+# ---- statuses -------------------------------------------------------------------
+CONVERGED, NOT_CONVERGED, NOT_KNITTABLE = "converged", "not_converged", "not_knittable"
+"""How a relaxation ended (docs/model.md §7)."""
+DONE, FAILED = "done", "failed"
+"""How a task of a job ended (besides NOT_KNITTABLE)."""
+
+
+# ---- physics ----------------------------------------------------------------------
 class InternalParams(NamedTuple):
-    """Kernel parameters in internal units: mm, N, N mm^2 (MODEL.md §1)."""
+    """Kernel parameters in internal units: mm, N, N mm^2 (docs/model.md §1)."""
 
     L: float  # yarn length per stitch, mm
     bend: float  # B/2, N mm^2
@@ -100,6 +116,12 @@ class StitchParams(BaseModel):
     def L_over_r(self) -> float:
         return self.L_mm / self.r_mm
 
+    @classmethod
+    def from_flat(cls, values: Mapping[str, Any]) -> StitchParams:
+        """The parameters from a mapping that holds every field among other keys
+        (e.g. the attributes of a results-file group)."""
+        return cls(**{k: _plain(values[k]) for k in cls.model_fields})
+
     def internal(self) -> InternalParams:
         """Convert to the kernels' N/mm units once (mN -> N)."""
         return InternalParams(
@@ -151,7 +173,7 @@ class Fidelity(BaseModel):
 
 
 class SolverSettings(BaseModel):
-    """Constrained minimiser settings (SciPy SLSQP with exact Jacobians, MODEL.md §7)."""
+    """Constrained minimiser settings (SciPy SLSQP with exact Jacobians, docs/model.md §7)."""
 
     model_config = _CONFIG
 
@@ -178,6 +200,135 @@ class SolverSettings(BaseModel):
     continuation_dp: Positive = Field(0.1, description="largest change of p per stage")
 
 
+Direction = Literal["x", "y"]
+
+
+class SweepProtocol(BaseModel):
+    """The strain schedule; defaults are the authors' (docs/model.md §8)."""
+
+    model_config = _CONFIG
+
+    step_mm: float = Field(0.001, gt=0.0, le=1.0, description="small step h of the period (mm)")
+    switch_strain: float = Field(
+        0.05, ge=0.0, description="|strain| from which the large step applies"
+    )
+    large_step_x_mm: float = Field(0.1, gt=0.0, le=5.0, description="large step for x pulls (mm)")
+    large_step_y_mm: float = Field(0.05, gt=0.0, le=5.0, description="large step for y pulls (mm)")
+    stop_stress_N_per_mm: float = Field(0.4, gt=0.0, description="stop once |stress| exceeds this")
+    max_strain: float = Field(1.0, gt=0.0, le=10.0, description="stop once |strain| exceeds this")
+    max_steps: int = Field(5000, ge=2, le=1_000_000, description="hard limit on steps")
+    mode: Literal["tension", "compression"] = Field(
+        "tension", description="pull the cell apart (tension) or push it together"
+    )
+
+    def large_step(self, direction: Direction) -> float:
+        return self.large_step_x_mm if direction == "x" else self.large_step_y_mm
+
+
+class StartSettings(BaseModel):
+    """How many starts per point, and where they come from (docs/model.md §7)."""
+
+    model_config = _CONFIG
+
+    count: int = Field(4, ge=1, le=64, description="starts per point (paper: 4)")
+    source: Literal["shipped", "perturbed"] = Field(
+        "shipped",
+        description="'shipped': the authors' Init_1…Init_7 in turn (then perturbed copies); "
+        "'perturbed': Init_1 with seeded random perturbations",
+    )
+    perturbation: float = Field(
+        0.02, ge=0.0, le=0.5, description="relative std of the shape perturbations"
+    )
+
+
+# ---- presets ----------------------------------------------------------------------
+PRESETS: dict[str, dict[str, dict[str, Any]]] = {
+    "draft": {
+        "fidelity": {"samples_per_segment": 6, "quadrature_nodes": 12},
+        "solver": {"ftol": 1e-8},
+        "protocol": {"step_mm": 0.005},
+    },
+    "paper": {
+        "fidelity": {"samples_per_segment": 10, "quadrature_nodes": 32},
+        "solver": {"ftol": 1e-6},
+        "protocol": {"step_mm": 0.001},
+    },
+    "converged": {
+        "fidelity": {"samples_per_segment": 10, "quadrature_nodes": 32},
+        "solver": {"ftol": 1e-10},
+        "protocol": {"step_mm": 0.001},
+    },
+    "fine": {
+        "fidelity": {"samples_per_segment": 20, "quadrature_nodes": 32},
+        "solver": {"ftol": 1e-12},
+        "protocol": {"step_mm": 0.0005},
+    },
+}
+"""Named fidelity presets: the numerical knobs of every layer in one word.
+
+* ``draft``: coarse and fast, for exploring a parameter space.
+* ``paper``: the authors' numerical settings exactly (10 samples per segment,
+  SciPy's default SLSQP tolerance 1e-6 that their script ends up using, 0.001 mm
+  steps), with exact quadrature.
+* ``converged`` (default): the paper's discretisation with the optimiser driven
+  to a true constrained minimum (tolerance 1e-10).
+* ``fine``: twice the contact samples, tighter tolerance, half the step.
+
+The measured cost and error of each are in the README (``knitsweep accuracy``)."""
+DEFAULT_PRESET = "converged"
+SECTIONS = {"fidelity": Fidelity, "solver": SolverSettings, "protocol": SweepProtocol}
+"""The settings a preset fixes, by section name."""
+
+
+def check_preset(name: Any) -> str:
+    """``name`` if it is a preset; InputError listing the presets otherwise."""
+    if not isinstance(name, str) or name not in PRESETS:
+        raise InputError(f"preset = {name!r}: must be one of {', '.join(PRESETS)}")
+    return name
+
+
+def preset_sections(name: str, given: Mapping[str, Any] | None = None) -> dict[str, dict[str, Any]]:
+    """The preset's fields per section, with the fields of ``given`` (section name ->
+    {field: value}, as in a job file) on top. Sections of ``given`` that are not
+    mappings are passed through for the validator to report."""
+    check_preset(name)
+    out: dict[str, Any] = {}
+    for section in SECTIONS:
+        extra = (given or {}).get(section, {})
+        out[section] = {**PRESETS[name][section], **extra} if isinstance(extra, Mapping) else extra
+    return out
+
+
+class Numerics(BaseModel):
+    """The numerical settings of every layer: a preset plus explicit overrides."""
+
+    model_config = _CONFIG
+
+    preset: str = DEFAULT_PRESET
+    fidelity: Fidelity
+    solver: SolverSettings
+    protocol: SweepProtocol
+
+    @classmethod
+    def from_preset(cls, name: str | None = None, **overrides: Any) -> Numerics:
+        """The preset ``name`` (default ``converged``) with fields overridden by name
+        (``samples_per_segment=6``, ``ftol=1e-8``, ``step_mm=0.005`` …; None leaves a
+        field at the preset's value). Unknown fields are refused by name."""
+        name = DEFAULT_PRESET if name is None else check_preset(name)
+        given: dict[str, dict[str, Any]] = {s: {} for s in SECTIONS}
+        for field, value in overrides.items():
+            if value is None:
+                continue
+            section = next((s for s, m in SECTIONS.items() if field in m.model_fields), None)
+            if section is None:
+                known = sorted(f for m in SECTIONS.values() for f in m.model_fields)
+                raise InputError(f"{field}: unknown setting (known: {', '.join(known)})")
+            given[section][field] = value
+        sections = preset_sections(name, given)
+        return cls(preset=name, **{s: SECTIONS[s](**v) for s, v in sections.items()})
+
+
+# ---- errors -----------------------------------------------------------------------
 class InputError(ValueError):
     """Bad user input, reported as one line naming the field and the allowed range."""
 
@@ -199,3 +350,8 @@ def describe_validation_error(err: ValidationError | InputError) -> str:
         else:
             parts.append(f"{loc}: {msg}")
     return "; ".join(parts)
+
+
+def _plain(v: Any) -> Any:
+    """numpy scalars (as read from HDF5 attributes) as Python values."""
+    return v.item() if hasattr(v, "item") and getattr(v, "ndim", 1) == 0 else v

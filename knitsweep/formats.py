@@ -1,8 +1,8 @@
 """The authors' file formats (sabetta/jammed-knits), so their users can migrate.
 
-* Init files: the 30 numbers of a state, one per line (MODEL.md §2).
+* Init files: the 30 numbers of a state, one per line (docs/model.md §2).
 * Config files: only lines starting with ``*`` count, as ``*key value [unit]``
-  (MODEL.md §10). Their units are internal (N, mm, B/2); ``read_authors_config``
+  (docs/model.md §10). Their units are internal (N, mm, B/2); ``read_authors_config``
   converts them to knitsweep's user-facing ``StitchParams``.
 """
 
@@ -17,7 +17,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from .config import InputError, StitchParams, describe_validation_error
-from .kernels.geometry import IDX_AX, IDX_AY, N_STATE
+from .state import IDX_AX, IDX_AY, N_STATE
 
 SHIPPED_STATES = tuple(f"Init_{i}.dat" for i in range(1, 8))
 

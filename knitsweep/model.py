@@ -1,8 +1,8 @@
 """The stitch-cell model: energies, length and exact gradients of a state vector.
 
 ``CellModel`` binds validated parameters and a fidelity to the numba kernels
-(MODEL.md §2–6); it is what relaxation, sweeps and the CLI call. States are
-numpy arrays of shape (30,), see ``knitsweep.kernels.geometry``.
+(docs/model.md §2–6, §9); it is what relaxation, sweeps and the CLI call. States
+are numpy arrays of shape (30,), laid out as in ``knitsweep.state``.
 """
 
 from __future__ import annotations
@@ -15,16 +15,12 @@ from .config import Fidelity, InternalParams, StitchParams
 from .kernels.bending import SEGMENT_WEIGHTS
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
-from .kernels.contact import (
-    CORE_EPS,
-    CORE_PENALTY,
-    IMAGES_CUTOFF,
-    IMAGES_REFERENCE,
-    find_contacts,
-    min_zeta,
-)
-from .kernels.geometry import IDX_AX, IDX_AY, N_STATE, state_to_control_points
+from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
+from .kernels.forces import N_CLASSES
+from .kernels.forces import contact_forces_by_class as _forces_by_class
+from .kernels.geometry import state_to_control_points
 from .kernels.neighbours import build_neighbour_list
+from .state import CONTACT_CLASSES, IDX_AX, IDX_AY, N_STATE
 
 
 class NeighbourList:
@@ -38,7 +34,7 @@ class NeighbourList:
         self.rebuilds = 0
 
 
-CONTACT_CLASSES = ("self", "same_row", "nn_column", "nnn_column", "other")
+assert len(CONTACT_CLASSES) == N_CLASSES
 
 
 @dataclass(frozen=True)
@@ -144,68 +140,39 @@ class CellModel:
 
     def min_zeta(self, x: np.ndarray) -> float:
         """Smallest compression zeta over all counted contacts (1.0 if none);
-        below 1e-5 the hard cores overlap (MODEL.md §6)."""
+        below 1e-5 the hard cores overlap (docs/model.md §6)."""
         ip = self.ip
         x = _as_state(x)
         return min_zeta(self.control_points(x), self._ctab, x[IDX_AX], x[IDX_AY], ip.r, ip.rc,
                         self._mode)  # fmt: skip
 
     def contact_forces_by_class(self, x: np.ndarray) -> np.ndarray:
-        """Contact forces on the cell by class of image offset (m, n), N.
+        """Contact forces on the cell by class of image offset, shape (5, 3), N.
 
-        Rows: self (0, 0), same row (n = 0, m != 0), nearest same column (m = 0,
-        |n| = 1), next-nearest same column (m = 0, |n| = 2), other (diagonal or
-        farther images). Columns:
-
-        * x, y: the class's generalised force on the cell period,
-          F_a = -dE_c(class)/da at fixed shape parameters (through the crossover
-          positions, the connector shifts and the image offsets). Positive: the
-          contacts push the cell to extend along a; negative: they pull it
-          together (interlocked loops). Over all classes, and with the bending
-          term, these add up to the cell's total force, zero at zero force.
-        * z: the push out of plane, -dE_c(class)/dlambda / dz under a uniform
-          dilation z -> lambda z of the cell (dz its thickness); >= 0.
-
-        Each physical contact counts twice, as in E_c (paper SI "Contact Forces").
+        Rows: ``knitsweep.state.CONTACT_CLASSES`` (self, same row, nearest and
+        next-nearest same column, other). Columns x, y: the class's generalised
+        force on the cell period, F_a = -dE_c(class)/da at fixed shape parameters
+        (positive: the contacts push the cell to extend along a; negative: they pull
+        it together). Summed over the classes they are -dE_c/da; adding the bending
+        term and the length constraint's share gives the cell's total force on a
+        (``Relaxation.period_forces``), zero at zero force. Column z: the push out
+        of plane (>= 0). Each physical contact counts twice, as in E_c (paper SI
+        "Contact Forces").
         """
+        return self.contacts_by_class(x)[0]
+
+    def contacts_by_class(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(forces (5, 3) N as in ``contact_forces_by_class``, energies (5,) mJ):
+        the contact energy of each class; the five add up to E_c."""
         ip = self.ip
         x = _as_state(x)
         cp, jac = self.control_points_and_jacobian(x)
-        _, r1, speed, idx, sep = find_contacts(cp, self._ctab, x[IDX_AX], x[IDX_AY], ip.r,
-                                               self._mode)  # fmt: skip
-        out = np.zeros((len(CONTACT_CLASSES), 3))
-        if len(idx) == 0:
-            return out
-        n = self.fidelity.samples_per_segment
-        dt2 = 1.0 / (n * n)
-        i, j, m, nn = idx[:, 0], idx[:, 1], idx[:, 2], idx[:, 3]
-        dist, d = sep[:, 3], sep[:, :3]
-        v, dv = _pair_potential_arrays(dist, ip)
-        # samples' motion with each period: dp/da (ns, 3) and dv/da (ns,)
-        b0, b1 = self._ctab[0], self._ctab[1]  # (N, 6)
-        forces = np.empty((len(idx), 2))
-        for col, k in enumerate((IDX_AX, IDX_AY)):
-            dp = np.einsum("jc,scd->sjd", b0, jac[..., k]).reshape(-1, 3)
-            dr1 = np.einsum("jc,scd->sjd", b1, jac[..., k]).reshape(-1, 3)
-            dspeed = np.einsum("id,id->i", r1, dr1) / speed
-            dd = dp[i] - dp[j]
-            dd[:, col] -= m if col == 0 else nn
-            dR = np.einsum("pd,pd->p", d, dd) / dist
-            dE = 2.0 * dt2 * (dv * dR * speed[i] * speed[j]
-                              + v * (dspeed[i] * speed[j] + speed[i] * dspeed[j]))  # fmt: skip
-            forces[:, col] = -dE
-        z = self.control_points(x)[:, :, 2]
-        dz = float(z.max() - z.min() + 2.0 * ip.r)
-        fz = -2.0 * dt2 * dv * d[:, 2] ** 2 / dist * speed[i] * speed[j] / dz
-        cls = np.full(len(idx), 4)
-        cls[(m == 0) & (nn == 0)] = 0
-        cls[(m != 0) & (nn == 0)] = 1
-        cls[(m == 0) & (np.abs(nn) == 1)] = 2
-        cls[(m == 0) & (np.abs(nn) == 2)] = 3
-        np.add.at(out, (cls, 0), forces[:, 0])
-        np.add.at(out, (cls, 1), forces[:, 1])
-        np.add.at(out, (cls, 2), fz)
-        return out
+        dcp = np.ascontiguousarray(jac[..., [IDX_AX, IDX_AY]])
+        forces = np.empty((N_CLASSES, 3))
+        energies = np.empty(N_CLASSES)
+        _forces_by_class(cp, dcp, self._ctab, x[IDX_AX], x[IDX_AY], ip.r, ip.rc, ip.k, ip.p,
+                         self._mode, forces, energies)  # fmt: skip
+        return forces, energies
 
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
         """Cell thickness dz = z_max - z_min + 2r of the centre-line (paper SI S4), mm."""
@@ -215,22 +182,18 @@ class CellModel:
         return float(z.max() - z.min() + 2.0 * self.ip.r)
 
 
-def _pair_potential_arrays(dist: np.ndarray, ip: InternalParams) -> tuple[np.ndarray, np.ndarray]:
-    """V(R) and dV/dR of MODEL.md §6 for arrays of distances (all below 2r)."""
-    d = 2.0 * ip.r - 2.0 * ip.rc
-    pref = ip.k * d * d / (ip.p * (ip.p - 1.0))
-    zeta = (dist - 2.0 * ip.rc) / d
-    soft = zeta >= CORE_EPS
-    zs = np.where(soft, zeta, 1.0)
-    zp = zs ** (1.0 - ip.p)
-    v_soft = pref * (zp - 1.0 - (ip.p - 1.0) * (1.0 - zs))
-    dv_soft = pref * (ip.p - 1.0) * (1.0 - zp / zs) / d
-    v_eps = pref * (CORE_EPS ** (1.0 - ip.p) - 1.0 - (ip.p - 1.0) * (1.0 - CORE_EPS))
-    r_eps = 2.0 * ip.rc + CORE_EPS * d
-    xh = (dist - r_eps) / r_eps
-    v = np.where(soft, v_soft, v_eps + CORE_PENALTY * xh * xh)
-    dv = np.where(soft, dv_soft, 2.0 * CORE_PENALTY * xh / r_eps)
-    return v, dv
+def compile_kernels(fidelity: Fidelity | None = None) -> None:
+    """Compile (or load from numba's cache) every kernel a task uses, once, before
+    work fans out to other processes."""
+    from .formats import shipped_state
+
+    model = CellModel(StitchParams(), fidelity)
+    x = shipped_state(1)
+    model.energy_and_gradients(x)
+    model.energy_and_gradients(x, model.neighbour_list(x))
+    model.min_zeta(x)
+    model.thickness(x)
+    model.contacts_by_class(x)
 
 
 def _as_state(x: np.ndarray) -> np.ndarray:

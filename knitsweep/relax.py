@@ -1,10 +1,14 @@
 """Constrained relaxation at fixed yarn length, and continuation in parameters.
 
-MODEL.md §7: minimise E = E_b + E_c subject to length(x) = L and cos(tw) >= c_tw,
+docs/model.md §7: minimise E = E_b + E_c subject to length(x) = L and cos(tw) >= c_tw,
 either with every entry free (the zero-force state) or with one cell period
 fixed (a strain step). SciPy's SLSQP is given the exact gradients of the energy
 and of both constraints. Every result says truthfully how it ended: a
 non-finite, unconverged or core-overlapping state is never called converged.
+
+A relaxation runs its BLAS/LAPACK calls (inside SLSQP, and the least squares for
+the multipliers) on one thread: with more, OpenBLAS sums in another order and the
+same relaxation ends ~1e-13 elsewhere, depending on what the process did before.
 """
 
 from __future__ import annotations
@@ -12,19 +16,25 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, replace
-from typing import Literal
 
 import numpy as np
 from scipy.optimize import minimize
+from threadpoolctl import ThreadpoolController
 
-from .config import Fidelity, SolverSettings, StitchParams
+from .config import (
+    CONVERGED,
+    NOT_CONVERGED,
+    NOT_KNITTABLE,
+    Direction,
+    Fidelity,
+    SolverSettings,
+    StitchParams,
+)
 from .kernels.contact import CORE_EPS
-from .kernels.geometry import IDX_AX, IDX_AY, IDX_TW, N_STATE
 from .model import CellModel
+from .state import IDX_AX, IDX_AY, IDX_TW, N_STATE, PERIOD_INDEX, state_bounds
 
-Direction = Literal["x", "y"]
-PERIOD_INDEX = {"x": IDX_AX, "y": IDX_AY}
-CONVERGED, NOT_CONVERGED, NOT_KNITTABLE = "converged", "not_converged", "not_knittable"
+_BLAS: list[ThreadpoolController] = []  # made on first use: inspecting the libraries costs ~1 ms
 _TWIST_ACTIVE_TOL = 1e-8
 _KKT_RTOL = 1e-6  # relative stationarity that counts as converged after a stalled line search
 
@@ -65,22 +75,6 @@ class Relaxation:
     @property
     def a_y(self) -> float:
         return float(self.x[IDX_AY])
-
-    def diagnostics(self) -> dict[str, float | int | str | bool]:
-        """Scalar diagnostics, for tables and storage."""
-        return {
-            "status": self.status,
-            "message": self.message,
-            "iterations": self.iterations,
-            "evaluations": self.evaluations,
-            "length_residual": self.length_residual,
-            "twist_margin": self.twist_margin,
-            "twist_active": self.twist_active,
-            "min_zeta": self.min_zeta,
-            "kkt_residual": self.kkt_residual,
-            "length_multiplier": self.length_multiplier,
-            "seconds": self.seconds,
-        }
 
 
 class _Problem:
@@ -135,34 +129,6 @@ class _Problem:
         return g[self.free]
 
 
-# state entries by kind (MODEL.md §2): speeds alpha, curvatures kappa, offsets beta
-_SPEEDS = (7, 13, 19, 24, 26)
-_CURVATURES = (8, 14, 20)
-_OFFSETS = (10, 16, 22, 25, 27)
-_HEIGHT = 3
-
-
-def state_bounds(L: float, r: float) -> list[tuple[float | None, float | None]]:
-    """Generous physical bounds on the 30 state entries (angles are free).
-
-    They exclude only shapes no stitch can have: a negative or longer-than-half-
-    the-yarn end speed, a radius of curvature below r/10, control-arm offsets or a
-    crossover half-height beyond a quarter or half of the yarn length, periods
-    below r/2 or above L. SLSQP honours bounds at every trial point, so a poor
-    quasi-Newton step cannot fling the yarn kilometres away.
-    """
-    b: list[tuple[float | None, float | None]] = [(None, None)] * N_STATE
-    for i in _SPEEDS:
-        b[i] = (1e-3 * L, 0.5 * L)
-    for i in _CURVATURES:
-        b[i] = (-10.0 / r, 10.0 / r)
-    for i in _OFFSETS:
-        b[i] = (-0.25 * L, 0.25 * L)
-    b[_HEIGHT] = (-0.5 * L, 0.5 * L)
-    b[IDX_AX] = b[IDX_AY] = (0.5 * r, L)
-    return b
-
-
 def relax(
     model: CellModel,
     x0: np.ndarray,
@@ -172,7 +138,7 @@ def relax(
     """Minimise the energy at fixed yarn length ``model.params.L_mm`` from ``x0``.
 
     ``fixed=None`` frees both periods (zero-force state); ``'x'``/``'y'`` keeps
-    a_x/a_y at its value in ``x0`` (a strain step, MODEL.md §8).
+    a_x/a_y at its value in ``x0`` (a strain step, docs/model.md §8).
     """
     settings = settings or SolverSettings()
     t0 = time.perf_counter()
@@ -185,21 +151,25 @@ def relax(
         {"type": "eq", "fun": prob.length, "jac": prob.length_grad},
         {"type": "ineq", "fun": prob.twist, "jac": prob.twist_grad},
     ]
-    try:
-        with np.errstate(all="ignore"):
-            res = minimize(
-                prob.energy,
-                x0[free],
-                jac=prob.energy_grad,
-                method="SLSQP",
-                bounds=bounds,
-                constraints=constraints,
-                options={"ftol": settings.ftol, "maxiter": settings.maxiter},
-            )
-        x, success, message, nit = prob.full(res.x), bool(res.success), str(res.message), res.nit
-    except (ValueError, FloatingPointError, ZeroDivisionError) as e:
-        x, success, message, nit = x0.copy(), False, f"minimiser failed: {e}", 0
-    return _assess(model, x0, x, free, success, message, nit, prob.evaluations, settings, t0)
+    if not _BLAS:
+        _BLAS.append(ThreadpoolController())
+    with _BLAS[0].limit(limits=1):
+        try:
+            with np.errstate(all="ignore"):
+                res = minimize(
+                    prob.energy,
+                    x0[free],
+                    jac=prob.energy_grad,
+                    method="SLSQP",
+                    bounds=bounds,
+                    constraints=constraints,
+                    options={"ftol": settings.ftol, "maxiter": settings.maxiter},
+                )
+            x, success, message = prob.full(res.x), bool(res.success), str(res.message)
+            nit = res.nit
+        except (ValueError, FloatingPointError, ZeroDivisionError) as e:
+            x, success, message, nit = x0.copy(), False, f"minimiser failed: {e}", 0
+        return _assess(model, x0, x, free, success, message, nit, prob.evaluations, settings, t0)
 
 
 def _finite_state(model: CellModel, x: np.ndarray) -> bool:
@@ -331,7 +301,7 @@ def relax_with_continuation(
     settings: SolverSettings | None = None,
 ) -> tuple[Relaxation, int]:
     """Zero-force relaxation at ``target``, walking there from a state relaxed at
-    ``start`` in small parameter stages (MODEL.md §7). Returns the final
+    ``start`` in small parameter stages (docs/model.md §7). Returns the final
     relaxation and the number of stages used.
 
     Intermediate stages use a looser tolerance; a stage that ends non-finite or

@@ -1,4 +1,4 @@
-"""Strain sweeps: the stitch pulled step by step in x or y (MODEL.md §8).
+"""Strain sweeps: the stitch pulled step by step in x or y (docs/model.md §8).
 
 From the zero-force state (a_x0, a_y0) one period is fixed on a grid of
 multiples of the step h (the first value is the first multiple beyond a_0),
@@ -15,6 +15,9 @@ Stress, in N/mm per unit transverse width at zero force:
   of the length constraint (envelope theorem), free of differencing error.
 The stop rule is the reference's: after step i >= 2, stop when
 (E_{i-2} - E_i)/(a_{i-2} - a_i)/a_perp0 exceeds the stop stress, or |strain| > max.
+
+``SweepResult.to_record()`` and ``SweepResult.from_record()`` convert a sweep to the
+arrays and scalars a results file stores (its energy gaps included) and back.
 """
 
 from __future__ import annotations
@@ -22,39 +25,26 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
-from .config import Fidelity, SolverSettings, StitchParams
-from .kernels.geometry import IDX_AX, IDX_AY
+from .analysis.metrics import EnergyGaps, energy_gaps
+from .config import (
+    CONVERGED,
+    NOT_KNITTABLE,
+    Direction,
+    Fidelity,
+    SolverSettings,
+    StartSettings,
+    StitchParams,
+    SweepProtocol,
+)
 from .model import CellModel
-from .relax import CONVERGED, NOT_KNITTABLE, Direction, Relaxation, relax
-from .zero_force import ZeroForce, pick_lowest
-
-
-class SweepProtocol(BaseModel):
-    """The strain schedule; defaults are the authors' (MODEL.md §8)."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
-
-    step_mm: float = Field(0.001, gt=0.0, le=1.0, description="small step h of the period (mm)")
-    switch_strain: float = Field(
-        0.05, ge=0.0, description="|strain| from which the large step applies"
-    )
-    large_step_x_mm: float = Field(0.1, gt=0.0, le=5.0, description="large step for x pulls (mm)")
-    large_step_y_mm: float = Field(0.05, gt=0.0, le=5.0, description="large step for y pulls (mm)")
-    stop_stress_N_per_mm: float = Field(0.4, gt=0.0, description="stop once |stress| exceeds this")
-    max_strain: float = Field(1.0, gt=0.0, le=10.0, description="stop once |strain| exceeds this")
-    max_steps: int = Field(5000, ge=2, le=1_000_000, description="hard limit on steps")
-    mode: Literal["tension", "compression"] = Field(
-        "tension", description="pull the cell apart (tension) or push it together"
-    )
-
-    def large_step(self, direction: Direction) -> float:
-        return self.large_step_x_mm if direction == "x" else self.large_step_y_mm
+from .relax import Relaxation, relax
+from .state import IDX_AX, IDX_AY, N_STATE
+from .zero_force import ZeroForce, pick_lowest, zero_force
 
 
 def first_grid_value(a0: float, h: float, sign: float) -> float:
@@ -88,7 +78,7 @@ class SweepResult:
     length_residual: np.ndarray = field(default_factory=lambda: np.empty(0))
     kkt_residual: np.ndarray = field(default_factory=lambda: np.empty(0))
     seconds: np.ndarray = field(default_factory=lambda: np.empty(0))
-    states: np.ndarray = field(default_factory=lambda: np.empty((0, 30)))
+    states: np.ndarray = field(default_factory=lambda: np.empty((0, N_STATE)))
     status: str = "done"
     stop_reason: str = ""
     relaxations: int = 0
@@ -98,13 +88,46 @@ class SweepResult:
     def total_energy(self) -> np.ndarray:
         return self.bending_energy + self.contact_energy
 
+    @property
+    def energy_gaps(self) -> EnergyGaps:
+        """ΔE_b and ΔE_c of this sweep (docs/model.md §9)."""
+        return energy_gaps(self.bending_energy, self.contact_energy)
+
     def arrays(self) -> dict[str, np.ndarray]:
         """The per-step arrays by name (for tables and storage)."""
-        names = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope",
-                 "bending_energy", "contact_energy", "thickness", "winner", "converged",
-                 "iterations", "evaluations", "min_zeta", "length_residual", "kkt_residual",
-                 "seconds", "states")  # fmt: skip
-        return {n: getattr(self, n) for n in names}
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name in _STEP_ARRAYS}
+
+    def to_record(self) -> dict[str, Any]:
+        """Every field as storable values: the per-step arrays, ``total_energy``,
+        ``sweep_status``, the stop reason as ``message``, the counts and the energy
+        gaps (``delta_E_b``, ``delta_E_c`` and the direction's ``energy_gap``)."""
+        gaps = self.energy_gaps
+        return {
+            **self.arrays(),
+            "total_energy": self.total_energy,
+            "direction": self.direction,
+            "sweep_status": self.status,
+            "message": self.stop_reason,
+            "relaxations": self.relaxations,
+            "wall_seconds": self.wall_seconds,
+            "delta_E_b": gaps.delta_E_b,
+            "delta_E_c": gaps.delta_E_c,
+            "energy_gap": gaps.jamming_gap(self.direction),
+        }
+
+    @classmethod
+    def from_record(cls, rec: dict[str, Any]) -> SweepResult:
+        """The inverse of ``to_record`` (extra keys are ignored; a record stored
+        without ``states`` gets an empty (0, 30) array)."""
+        arrays = {k: np.asarray(rec[k]) for k in _STEP_ARRAYS if k in rec}
+        return cls(direction=str(rec["direction"]), **arrays, status=str(rec["sweep_status"]),
+                   stop_reason=str(rec["message"]), relaxations=int(rec["relaxations"]),
+                   wall_seconds=float(rec["wall_seconds"]))  # fmt: skip
+
+
+_STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "bending_energy",
+                "contact_energy", "thickness", "winner", "converged", "iterations", "evaluations",
+                "min_zeta", "length_residual", "kkt_residual", "seconds", "states")  # fmt: skip
 
 
 def centred_stress(energy: np.ndarray, a: np.ndarray, a_perp0: float) -> np.ndarray:
@@ -239,3 +262,28 @@ def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, r
         relaxations=n_relax,
         wall_seconds=wall,
     )
+
+
+class NoRestState(RuntimeError):
+    """No start of a point reached a converged zero-force state."""
+
+
+def strain_sweep_from_rest(
+    params: StitchParams,
+    direction: Direction,
+    protocol: SweepProtocol | None = None,
+    fidelity: Fidelity | None = None,
+    solver: SolverSettings | None = None,
+    starts: StartSettings | None = None,
+    seed: int = 0,
+    progress: Callable[[int, float, float], None] | None = None,
+) -> tuple[ZeroForce, SweepResult]:
+    """One point from scratch: its zero-force state (every start), then the sweep.
+
+    Raises:
+        NoRestState: no start reached a zero-force state to pull from.
+    """
+    zero = zero_force(params, fidelity, solver, starts, seed)
+    if not zero.best.converged:
+        raise NoRestState(f"no zero-force state: {zero.message}")
+    return zero, strain_sweep(params, zero, direction, protocol, fidelity, solver, progress)

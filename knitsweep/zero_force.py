@@ -1,44 +1,38 @@
-"""Starting states and the multi-start zero-force relaxation (MODEL.md §7).
+"""Starting states and the multi-start zero-force relaxation (docs/model.md §7).
 
 The energy landscape has local minima; the authors relax each point from 4
 slightly different Init files and keep the lowest energy. knitsweep does the
 same with the shipped states and/or perturbations drawn from a numpy
 ``SeedSequence``, so a run is reproducible from its seed.
+
+``ZeroForce.to_record()`` and ``ZeroForce.from_record()`` convert the result to the
+flat arrays and scalars a results file stores and back, losing nothing.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal
+from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
-from .config import Fidelity, SolverSettings, StitchParams
+from .config import (
+    CONVERGED,
+    NOT_CONVERGED,
+    NOT_KNITTABLE,
+    Fidelity,
+    SolverSettings,
+    StartSettings,
+    StitchParams,
+)
 from .formats import SHIPPED_STATES, shipped_state
-from .kernels.geometry import N_SHAPE
 from .model import CellModel
-from .relax import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, Relaxation, relax_with_continuation
+from .relax import Relaxation, relax_with_continuation
+from .state import N_SHAPE
 
 # the parameters the shipped Init files were made for (the authors' k = 0.1 mN/mm^2
 # study, paper Table 1 otherwise); their length is measured, not assumed
 SHIPPED_SOURCE = StitchParams(k_mN_per_mm2=0.1)
-
-
-class StartSettings(BaseModel):
-    """How many starts per point, and where they come from."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
-
-    count: int = Field(4, ge=1, le=64, description="starts per point (paper: 4)")
-    source: Literal["shipped", "perturbed"] = Field(
-        "shipped",
-        description="'shipped': the authors' Init_1…Init_7 in turn (then perturbed copies); "
-        "'perturbed': Init_1 with seeded random perturbations",
-    )
-    perturbation: float = Field(
-        0.02, ge=0.0, le=0.5, description="relative std of the shape perturbations"
-    )
 
 
 @dataclass(frozen=True)
@@ -71,6 +65,28 @@ def start_states(
     return starts
 
 
+# per-start arrays of a stored zero-force record: record name -> Relaxation field
+_START_ARRAYS = {
+    "x": "x",
+    "bending_energy": "bending_energy",
+    "contact_energy": "contact_energy",
+    "length": "length",
+    "start_status": "status",
+    "start_message": "message",
+    "iterations": "iterations",
+    "evaluations": "evaluations",
+    "length_residual": "length_residual",
+    "twist_margin": "twist_margin",
+    "twist_active": "twist_active",
+    "min_zeta": "min_zeta",
+    "kkt_residual": "kkt_residual",
+    "length_multiplier": "length_multiplier",
+    "period_forces": "period_forces",
+    "relax_seconds": "seconds",
+}
+assert set(_START_ARRAYS.values()) == {f.name for f in fields(Relaxation)}
+
+
 @dataclass(frozen=True)
 class ZeroForce:
     """The zero-force state of one point: the winner over all starts."""
@@ -85,6 +101,46 @@ class ZeroForce:
     @property
     def best(self) -> Relaxation:
         return self.relaxations[self.winner]
+
+    def to_record(self) -> dict[str, Any]:
+        """Every field as storable values: per-start arrays (one row per start), the
+        winner, the overall status (``relax_status``) and ``message``."""
+        rec: dict[str, Any] = {
+            "winner": self.winner,
+            "relax_status": self.status,
+            "message": self.message,
+            "labels": np.array(self.labels, dtype=object),
+            "stages": np.array(self.stages, dtype=np.int64),
+        }
+        for name, attr in _START_ARRAYS.items():
+            values = [getattr(r, attr) for r in self.relaxations]
+            dtype = object if isinstance(values[0], str) else None
+            rec[name] = np.array(values, dtype=dtype)
+        return rec
+
+    @classmethod
+    def from_record(cls, rec: dict[str, Any]) -> ZeroForce:
+        """The inverse of ``to_record`` (extra keys in ``rec`` are ignored)."""
+        rs = []
+        for i in range(len(rec["x"])):
+            values = {attr: rec[name][i] for name, attr in _START_ARRAYS.items()}
+            rs.append(
+                Relaxation(
+                    **{k: _scalar(v) for k, v in values.items() if k not in ("x", "period_forces")},
+                    x=np.asarray(values["x"], dtype=float).copy(),
+                    period_forces=tuple(float(f) for f in values["period_forces"]),
+                )
+            )
+        return cls(tuple(rs), tuple(str(s) for s in rec["labels"]),
+                   tuple(int(s) for s in rec["stages"]), int(rec["winner"]),
+                   str(rec["relax_status"]), str(rec["message"]))  # fmt: skip
+
+
+def _scalar(v: Any) -> Any:
+    """A numpy scalar (or a bytes string read from HDF5) as a plain Python value."""
+    if isinstance(v, bytes):
+        return v.decode()
+    return v.item() if isinstance(v, np.generic) else v
 
 
 def pick_lowest(results: list[Relaxation] | tuple[Relaxation, ...]) -> tuple[int, str]:
@@ -112,14 +168,24 @@ def zero_force(
     solver: SolverSettings | None = None,
     starts: StartSettings | None = None,
     seed: int = 0,
+    initial: np.ndarray | None = None,
 ) -> ZeroForce:
     """Relax the zero-force state (both periods free) from every start, walking
-    from each start's parameters to ``params``; keep the lowest energy."""
+    from each start's parameters to ``params``; keep the lowest energy.
+
+    ``initial``: one given state (30,) to start from instead of ``starts`` (walked
+    from the shipped states' parameters at its own yarn length).
+    """
     fidelity = fidelity or Fidelity()
     solver = solver or SolverSettings()
     starts = starts or StartSettings()
+    if initial is None:
+        begin = start_states(starts, seed, fidelity)
+    else:
+        length = CellModel(SHIPPED_SOURCE, fidelity).energies(initial).length
+        begin = [Start("initial", initial, SHIPPED_SOURCE.model_copy(update={"L_mm": length}))]
     results, labels, stages = [], [], []
-    for start in start_states(starts, seed, fidelity):
+    for start in begin:
         r, n = relax_with_continuation(params, fidelity, start.x, start.params, solver)
         results.append(r)
         labels.append(start.label)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 DATA = Path(__file__).parent / "data"
+SHIPPED = Path(__file__).resolve().parents[1] / "knitsweep" / "data"  # the authors' Init_*.dat
 TINY = DATA / "jobs" / "tiny.toml"  # 2 points, 4 sweeps, coarse numerics: ~2 s serially
 VOLATILE = {"seconds", "relax_seconds", "wall_seconds", "rank", "host"}
 
@@ -29,7 +30,7 @@ def data_dir() -> Path:
 def init1() -> np.ndarray:
     from knitsweep.formats import read_state
 
-    return read_state(DATA / "init" / "Init_1.dat")
+    return read_state(SHIPPED / "Init_1.dat")
 
 
 def physics(path):

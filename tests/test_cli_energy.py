@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import golden_cases
+from conftest import SHIPPED, golden_cases
 
 
 def knitsweep(*args):
@@ -16,7 +16,7 @@ def knitsweep(*args):
 
 def test_energy_json_matches_reference(data_dir):
     case = golden_cases()[0]  # init1_paper: Init_1 at the paper's parameters, k = 0.1
-    out = knitsweep("energy", "--state", str(data_dir / "init" / "Init_1.dat"),
+    out = knitsweep("energy", "--state", str(SHIPPED / "Init_1.dat"),
                     "--L", "11.6", "--k", "0.1", "--json")  # fmt: skip
     assert out.returncode == 0, out.stderr
     got = json.loads(out.stdout)
@@ -26,7 +26,7 @@ def test_energy_json_matches_reference(data_dir):
 
 
 def test_energy_with_authors_config(data_dir):
-    out = knitsweep("energy", "--state", str(data_dir / "init" / "Init_1.dat"),
+    out = knitsweep("energy", "--state", str(SHIPPED / "Init_1.dat"),
                     "--config", str(data_dir / "sampleconfigfile.dat"), "--json")  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout)["contact_energy"] == pytest.approx(
@@ -45,7 +45,7 @@ def test_energy_with_authors_config(data_dir):
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(data_dir, args, fragment):
-    out = knitsweep("energy", "--state", str(data_dir / "init" / "Init_1.dat"), *args)
+    out = knitsweep("energy", "--state", str(SHIPPED / "Init_1.dat"), *args)
     assert out.returncode == 2
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0]

@@ -3,7 +3,7 @@
 ``find_contacts``/``contact_energy`` skip images, segment pairs and samples by
 bounding boxes (``kernels.partition``); a brute-force numpy enumeration of every
 sample pair in the same images must give the same contacts, in the same order,
-and the same energy (MODEL.md §6).
+and the same energy (docs/model.md §6).
 """
 
 import numpy as np

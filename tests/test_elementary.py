@@ -1,6 +1,6 @@
 """Unit tier: the vectorisable log/exp/pow of ``kernels.elementary`` against libm.
 
-The contact kernel takes zeta**(1 - p) from these (MODEL.md §6); their error is
+The contact kernel takes zeta**(1 - p) from these (docs/model.md §6); their error is
 measured here on the whole range the kernel uses, zeta in [CORE_EPS, 1).
 """
 

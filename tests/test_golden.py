@@ -1,4 +1,4 @@
-"""Golden tier: the authors' code's control points, energies and lengths (MODEL.md §10)."""
+"""Golden tier: the authors' code's control points, energies and lengths (docs/model.md §10)."""
 
 import numpy as np
 import pytest

@@ -31,7 +31,7 @@ def _central_differences(model, x):
 
 def _near_exclusion_step(model, x, tol=1e-4):
     """True if a same-row pair closer than 2r sits within ``tol`` of the 2.1 r
-    arclength exclusion, where E_c jumps (MODEL.md §6)."""
+    arclength exclusion, where E_c jumps (docs/model.md §6)."""
     from knitsweep.kernels.contact import midpoint_arclength, sample_path
 
     n = model.fidelity.samples_per_segment

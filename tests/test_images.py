@@ -1,5 +1,5 @@
 """Image selection: 'cutoff' visits every image that can touch, 'reference' the
-authors' fixed box; they agree wherever the box is large enough (MODEL.md §6)."""
+authors' fixed box; they agree wherever the box is large enough (docs/model.md §6)."""
 
 import numpy as np
 import pytest

@@ -5,15 +5,23 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 RUFF = shutil.which("ruff", path=str(Path(sys.executable).parent)) or shutil.which("ruff")
 
 
+def _ruff(*args: str) -> subprocess.CompletedProcess:
+    if RUFF is None:
+        pytest.fail("ruff is not installed: pip install -e '.[test]' installs it")
+    return subprocess.run([RUFF, *args], cwd=ROOT, capture_output=True, text=True)
+
+
 def test_ruff_check():
-    out = subprocess.run([RUFF, "check", "."], cwd=ROOT, capture_output=True, text=True)
+    out = _ruff("check", ".")
     assert out.returncode == 0, out.stdout + out.stderr
 
 
 def test_ruff_format():
-    out = subprocess.run([RUFF, "format", "--check", "."], cwd=ROOT, capture_output=True, text=True)
+    out = _ruff("format", "--check", ".")
     assert out.returncode == 0, out.stdout + out.stderr

@@ -1,4 +1,4 @@
-"""Unit tests of knitsweep.analysis.metrics / stress_strain (MODEL.md §9).
+"""Unit tests of knitsweep.analysis.metrics / stress_strain (docs/model.md §9).
 
 Every expected value is constructed analytically; tolerances are a few ulps of the
 numbers involved unless a statistical bound is stated.
@@ -24,7 +24,7 @@ from knitsweep.analysis import (
 )
 from knitsweep.analysis.metrics import JAMMING_GAP
 
-# A jammed x-sweep in the shape of the reference protocol (MODEL.md §8): a fine strain
+# A jammed x-sweep in the shape of the reference protocol (docs/model.md §8): a fine strain
 # step up to ε = 0.05, then a coarse one.
 H_FINE = 0.0005
 H_COARSE = 0.005

@@ -3,7 +3,7 @@
 ``kernels.neighbours``: a list built with a skin covers every state whose samples
 moved (and whose periods changed) by less than the skin allows; over it,
 ``contact_energy_listed`` must add exactly what ``contact_energy`` adds, and
-outside it must say so and still return the exact energy (MODEL.md §6).
+outside it must say so and still return the exact energy (docs/model.md §6).
 """
 
 import numpy as np

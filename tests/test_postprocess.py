@@ -13,8 +13,9 @@ from results_factory import write_results
 
 from knitsweep.config import InputError
 from knitsweep.report import phase_diagram, reduce_results
-from knitsweep.report.reduce import CONTACT_CLASSES, SERIES_PARAMS
+from knitsweep.report.reduce import SERIES_PARAMS
 from knitsweep.service.results_file import Entry, journal_dir
+from knitsweep.state import CONTACT_CLASSES
 
 
 def knitsweep(*args):
@@ -255,12 +256,6 @@ def test_no_matplotlib_at_import():
                          text=True, timeout=120)  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "False"
-
-
-def test_contact_classes_match_the_model():
-    from knitsweep.model import CONTACT_CLASSES as MODEL_CLASSES
-
-    assert MODEL_CLASSES == CONTACT_CLASSES
 
 
 def test_adaptive_series_bracket_is_reported(tmp_path):

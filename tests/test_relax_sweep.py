@@ -1,17 +1,17 @@
-"""Relaxation and strain sweeps (MODEL.md §7-8) against the reference and physics."""
+"""Relaxation and strain sweeps (docs/model.md §7-8) against the reference and physics."""
 
 import json
 
 import numpy as np
 import pytest
-from conftest import DATA
+from conftest import DATA, SHIPPED
 
-from knitsweep.config import Fidelity, SolverSettings, StitchParams
+from knitsweep.config import Fidelity, SolverSettings, StartSettings, StitchParams, SweepProtocol
 from knitsweep.formats import read_state
 from knitsweep.model import CellModel
 from knitsweep.relax import CONVERGED, NOT_CONVERGED, continuation_path, relax
-from knitsweep.strain_sweep import SweepProtocol, first_grid_value, strain_sweep
-from knitsweep.zero_force import StartSettings, start_states, zero_force
+from knitsweep.strain_sweep import first_grid_value, strain_sweep
+from knitsweep.zero_force import start_states, zero_force
 
 REF = json.loads((DATA / "relaxed_reference.json").read_text())["cases"][0]
 PAPER = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)
@@ -37,7 +37,7 @@ def test_zero_force_energy_beats_the_reference(zero):
 def test_authors_tolerance_reproduces_their_state():
     """With SciPy's default ftol (the authors' effective setting) the same path is
     taken: the reference's energy to 1e-9 mJ."""
-    x0 = read_state(DATA / "init" / "Init_1.dat")
+    x0 = read_state(SHIPPED / "Init_1.dat")
     r = relax(CellModel(PAPER), x0, settings=SolverSettings(ftol=1e-6))
     assert r.total_energy == pytest.approx(REF["total_energy"], abs=1e-9)
     assert r.a_x == pytest.approx(REF["a_x"], abs=1e-6)
@@ -87,7 +87,7 @@ def test_same_seed_same_result():
 
 
 def test_unconverged_is_never_called_converged():
-    x0 = read_state(DATA / "init" / "Init_1.dat")
+    x0 = read_state(SHIPPED / "Init_1.dat")
     r = relax(CellModel(PAPER), x0, settings=SolverSettings(maxiter=2))
     assert r.status == NOT_CONVERGED and not r.converged
     assert "Iteration limit" in r.message or "length" in r.message

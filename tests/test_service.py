@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from conftest import TINY, assert_same_results
 
-from knitsweep import SCHEMA_VERSION, service
+from knitsweep import service
 from knitsweep.config import InputError
 from knitsweep.service.executors import SerialExecutor
 from knitsweep.service.jobs import load_job
 from knitsweep.service.master import run_job
-from knitsweep.service.results_file import journal_dir, lock_path
+from knitsweep.service.results_file import RESULTS_SCHEMA_VERSION, journal_dir, lock_path
 
 VENV_BIN = Path(sys.executable).parent
 MPIRUN = shutil.which("mpirun", path=str(VENV_BIN)) or shutil.which("mpirun")
@@ -54,7 +54,7 @@ def test_file_schema(tiny_reference):
                     "hdf5_version", "mpi4py_version", "mpi_library_version", "host",
                     "slurm_job_id", "started_at", "finished_at"):  # fmt: skip
             assert key in f.attrs, key
-        assert f.attrs["schema_version"] == SCHEMA_VERSION
+        assert f.attrs["schema_version"] == RESULTS_SCHEMA_VERSION
         assert f.attrs["run_status"] == "complete"
         assert len(f["points"]) == 2 and len(f["sweeps"]) == 4
         for g in f["sweeps"].values():
@@ -245,7 +245,7 @@ def test_kill_9_at_random_moments_then_resume(six, tmp_path):
         proc.wait()
         kills += 1
         with h5py.File(out) as f:  # the file on disk always opens
-            assert f.attrs["schema_version"] == SCHEMA_VERSION
+            assert f.attrs["schema_version"] == RESULTS_SCHEMA_VERSION
     assert kills == 4
     assert knitsweep("run", str(job), "--out", str(out), "--quiet", mpi=3).returncode == 0
     with h5py.File(out) as f:

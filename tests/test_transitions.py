@@ -1,4 +1,4 @@
-"""Unit tests of knitsweep.analysis.transitions (MODEL.md §9, paper Fig. 4, Table S4).
+"""Unit tests of knitsweep.analysis.transitions (docs/model.md §9, paper Fig. 4, Table S4).
 
 The main synthetic series uses the k = 0.1 mN/mm² row of paper Table S4: a contact
 gap ΔE_c = 0.0176 − 1.55e-3·L (N·mm, L in mm) while positive, zero after, sampled on

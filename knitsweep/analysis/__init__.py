@@ -1,4 +1,4 @@
-"""Post-processing of strain sweeps into the paper's jamming metrics (MODEL.md §9).
+"""Post-processing of strain sweeps into the paper's jamming metrics (docs/model.md §9).
 
 Pure numpy, no I/O: arrays and floats in, frozen dataclasses out (each with an
 ``as_dict()`` of plain, NaN-free values; None means "not available").
@@ -38,6 +38,7 @@ from .transitions import (
     group_series,
     regime,
     series_transitions,
+    threshold_crossing,
     transition,
     transition_from_bracket,
 )
@@ -68,6 +69,7 @@ __all__ = [
     "sweep_metrics",
     "tangent_modulus",
     "thickness_strain",
+    "threshold_crossing",
     "transition",
     "transition_from_bracket",
 ]

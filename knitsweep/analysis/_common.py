@@ -43,11 +43,14 @@ class PlainDict:
         return to_plain(self)
 
 
-def check_array(name: str, values: Any, *, min_size: int = 1) -> np.ndarray:
+def check_array(
+    name: str, values: Any, *, min_size: int = 1, allow_inf: bool = False
+) -> np.ndarray:
     """Return ``values`` as a 1-D float array; ValueError naming ``name`` otherwise.
 
     Refuses non-numeric input, arrays that are not 1-D, fewer than ``min_size``
-    entries, and NaN or infinite entries (with the index of the first bad one).
+    entries, and NaN or infinite entries (with the index of the first bad one);
+    ``allow_inf`` lets +inf through.
     """
     try:
         a = np.asarray(values, dtype=float)
@@ -57,7 +60,8 @@ def check_array(name: str, values: Any, *, min_size: int = 1) -> np.ndarray:
         raise ValueError(f"{name}: expected a 1-D array, got shape {a.shape}")
     if a.size < min_size:
         raise ValueError(f"{name}: needs at least {min_size} value(s), got {a.size}")
-    bad = np.flatnonzero(~np.isfinite(a))
+    ok = np.isfinite(a) | ((a == np.inf) if allow_inf else False)
+    bad = np.flatnonzero(~ok)
     if bad.size:
         i = int(bad[0])
         raise ValueError(

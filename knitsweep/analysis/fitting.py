@@ -1,6 +1,6 @@
 """Straight-line least-squares fits with the error columns of paper Table S4.
 
-Used for the offset stress σ0 (a line through the softened part of σ(ε), MODEL.md §9)
+Used for the offset stress σ0 (a line through the softened part of σ(ε), docs/model.md §9)
 and for the linear fit to the jammed regime of an energy gap against L/r (paper
 Fig. 4a, SI "Tolerance and Error", Table S4).
 """

@@ -1,9 +1,9 @@
-"""Jamming metrics of one strain sweep (MODEL.md §9; paper "Reducing or Inducing
+"""Jamming metrics of one strain sweep (docs/model.md §9; paper "Reducing or Inducing
 Jamming", "Energy Markers for Jamming", "Anisotropic Markers", SI "Disappearing
 Linear Elasticity").
 
 A sweep in one direction ('x' or 'y') is a set of arrays over steps i = 0..n−1, where
-step 0 is the zero-force state (MODEL.md §8):
+step 0 is the zero-force state (docs/model.md §8):
 
 * ``strain`` ε, dimensionless, strictly increasing, ε_0 = 0;
 * ``stress`` σ, N/mm (2D stress), σ_0 = 0;
@@ -56,7 +56,7 @@ __all__ = [
 ]
 
 JAMMING_GAP = {"x": "delta_E_c", "y": "delta_E_b"}
-"""Which energy gap marks jamming in each pulling direction (paper Fig. 3, MODEL.md §9):
+"""Which energy gap marks jamming in each pulling direction (paper Fig. 3, docs/model.md §9):
 the contact gap ΔE_c for x, the bending gap ΔE_b for y."""
 
 
@@ -91,7 +91,7 @@ class EnergyGaps(PlainDict):
 
 @dataclass(frozen=True)
 class SweepMetrics(PlainDict):
-    """All jamming metrics of one strain sweep (MODEL.md §9).
+    """All jamming metrics of one strain sweep (docs/model.md §9).
 
     Attributes:
         direction: 'x' or 'y'.
@@ -135,7 +135,7 @@ class SweepMetrics(PlainDict):
 
 
 def energy_gaps(bending_energy: np.ndarray, contact_energy: np.ndarray) -> EnergyGaps:
-    """Energy gaps ΔE_b, ΔE_c of one sweep (paper Eq. 4, MODEL.md §9).
+    """Energy gaps ΔE_b, ΔE_c of one sweep (paper Eq. 4, docs/model.md §9).
 
     Args:
         bending_energy: E_b per step, shape (n,), N·mm; step 0 is the zero-force state.
@@ -181,7 +181,7 @@ def area_strain(a_x: np.ndarray, a_y: np.ndarray) -> np.ndarray:
 
 
 def thickness_strain(thickness: np.ndarray) -> np.ndarray:
-    """Thickness strain Δz/Δz0 − 1 per step, shape (n,) (MODEL.md §9, SI Fig. S12).
+    """Thickness strain Δz/Δz0 − 1 per step, shape (n,) (docs/model.md §9, SI Fig. S12).
 
     Args:
         thickness: Δz = z_max − z_min + 2r per step, shape (n,), mm, > 0.
@@ -210,7 +210,7 @@ def sweep_metrics(
     halfwidth: int = 0,
     area_tol: float = 0.0,
 ) -> SweepMetrics:
-    """Every jamming metric of one sweep (MODEL.md §9), as one :class:`SweepMetrics`.
+    """Every jamming metric of one sweep (docs/model.md §9), as one :class:`SweepMetrics`.
 
     Args:
         direction: 'x' or 'y', the pulling direction.

@@ -1,9 +1,9 @@
 """Stress–strain jamming metrics: the secant modulus Y_sec and the offset stress σ0
 (paper "Reducing or Inducing Jamming", SI "Disappearing Linear Elasticity";
-MODEL.md §9).
+docs/model.md §9).
 
 ``strain`` ε is dimensionless and strictly increasing with ε_0 = 0 at the zero-force
-step; ``stress`` σ is the 2D stress in N/mm with σ_0 = 0 (MODEL.md §8). Re-exported by
+step; ``stress`` σ is the 2D stress in N/mm with σ_0 = 0 (docs/model.md §8). Re-exported by
 :mod:`knitsweep.analysis.metrics`.
 """
 
@@ -28,7 +28,7 @@ SECANT_STRAIN = 0.02
 
 @dataclass(frozen=True)
 class SecantModulus(PlainDict):
-    """Secant modulus Y_sec = σ(ε_at)/ε_at (paper Eq. 1, MODEL.md §9).
+    """Secant modulus Y_sec = σ(ε_at)/ε_at (paper Eq. 1, docs/model.md §9).
 
     Attributes:
         Y_sec: N/mm, or None when the sweep does not reach ε_at.
@@ -45,7 +45,7 @@ class SecantModulus(PlainDict):
 
 @dataclass(frozen=True)
 class OffsetStress(PlainDict):
-    """Offset stress σ0 from a line fitted to the softened regime (MODEL.md §9).
+    """Offset stress σ0 from a line fitted to the softened regime (docs/model.md §9).
 
     Attributes:
         sigma0: N/mm, the σ-axis intercept at ε = 0 of the fitted line; None when
@@ -80,7 +80,7 @@ class OffsetStress(PlainDict):
 def secant_modulus(
     strain: np.ndarray, stress: np.ndarray, at: float = SECANT_STRAIN
 ) -> SecantModulus:
-    """Secant modulus Y_sec = σ(ε_at)/ε_at (paper Eq. 1; MODEL.md §9).
+    """Secant modulus Y_sec = σ(ε_at)/ε_at (paper Eq. 1; docs/model.md §9).
 
     Args:
         strain: shape (n,), strictly increasing, dimensionless.
@@ -164,7 +164,7 @@ def offset_stress(
 ) -> OffsetStress:
     """Offset stress σ0: the ε = 0 intercept of a line through the softened regime.
 
-    Paper "Reducing or Inducing Jamming" and MODEL.md §9: σ0 is the σ-axis intercept
+    Paper "Reducing or Inducing Jamming" and docs/model.md §9: σ0 is the σ-axis intercept
     of a linear fit to the post-jammed (softened, linear-elastic) part of σ(ε).
 
     With ``window = (ε_lo, ε_hi)`` the line is fitted, by least squares, to exactly

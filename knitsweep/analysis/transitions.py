@@ -1,15 +1,22 @@
-"""Onset of unjamming (L/r)_trans, the transition width ΔL/r, and regimes
-(MODEL.md §9; paper "Energy Markers for Jamming", Fig. 4, SI "Tolerance and Error").
+"""The jamming rule: onset of unjamming (L/r)_trans, its bracket, the threshold
+crossing, the transition width ΔL/r, and regimes (docs/model.md §9; paper "Energy
+Markers for Jamming", Fig. 4, SI "Tolerance and Error").
+
+This module is the one definition of the rule; the post-processor, the adaptive
+search of a job and the accuracy study all call it. A point is jammed while its gap
+is at or above :data:`GAP_THRESHOLD`; (L/r)_trans is the first L/r of a series below
+it, and the bracket is (the jammed L/r before it, (L/r)_trans].
 
 A *series* is one energy gap against L/r, sorted ascending, at fixed k, B, r_core, r,
 p and one pulling direction. The gap that marks jamming is ΔE_c for 'x' and ΔE_b for
 'y' (paper Fig. 3); the caller chooses it (:func:`group_series` does so for records).
-Gaps are in N·mm (the paper's "J"); the default threshold is the paper's energy-gap
-error, 5e-5.
+Gaps are in N·mm (the paper's "J"); a gap of +inf stands for a point that cannot be
+knitted (as jammed as it gets).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -21,7 +28,8 @@ from .fitting import LinearFit, fit_line
 from .metrics import JAMMING_GAP
 
 GAP_THRESHOLD = 5e-5
-"""The paper's energy-gap error (N·mm, its "J"): below it a fabric counts as unjammed."""
+"""The paper's energy-gap error (N·mm, its "J"): below it a fabric counts as unjammed.
+The only definition of this number in knitsweep."""
 
 REGIMES = ("jammed_xy", "jammed_y_only", "jammed_x_only", "unjammed")
 """The regimes of :func:`regime`, as in paper Fig. 4c/5a (plus the rare converse)."""
@@ -104,7 +112,7 @@ class GapSeries(PlainDict):
 def _series(L_over_r: Any, gap: Any) -> tuple[np.ndarray, np.ndarray]:
     """Checked copies of a series, sorted by L/r; duplicates and negative gaps refused."""
     x = check_array("L_over_r", L_over_r)
-    g = check_array("gap", gap)
+    g = check_array("gap", gap, allow_inf=True)
     check_same_length(L_over_r=x, gap=g)
     if np.any(g < 0.0):
         i = int(np.flatnonzero(g < 0.0)[0])
@@ -118,6 +126,8 @@ def _series(L_over_r: Any, gap: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _jammed_line(x: np.ndarray, g: np.ndarray) -> tuple[LinearFit | None, float | None]:
+    finite = np.isfinite(g)
+    x, g = x[finite], g[finite]
     if x.size < 2:
         return None, None
     fit = fit_line(x, g)
@@ -166,7 +176,7 @@ def transition(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> Tra
         L_over_r: shape (n,), n ≥ 1, distinct; sorted here if unsorted (the gap
             follows). Passing L in mm instead gives the same results in mm.
         gap: shape (n,), N·mm, ≥ 0 (ΔE_c for x, ΔE_b for y).
-        threshold: N·mm, > 0 (paper: 5e-5). A point is unjammed when gap < threshold.
+        threshold: N·mm, > 0 (paper: :data:`GAP_THRESHOLD`). A point is unjammed when gap < threshold.
 
     Returns:
         :class:`Transition` with ``source='grid'``.
@@ -184,6 +194,22 @@ def transition(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> Tra
     if i == 0:
         return _result("unjammed_at_start", float(x[0]), None, x, g, 0, threshold, "grid")
     return _result("transition", float(x[i]), float(x[i - 1]), x, g, i, threshold, "grid")
+
+
+def threshold_crossing(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> float | None:
+    """Where the gap crosses the threshold inside the transition bracket, linearly
+    interpolated between the last jammed and the first unjammed point: a continuous
+    (L/r)_trans (same units as ``L_over_r``) whose error a study can measure. None
+    unless the series has a transition with a finite gap on its jammed side."""
+    t = transition(L_over_r, gap, threshold)
+    if t.status != "transition":
+        return None
+    x, g = _series(L_over_r, gap)
+    i = int(np.searchsorted(x, t.L_over_r_trans))
+    if not math.isfinite(g[i - 1]):
+        return None
+    w = (g[i - 1] - threshold) / (g[i - 1] - g[i])
+    return float(x[i - 1] + w * (x[i] - x[i - 1]))
 
 
 def transition_from_bracket(

@@ -32,16 +32,19 @@ def phase_diagram(
         typer.Option("--out", help="directory for the CSV and PNG files [<results>_phase_diagram]"),
     ] = None,
     threshold: Annotated[
-        float, typer.Option("--threshold", help="energy-gap threshold, mJ [5e-5, the paper's]")
-    ] = 5e-5,
+        float | None,
+        typer.Option("--threshold", help="energy-gap threshold, mJ [the paper's 5·10⁻⁵]"),
+    ] = None,
     no_figures: Annotated[bool, typer.Option("--no-figures", help="write the tables only")] = False,
     as_json: JsonOpt = False,
 ) -> None:
     """Jamming transitions (L/r)_trans, ΔL/r and regimes of a results file, as a printed
     table, CSV files and the paper's figures; also on a file a run is still writing."""
+    from ..analysis.transitions import GAP_THRESHOLD
     from ..report import phase_diagram as make_phase_diagram
 
     with user_errors():
+        threshold = GAP_THRESHOLD if threshold is None else threshold
         report = make_phase_diagram(results, out, threshold, figures=not no_figures)
     if as_json:
         red = report.reduction

@@ -23,7 +23,7 @@ app = typer.Typer(
 
 @app.callback()
 def _root() -> None:
-    """knitsweep: stockinette unit-cell simulations (MODEL.md)."""
+    """knitsweep: stockinette unit-cell simulations (docs/model.md)."""
 
 
 # ---- shared options (paper units) -------------------------------------------------

@@ -64,25 +64,6 @@ PresetOpt = Annotated[
 FtolOpt = Annotated[float | None, typer.Option("--ftol", help="SLSQP energy tolerance (mJ)")]
 
 
-def _numerics(preset, ftol, samples, quadrature_nodes, images, step=None):
-    """Fidelity, solver and protocol fields from a preset plus explicit flags."""
-    from ..presets import DEFAULT_PRESET, preset_settings
-
-    name = preset or DEFAULT_PRESET
-    fid = preset_settings(name, "fidelity")
-    sol = preset_settings(name, "solver")
-    pro = preset_settings(name, "protocol")
-    for key, value in (("samples_per_segment", samples), ("quadrature_nodes", quadrature_nodes),
-                       ("images", images)):  # fmt: skip
-        if value is not None:
-            fid[key] = value
-    if ftol is not None:
-        sol["ftol"] = ftol
-    if step is not None:
-        pro["step_mm"] = step
-    return fid, sol, pro
-
-
 @app.command()
 def relax(
     state: StateOpt = None,
@@ -95,28 +76,19 @@ def relax(
     """Relax the zero-force state at fixed yarn length (both periods free)."""
     import time
 
-    from ..config import Fidelity, SolverSettings
+    from ..config import Numerics, StartSettings
     from ..formats import read_state
-    from ..relax import relax_with_continuation
-    from ..zero_force import SHIPPED_SOURCE, StartSettings, zero_force
+    from ..zero_force import zero_force
 
     with user_errors():
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
                                   regularization=regularization)  # fmt: skip
-        fid, sol, _ = _numerics(preset, ftol, samples, quadrature_nodes, images)
-        fidelity, solver = Fidelity(**fid), SolverSettings(**sol)
+        n = Numerics.from_preset(preset, ftol=ftol, samples_per_segment=samples,
+                                 quadrature_nodes=quadrature_nodes, images=images)  # fmt: skip
+        settings = StartSettings() if starts is None else StartSettings(count=starts)
+        x0 = None if state is None else read_state(state)
         t0 = time.perf_counter()
-        if state is not None:
-            from ..model import CellModel
-
-            x0 = read_state(state)
-            start = SHIPPED_SOURCE.model_copy(
-                update={"L_mm": CellModel(params, fidelity).energies(x0).length}
-            )
-            best, _ = relax_with_continuation(params, fidelity, x0, start, solver)
-        else:
-            settings = StartSettings() if starts is None else StartSettings(count=starts)
-            best = zero_force(params, fidelity, solver, settings, seed).best
+        best = zero_force(params, n.fidelity, n.solver, settings, seed, initial=x0).best
         seconds = time.perf_counter() - t0
     result = {
         "total_energy": best.total_energy, "bending_energy": best.bending_energy,
@@ -144,10 +116,9 @@ def sweep(
     out: Annotated[Path | None, typer.Option("--out", help="write the table: .csv or .h5")] = None,
 ) -> None:  # fmt: skip
     """One point's strain sweep, with a progress bar; prints the stress–strain table."""
-    from ..config import Fidelity, InputError, SolverSettings
+    from ..config import InputError, Numerics, StartSettings
     from ..report.sweep_table import sweep_table, write_sweep
-    from ..strain_sweep import SweepProtocol, strain_sweep
-    from ..zero_force import StartSettings, zero_force
+    from ..strain_sweep import NoRestState, strain_sweep_from_rest
 
     with user_errors():
         if direction not in ("x", "y"):
@@ -156,18 +127,13 @@ def sweep(
             raise InputError(f"out = '{out}': must end in .csv or .h5")
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
                                   regularization=regularization)  # fmt: skip
-        fid, sol, pro = _numerics(preset, ftol, samples, quadrature_nodes, images, step)
-        for key, value in (("stop_stress_N_per_mm", stop_stress), ("max_strain", max_strain)):
-            if value is not None:
-                pro[key] = value
-        if compression:
-            pro["mode"] = "compression"
-        fidelity, solver, protocol = Fidelity(**fid), SolverSettings(**sol), SweepProtocol(**pro)
+        n = Numerics.from_preset(
+            preset, ftol=ftol, samples_per_segment=samples, quadrature_nodes=quadrature_nodes,
+            images=images, step_mm=step, stop_stress_N_per_mm=stop_stress, max_strain=max_strain,
+            mode="compression" if compression else None,
+        )  # fmt: skip
+        protocol = n.protocol
         settings = StartSettings() if starts is None else StartSettings(count=starts)
-    zero = zero_force(params, fidelity, solver, settings, seed)
-    if not zero.best.converged:
-        typer.echo(f"error: no zero-force state: {zero.message}", err=True)
-        raise typer.Exit(1)
     with typer.progressbar(length=1000, label=f"{direction} sweep", file=sys.stderr) as bar:
         shown = [0]
 
@@ -178,7 +144,12 @@ def sweep(
                 bar.update(target - shown[0])
                 shown[0] = target
 
-        result = strain_sweep(params, zero, direction, protocol, fidelity, solver, progress)
+        try:
+            _, result = strain_sweep_from_rest(params, direction, protocol, n.fidelity, n.solver,
+                                               settings, seed, progress)  # fmt: skip
+        except NoRestState as e:
+            typer.echo(f"error: {e}", err=True)
+            raise typer.Exit(1) from None
     typer.echo(sweep_table(result))
     typer.echo(f"# {result.status}: {result.stop_reason}; {len(result.strain)} steps, "
                f"{result.relaxations} relaxations, {result.wall_seconds:.1f} s", err=True)  # fmt: skip

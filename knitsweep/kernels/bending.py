@@ -1,4 +1,4 @@
-"""Bending energy and yarn length of the cell, with gradients (MODEL.md §5).
+"""Bending energy and yarn length of the cell, with gradients (docs/model.md §5).
 
 For one quintic r(t) with a = r', b = r'', c = r''' the integrand is
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-# weights of the segments (path order) in the cell sums of MODEL.md §5:
+# weights of the segments (path order) in the cell sums of docs/model.md §5:
 # E_b = 2E(C1.A) + 2E(C1.B) + 2E(cc11) + E(cc12) + E(cc21); C2 and cc22 enter
 # through the symmetry of the cell, exactly as in the reference code.
 SEGMENT_WEIGHTS = np.array([2.0, 2.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0])

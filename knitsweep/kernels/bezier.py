@@ -1,4 +1,4 @@
-"""Quintic Bernstein basis tables and Gauss–Legendre rules (MODEL.md §3, §5, §6).
+"""Quintic Bernstein basis tables and Gauss–Legendre rules (docs/model.md §3, §5, §6).
 
 Plain numpy, evaluated once per fidelity setting; the numba kernels take the
 tables as arguments so that no kernel recomputes a binomial in its hot loop.
@@ -52,5 +52,5 @@ def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def midpoints(n: int) -> np.ndarray:
-    """The contact sample parameters t_j = (j + 1/2)/n of MODEL.md §6."""
+    """The contact sample parameters t_j = (j + 1/2)/n of docs/model.md §6."""
     return (np.arange(n) + 0.5) / n

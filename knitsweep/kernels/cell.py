@@ -3,7 +3,7 @@
 Composes geometry (state -> control points, Jacobian) with the bending and
 contact kernels: grad_x E = J^T dE/dcp + (explicit dE_c/d(a_x, a_y)).
 ``cell_energy_listed`` is the same with the optional neighbour list of
-``neighbours`` (MODEL.md §6) for callers that evaluate many nearby states.
+``neighbours`` (docs/model.md §6) for callers that evaluate many nearby states.
 """
 
 from __future__ import annotations
@@ -11,9 +11,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..state import IDX_AX, IDX_AY, N_STATE
 from .bending import bending_and_length
 from .contact import contact_energy
-from .geometry import IDX_AX, IDX_AY, N_STATE, state_to_control_points
+from .geometry import state_to_control_points
 from .neighbours import contact_energy_listed
 
 

@@ -1,4 +1,4 @@
-"""Soft-shell / hard-core contact energy of the cell, with gradients (MODEL.md §6).
+"""Soft-shell / hard-core contact energy of the cell, with gradients (docs/model.md §6).
 
 The yarn is sampled at N midpoints per segment; every ordered pair of samples
 (i, j) and periodic image (m, n) closer than 2r contributes
@@ -38,7 +38,7 @@ EXCLUSION_FACTOR = 2.1  # neighbours along the yarn closer than 2.1 r in arcleng
 
 @njit(cache=True)
 def pair_potential(dist, r, rc, k, p):
-    """V(R) and dV/dR of one compressed pair (MODEL.md §6), N mm and N.
+    """V(R) and dV/dR of one compressed pair (docs/model.md §6), N mm and N.
 
     Zero for R >= 2r; the caller only asks for R < 2r.
     """
@@ -185,7 +185,7 @@ def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
 
 @njit(cache=True)
 def find_contacts(cp, tab, ax, ay, r, mode):
-    """Every counted contact of the cell, each unordered pair once (MODEL.md §6).
+    """Every counted contact of the cell, each unordered pair once (docs/model.md §6).
 
     Returns (pts (8N, 3), r1 (8N, 3), speed (8N,), idx (c, 4) = (i, j, m, n),
     sep (c, 4) = (dx, dy, dz, R)), where d = p_i - p_j - m t_c - n t_w and R = |d| < 2r,
@@ -223,7 +223,7 @@ def _pow_inplace(x, nb, e):
 def _soft_shell(rr, nb, r, rc, k, p, with_grad, dist, zeta, v, dv):
     """Soft-shell branch of ``pair_potential`` for the first ``nb`` squared
     distances ``rr``: R, zeta, V(R) and, with ``with_grad``, dV/dR, into the 1-D
-    arrays ``dist``, ``zeta``, ``v``, ``dv`` (MODEL.md §6).
+    arrays ``dist``, ``zeta``, ``v``, ``dv`` (docs/model.md §6).
 
     The formulas of ``pair_potential``, split into branch-free loops that
     vectorise; zeta^(1-p) comes from ``_pow_inplace``. Pairs with zeta < CORE_EPS

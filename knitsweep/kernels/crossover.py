@@ -1,4 +1,4 @@
-"""One crossover: frame, end directions, end points and control points (MODEL.md §3).
+"""One crossover: frame, end directions, end points and control points (docs/model.md §3).
 
 Forward-mode derivatives written out by hand: every function returns its value
 and its Jacobian with respect to the crossover's 19 local inputs, columns
@@ -22,9 +22,9 @@ L_POS, L_G, L_TW, L_Z, L_PHI, L_C0, L_C1, N_LOCAL = 0, 1, 4, 5, 6, 7, 13, 19
 
 @njit(cache=True)
 def _rxryrz(c0, s0, o0, c1, s1, o1, c2, s2, o2):
-    """R_x R_y R_z (MODEL.md §3) as 9 scalars, row-major, where R_x(c, s, o) =
+    """R_x R_y R_z (docs/model.md §3) as 9 scalars, row-major, where R_x(c, s, o) =
     [[o,0,0],[0,c,-s],[0,s,c]], R_y(c, s, o) = [[c,0,-s],[0,o,0],[s,0,c]] (the
-    transpose of the usual one, as in MODEL.md) and R_z(c, s, o) =
+    transpose of the usual one, as in docs/model.md) and R_z(c, s, o) =
     [[c,-s,0],[s,c,0],[0,0,o]]; (c, s, o) = (cos t, sin t, 1) gives the rotation,
     (-sin t, cos t, 0) its derivative. Terms with structural zeros are left out,
     which for finite inputs changes no bit of the plain triple-loop product."""
@@ -81,7 +81,7 @@ def crossover_frame(g0, g1, g2, tw, frame, dframe):
 
 @njit(cache=True)
 def _end_direction(ea, dea, eb, deb, e3, de3, sa, sb, cond, lc, t, dt, cv, dcv):
-    """Unit tangent and curvature vector at one crossover end (MODEL.md §3).
+    """Unit tangent and curvature vector at one crossover end (docs/model.md §3).
 
     ``t = sa|cos psi1| Ea + sb|sin psi1 sin psi2| Eb + |sin psi1 cos psi2| e3`` and
     ``cv = kappa [(Ea x t) cos nu + (t x (Ea x t)) sin nu] / |sin psi1|``;
@@ -165,7 +165,7 @@ def _end_point(pos_x, z, phi, e3, de3, eb, deb, z1, z2, q, dq):
 
 @njit(cache=True)
 def control_points_half(q, dq, t, dt, cv, dcv, a, ia, b, ib, at_start, k0, k1, k2, k3, p, dp):
-    """Three control points at one end, with their Jacobian (MODEL.md §3).
+    """Three control points at one end, with their Jacobian (docs/model.md §3).
 
     ``at_start``: P0 = q, P1 = P0 + a/5 t, P2 = P1 + a^2/20 cv + b t (rows 0-2);
     else P5 = q, P4 = P5 - a/5 t, P3 = P4 + a^2/20 cv - b t (rows 5, 4, 3).
@@ -212,7 +212,7 @@ def control_points_from_ends(
     q1, dq1, t1, dt1, cv1, dcv1, a1, ia1, b1, ib1,
     p, dp,
 ):  # fmt: skip
-    """The control-point rule of MODEL.md §3, with its Jacobian, on all columns.
+    """The control-point rule of docs/model.md §3, with its Jacobian, on all columns.
 
     P0 = q0, P1 = P0 + a0/5 t0, P2 = P1 + a0^2/20 cv0 + b0 t0, and mirrored at the
     end: P5 = q1, P4 = P5 - a1/5 t1, P3 = P4 + a1^2/20 cv1 - b1 t1. ``ia*``/``ib*``
@@ -257,6 +257,6 @@ def crossover_curve_into(pos_x, z, phi, parity, is_a, cond0, cond1, frame, dfram
 @njit(cache=True)
 def crossover_curve(pos_x, z, phi, parity, is_a, cond0, cond1, frame, dframe, p, dp):
     """Control points (6, 3) and local Jacobian (6, 3, 19) of curve A or B of a
-    crossover with centre (pos_x, 0, 0) (MODEL.md §3)."""
+    crossover with centre (pos_x, 0, 0) (docs/model.md §3)."""
     crossover_curve_into(pos_x, z, phi, parity, is_a, cond0, cond1, frame, dframe, p, dp,
                          np.empty((6, 3)), np.empty((6, 3, N_LOCAL)))  # fmt: skip

@@ -1,7 +1,7 @@
 """log, exp and x**y in plain arithmetic, so that loops calling them vectorise.
 
 The contact kernel needs zeta**(1 - p) for thousands of pairs per evaluation
-(MODEL.md §6). llvmlite here has no vector math library, so ``zeta ** e`` is one
+(docs/model.md §6). llvmlite here has no vector math library, so ``zeta ** e`` is one
 scalar libm call per pair (~15 ns, ~40 % of a contact evaluation); these versions
 are straight-line floating-point and integer code that LLVM turns into AVX2 loops.
 

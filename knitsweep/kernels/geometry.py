@@ -1,6 +1,6 @@
 """State vector -> the 8 quintic Bézier segments of one stitch cell, with Jacobian.
 
-Implements MODEL.md §2–4: the two crossovers come from ``crossover`` (§3), the
+Implements docs/model.md §2–4: the two crossovers come from ``crossover`` (§3), the
 four connectors and the path order from here (§4). The Jacobian is exact: every
 step carries the derivative of its output with respect to the inputs it depends
 on (forward-mode differentiation written out by hand), so
@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..state import IDX_AX, IDX_AY, IDX_TW, N_STATE, S1, S2, S3
 from .crossover import (  # noqa: F401  (re-exported: the public kernel names)
     L_C0,
     L_C1,
@@ -40,17 +41,7 @@ from .crossover import (  # noqa: F401  (re-exported: the public kernel names)
     crossover_frame,
 )
 
-N_STATE = 30
-N_SHAPE = 28
-IDX_TW = 23
-IDX_AX = 28
-IDX_AY = 29
-N_SEGMENTS = 8
-
-# end condition index ranges in the state vector (S1, S2, S3)
-S1, S2, S3 = 5, 11, 17
-
-# path slots of the crossover curves and connectors (MODEL.md §4)
+# path slots of the crossover curves and connectors (docs/model.md §4)
 _SEG_C1B, _SEG_CC11, _SEG_C1A, _SEG_CC12, _SEG_C2A, _SEG_CC22, _SEG_C2B, _SEG_CC21 = range(8)
 
 
@@ -82,7 +73,7 @@ def _scatter(dp_local, sign_x, flip, c0, c1, out):
 def _end_frame(q, dq, at_end, t, dt, cv, dcv, dr1, dr2):
     """Unit tangent and curvature vector of a Bézier at t = 1 (``at_end``) or 0.
 
-    T = r'/|r'|, cv = (r'' - (r''.T) T)/|r'|^2 (MODEL.md §4), with derivatives
+    T = r'/|r'|, cv = (r'' - (r''.T) T)/|r'|^2 (docs/model.md §4), with derivatives
     dT = P dr'/v and dcv = P dr''/v^2 - [T m^T + (r''.T) P + 2 m T^T] dr'/v^3,
     where P = I - T T^T and m = P r''. ``dr1``, ``dr2`` (3, 30) are scratch.
     """
@@ -132,7 +123,7 @@ def _end_frame(q, dq, at_end, t, dt, cv, dcv, dr1, dr2):
 @njit(cache=True)
 def _connector(qa, dqa, qb, dqb, shift_a, shift_b, ia, ib, x, p, dp, vec, blk):
     """Connector from the end of curve ``qa`` (+ shift_a) to the start of ``qb``
-    (+ shift_b); shifts are 0 none, 1 t_c, 2 t_w (MODEL.md §4).
+    (+ shift_b); shifts are 0 none, 1 t_c, 2 t_w (docs/model.md §4).
     Scratch: vec (6, 3), blk (8, 3, 30)."""
     t0, cv0, t1, cv1, q0, q1 = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5]
     dt0, dcv0, dt1, dcv1, dr1, dr2, dq0, dq1 = (blk[0], blk[1], blk[2], blk[3], blk[4], blk[5],
@@ -168,7 +159,7 @@ def state_to_control_points(x, cp, jac):
 
     The crossover curves go straight into their path slots (0, 2, 4, 6), the
     connectors are built from those slots, and the wale shift t_w of slots 2-4 is
-    added last, exactly as in MODEL.md §4.
+    added last, exactly as in docs/model.md §4.
     """
     frame = np.empty((5, 3))
     dframe = np.empty((5, 3, N_LOCAL))
@@ -179,7 +170,7 @@ def state_to_control_points(x, cp, jac):
     dp_loc = blk19[6:]
     ax = x[IDX_AX]
     tw, z, phi = x[IDX_TW], x[3], x[4]
-    # (crossover, parity, frame flip, x sign); C2 mirrors C1 (MODEL.md §3)
+    # (crossover, parity, frame flip, x sign); C2 mirrors C1 (docs/model.md §3)
     for ic in range(2):
         parity = 1.0 if ic == 0 else -1.0
         flip = 1.0 if ic == 0 else -1.0

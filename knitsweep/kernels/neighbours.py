@@ -1,4 +1,4 @@
-"""Optional Verlet neighbour list for the contact sum (MODEL.md §6).
+"""Optional Verlet neighbour list for the contact sum (docs/model.md §6).
 
 A relaxation evaluates the energy at thousands of nearby states. The list holds
 every sample pair (i, j, m, n) closer than 2r + skin at the state where it was

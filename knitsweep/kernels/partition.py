@@ -1,6 +1,6 @@
 """Candidate search for the contact sum: which sample pairs are closer than 2r.
 
-MODEL.md §6: every ordered pair (i, j) of the 8N samples and periodic image
+docs/model.md §6: every ordered pair (i, j) of the 8N samples and periodic image
 (m, n) with R = |p_i - p_j - m t_c - n t_w| < 2r counts, except same-row (n = 0)
 pairs closer than 2.1 r along the yarn. The search visits each unordered pair
 once: the image (0, 0) with j > i, and half of the other images (their mirrors

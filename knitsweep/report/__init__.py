@@ -1,4 +1,4 @@
-"""The post-processor: a results file → tables and the paper's figures (MODEL.md §9).
+"""The post-processor: a results file → tables and the paper's figures (docs/model.md §9).
 
 * :mod:`.reduce` — per-sweep metrics, per-series transitions, per-point regimes;
 * :mod:`.tables` — CSV files and the printed table;
@@ -62,7 +62,7 @@ def phase_diagram(
         results: HDF5 results file of ``knitsweep run`` (also while it is written).
         out_dir: directory for the CSV and PNG files [``<results stem>_phase_diagram``
             beside the results file].
-        threshold: energy-gap threshold, mJ (paper: 5e-5).
+        threshold: energy-gap threshold, mJ (paper: ``GAP_THRESHOLD``).
         figures: write the PNG figures (False: tables only).
 
     Raises:

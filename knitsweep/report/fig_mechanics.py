@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ..state import CONTACT_CLASSES
 from .plotting import (
     DIRECTION_COLOUR,
     L_OVER_R,
@@ -34,7 +35,7 @@ from .plotting import (
     series_keys,
     title,
 )
-from .reduce import CONTACT_CLASSES, SERIES_PARAMS, Reduction, SweepCurves
+from .reduce import SERIES_PARAMS, Reduction, SweepCurves
 
 SMALL_STRAIN = 0.1
 """Strain range of the small-strain figures (the jammed regime)."""

@@ -1,4 +1,4 @@
-"""Reduce a results file to the paper's tables (MODEL.md §9; paper Sections IV–VII).
+"""Reduce a results file to the paper's tables (docs/model.md §9; paper Sections IV–VII).
 
 One pass over a results file (``knitsweep run``; schema in :mod:`knitsweep.service.results_file`),
 read through :func:`knitsweep.service.results_file.iter_entries`, so that results still in a
@@ -29,10 +29,12 @@ from typing import Any
 import numpy as np
 
 from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickness_strain
+from ..analysis.metrics import JAMMING_GAP
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
-from ..analysis.transitions import Transition, transition
+from ..analysis.transitions import Transition, series_transitions
 from ..config import InputError
 from ..service.results_file import POINTS, SWEEPS, Entry, iter_entries, read_root
+from ..state import CONTACT_CLASSES, IDX_AX, IDX_AY
 
 SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p")
 """The parameters held fixed along a series in L (the paper's k, B, r_core, r, p)."""
@@ -45,14 +47,8 @@ PARAM_SYMBOLS = {
     "p": ("p", ""),
 }
 
-CONTACT_CLASSES = ("self", "same_row", "nn_column", "nnn_column", "other")
-"""Rows of a stored ``contact_forces`` (5, 3) array; the same tuple as
-``knitsweep.model.CONTACT_CLASSES`` (not imported: it would load the numba kernels)."""
-
 CONTACT_COLUMNS = tuple(f"F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
-
-JAMMING_GAP_COLUMN = {"x": "delta_E_c", "y": "delta_E_b"}
-"""The gap that marks jamming per pulling direction (paper Fig. 3)."""
+"""Columns of a stored ``contact_forces`` (5, 3) array: rows ``CONTACT_CLASSES``."""
 
 _SWEEP_ARRAYS = ("strain", "stress", "bending_energy", "contact_energy", "a_x", "a_y", "thickness")
 _REQUIRED_META = ("status", "L_mm", "L_over_r", *SERIES_PARAMS)
@@ -192,7 +188,7 @@ def _point_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
     winner = int(meta.get("winner", rec.get("winner", 0)) or 0)
     if x is not None and np.ndim(x) == 2 and row["status"] == "done":
         best = np.asarray(x[winner], dtype=float)
-        a_x0, a_y0 = float(best[-2]), float(best[-1])
+        a_x0, a_y0 = float(best[IDX_AX]), float(best[IDX_AY])
         row |= {
             "a_x0_mm": a_x0,
             "a_y0_mm": a_y0,
@@ -291,7 +287,7 @@ def transition_row(
     return {
         "direction": direction,
         **params,
-        "gap": JAMMING_GAP_COLUMN[direction],
+        "gap": JAMMING_GAP[direction],
         "status": t.status,
         "L_over_r_trans": trans,
         "bracket_lower": t.bracket_lower,
@@ -325,21 +321,14 @@ def _transitions(
 
     Every analysed L counts, so the series of an adaptive job (coarse grid plus
     bisection points) gives its refined bracket here too."""
-    collected: dict[tuple[tuple[float, ...], str], list[tuple[float, float]]] = {}
-    for row in sweeps:
-        key = (_series_key(row), row["direction"])
-        collected.setdefault(key, []).append((row["L_over_r"], row["jamming_gap"]))
     missing: dict[tuple[tuple[float, ...], str], int] = {}
     for p in problems:
         if p["kind"] == "sweep":
             key = (_series_key(p), p["direction"])
             missing[key] = missing.get(key, 0) + 1
-    out, rows = {}, []
-    for key in sorted(collected):
-        pts = sorted(collected[key])
-        t = transition([p[0] for p in pts], [max(p[1], 0.0) for p in pts], threshold)
-        out[key] = t
-        rows.append(transition_row(key[0], key[1], t, missing.get(key, 0)))
+    found = series_transitions(sweeps, SERIES_PARAMS, threshold)
+    out = {key: found[key] for key in sorted(found)}
+    rows = [transition_row(key[0], key[1], t, missing.get(key, 0)) for key, t in out.items()]
     return out, rows
 
 
@@ -389,7 +378,7 @@ def reduce_results(path: str | Path, threshold: float = GAP_THRESHOLD) -> Reduct
 
     Args:
         path: an HDF5 results file of ``knitsweep run`` (schema 1).
-        threshold: energy-gap threshold, mJ (paper: 5e-5): a sweep with jamming gap
+        threshold: energy-gap threshold, mJ (paper: ``GAP_THRESHOLD``): a sweep with jamming gap
             (ΔE_c for x, ΔE_b for y) below it is unjammed.
 
     Returns:

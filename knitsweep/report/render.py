@@ -1,7 +1,7 @@
 """Pictures of a relaxed stitch: a patch of fabric like the paper's Fig. 1a.
 
 The yarn centre-line of one cell is the 8 quintic Bézier segments of
-:meth:`knitsweep.model.CellModel.control_points` (MODEL.md §3–4), in path order;
+:meth:`knitsweep.model.CellModel.control_points` (docs/model.md §3–4), in path order;
 segment 7 ends where segment 0 starts, shifted by the course period t_c = (a_x, 0, 0),
 so one row's yarn is the cell's path repeated along x, and the rows repeat along
 the wale period t_w = (0, a_y, 0). Each row is drawn as a tube of radius r around
@@ -14,7 +14,6 @@ matplotlib is imported lazily, with the Agg canvas and no pyplot.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -272,7 +271,7 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
 
 
 def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> Stitch:
-    """The stitch of a 30-entry state vector (MODEL.md §2) at the given parameters."""
+    """The stitch of a 30-entry state vector (docs/model.md §2) at the given parameters."""
     from ..model import CellModel
 
     cp = CellModel(params).control_points(x)
@@ -292,12 +291,6 @@ def _find_task(results: Path, task: str) -> Any:
     return matches[0]
 
 
-def _params(meta: dict[str, Any]) -> StitchParams:
-    raw = meta.get("params")
-    data = json.loads(raw) if isinstance(raw, (str, bytes)) else raw
-    return StitchParams(**data)
-
-
 def stitch_from_results(results: str | Path, task: str, step: int | None = None) -> Stitch:
     """The stitch of one task of a results file.
 
@@ -313,7 +306,7 @@ def stitch_from_results(results: str | Path, task: str, step: int | None = None)
     meta, rec = e.meta, e.record
     if meta.get("status") != "done":
         raise InputError(f"task {e.task_id} has status {meta.get('status')!r}: nothing to draw")
-    params = _params(meta)
+    params = StitchParams.from_flat(meta)
     what = f"L = {params.L_mm:g} mm, k = {params.k_mN_per_mm2:g} mN/mm², B = {params.B_mN_mm2:g} mN·mm²"
     if e.kind == POINTS:
         if step not in (None, 0):

@@ -1,10 +1,12 @@
-"""Adaptive search for the unjamming transition (L/r)_trans along L.
+"""Adaptive search for the unjamming transition (L/r)_trans along L, and the
+master's bookkeeping of it.
 
 A series is one (k, B, r_core, r, p) with one pulling direction. The job's coarse
-grid ``grid.L_mm`` brackets the transition: (lo, hi] with hi the first coarse L
-whose energy gap (ΔE_c in x, ΔE_b in y) is below the threshold and lo the L
-before it, the same criterion as the post-processor (``analysis.transitions``).
-The bracket then shrinks until hi - lo <= tolerance, one new L per refinement:
+grid ``grid.L_mm`` brackets the transition with the jamming rule of
+``knitsweep.analysis.transitions`` (the same rule as the post-processor): (lo, hi]
+with hi the first L whose energy gap (ΔE_c in x, ΔE_b in y) is below the threshold
+and lo the L before it. The bracket then shrinks until hi - lo <= tolerance, one new
+L per refinement:
 
 * with two jammed points at least ``secant_span`` apart, the secant through them
   extrapolates the gap to the threshold. In the jammed regime the gap falls
@@ -20,14 +22,21 @@ a 0.8 mm coarse grid and this rule reach a 0.005 mm bracket with about 3x fewer
 sweeps than the uniform 0.1 mm grid.
 
 ``series_state`` is a pure function of the series' (L, gap) data, so a resumed
-run replays the stored gaps and continues with the same proposals.
+run replays the stored gaps and continues with the same proposals. ``Refiner``
+feeds it every finished sweep's gap (stored with the sweep) and tells the master
+which L to evaluate next or how each series ended.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
+
+from ..analysis.transitions import transition
+from ..config import DONE, NOT_KNITTABLE, StitchParams
+from .jobs import JobSpec, digest
 
 SeriesStatus = Literal[
     "coarse", "refining", "done", "jammed_throughout", "unjammed_at_start", "failed"
@@ -78,16 +87,16 @@ def series_state(
     if failed:
         return SeriesState("failed", None, None, None, n, f"no energy gap at L = {failed} mm")
     Ls = sorted(gaps)
-    below = [L for L in Ls if gaps[L] < threshold]
-    if not below:
+    t = transition(Ls, [max(gaps[L], 0.0) for L in Ls], threshold)  # noise can dip below 0
+    if t.status == "jammed_throughout":
         return SeriesState("jammed_throughout", Ls[-1], None, None, n,
                            f"jammed at every L up to {Ls[-1]} mm")  # fmt: skip
-    hi = below[0]
-    jammed = [L for L in Ls if L < hi]
-    if not jammed:
+    hi = t.L_over_r_trans
+    if t.status == "unjammed_at_start":
         return SeriesState("unjammed_at_start", None, hi, None, n,
                            f"already unjammed at the smallest L, {hi} mm")  # fmt: skip
-    lo = jammed[-1]
+    lo = t.bracket_lower
+    jammed = [L for L in Ls if L < hi]
     if hi - lo <= tolerance * (1.0 + 1e-9):
         return SeriesState("done", lo, hi, None, n)
     if n - len(set(coarse)) >= max_refinements:
@@ -122,3 +131,71 @@ def _secant_estimate(gaps, jammed, lo, threshold, span) -> float | None:
     if not slope < 0.0:
         return None
     return lo + (threshold - gaps[lo]) / slope
+
+
+class Refiner:
+    """The adaptive series of a job: their gaps so far and what each needs next."""
+
+    def __init__(self, job: JobSpec) -> None:
+        self.job = job
+        self.settings = job.adaptive
+        self.coarse = sorted(job.grid.axes()["L_mm"])
+        self.series: dict[str, dict[str, Any]] = {}
+        for params in job.points():
+            for d in job.directions:
+                key = self.key(params, d)
+                self.series.setdefault(key, {"base": params, "direction": d, "gaps": {}})
+
+    def key(self, params: StitchParams, direction: str) -> str:
+        base = params.model_dump(mode="json", exclude={"L_mm"})
+        return digest({"series": base, "direction": direction,
+                       "adaptive": self.settings.model_dump(mode="json"),
+                       "protocol": self.job.protocol.model_dump(mode="json"),
+                       "fidelity": self.job.fidelity.model_dump(mode="json")})  # fmt: skip
+
+    def observe(self, sweep_meta: dict[str, Any]) -> None:
+        """Take one finished sweep's gap (done: its gap; not knittable: jammed;
+        failed: unknown)."""
+        params = StitchParams.from_flat(sweep_meta)
+        key = self.key(params, str(sweep_meta["direction"]))
+        if key not in self.series:
+            return
+        status = str(sweep_meta.get("status"))
+        if status == DONE:
+            gap = float(sweep_meta["energy_gap"])
+        elif status == NOT_KNITTABLE:
+            gap = JAMMED_GAP
+        else:
+            gap = None
+        self.series[key]["gaps"][params.L_mm] = gap
+
+    def states(self) -> Iterator[tuple[str, SeriesState]]:
+        s = self.settings
+        for key, series in self.series.items():
+            yield key, series_state(self.coarse, series["gaps"], s.threshold_mJ, s.tolerance_mm,
+                                    s.secant_span_mm, s.max_refinements)  # fmt: skip
+
+    def point_params(self, key: str, L: float) -> tuple[StitchParams, str]:
+        series = self.series[key]
+        return series["base"].model_copy(update={"L_mm": L}), series["direction"]
+
+    def series_meta(self, key: str, state: SeriesState) -> dict[str, Any]:
+        """The ``/series/<key>`` record: the final bracket (mm and L/r)."""
+        series = self.series[key]
+        base: StitchParams = series["base"]
+        r = base.r_mm
+        flat = base.model_dump(mode="json", exclude={"L_mm"})
+        return {
+            "status": state.status,
+            "message": state.message,
+            "direction": series["direction"],
+            **flat,
+            "lo_mm": state.lo,
+            "hi_mm": state.hi,
+            "L_over_r_trans": None if state.hi is None or state.status != "done" else state.hi / r,
+            "bracket_lower": None if state.lo is None else state.lo / r,
+            "bracket_upper": None if state.hi is None else state.hi / r,
+            "evaluations": state.evaluations,
+            "tolerance_mm": self.settings.tolerance_mm,
+            "threshold_mJ": self.settings.threshold_mJ,
+        }

@@ -11,9 +11,9 @@ the job once, then sends ``(task, zero)`` values tagged TASK and receives
 STOPPED before it leaves; a task a worker dropped on a signal comes back as
 ABANDONED (the master queues it again unless it is stopping). Each worker holds
 up to PREFETCH tasks, so it starts the next one without a round trip. Both sides
-wait with ``Iprobe`` and a short sleep instead of a blocking receive, because
-MPICH's blocking receive spins a core: with ``mpirun -n 3`` on 2 cores the
-master must leave both cores to the workers.
+wait with ``Iprobe`` and a short sleep (one ``Backoff``) instead of a blocking
+receive, because MPICH's blocking receive spins a core: with ``mpirun -n 3`` on 2
+cores the master must leave both cores to the workers.
 
 Interrupts: a worker that gets SIGTERM/SIGINT while computing abandons the task
 (srun and mpirun deliver the signal to every rank); the master then stops every
@@ -33,11 +33,10 @@ import signal
 import socket
 import time
 
-from .worker import Reply, execute
+from .worker import Reply, execute, prepare
 
 TASK, REPLY, STOP, STOPPED, ABANDONED = 1, 2, 3, 4, 5
 PREFETCH = 2  # tasks held by each MPI worker: the one it computes and the next
-POLL_MAX_S = 0.005  # longest sleep between polls while waiting for a message
 ABANDON_WAIT_S = 2.0  # after dropping a task on a signal, wait this long for STOP
 MPI_ENV_HINTS = ("PMI_RANK", "PMI_SIZE", "PMI_FD", "PMIX_RANK", "OMPI_COMM_WORLD_SIZE",
                  "MPI_LOCALNRANKS", "HYDRA_CONTROL_FD")  # fmt: skip
@@ -48,19 +47,21 @@ def launched_by_mpi() -> bool:
     return any(k in os.environ for k in MPI_ENV_HINTS)
 
 
-def warm_up(job) -> None:
-    """Compile (or load from numba's cache) every kernel a task uses, once,
-    before the work fans out."""
-    from ..config import StitchParams
-    from ..formats import shipped_state
-    from ..model import CellModel
+class Backoff:
+    """Exponential backoff for poll loops (after mpi4py.futures): ``sleep()`` waits
+    a little longer each time, from ``start`` up to ``limit`` seconds; ``reset()``
+    after something arrived."""
 
-    model = CellModel(StitchParams(), job.fidelity)
-    x = shipped_state(1)
-    model.energy_and_gradients(x)
-    model.min_zeta(x)
-    model.thickness(x)
-    model.contact_forces_by_class(x)
+    def __init__(self, start: float = 0.0005, limit: float = 0.005) -> None:
+        self.start, self.limit = start, limit
+        self.delay = start
+
+    def reset(self) -> None:
+        self.delay = self.start
+
+    def sleep(self) -> None:
+        time.sleep(self.delay)
+        self.delay = min(2.0 * self.delay, self.limit)
 
 
 class SerialExecutor:
@@ -95,10 +96,11 @@ class SerialExecutor:
         self._queue.clear()
 
 
-def _process_worker_init() -> None:
+def _process_worker_init(job) -> None:
     # the master decides about interrupts; a worker just works
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    prepare(job)  # loads the kernels the master compiled, before the first task
 
 
 def _process_execute(job, task, zero, rank):
@@ -113,9 +115,9 @@ class ProcessExecutor:
     def __init__(self, job, workers: int) -> None:
         self.job = job
         self.capacity = workers
-        warm_up(job)  # compile once here; the workers then load numba's cache
+        prepare(job)  # compile once here; the workers then load numba's cache
         ctx = multiprocessing.get_context("spawn")
-        self._pool = ctx.Pool(workers, initializer=_process_worker_init)
+        self._pool = ctx.Pool(workers, initializer=_process_worker_init, initargs=(job,))
         self._replies: queue.Queue = queue.Queue()
         self._running = 0
         self._next_rank = 0
@@ -165,16 +167,6 @@ def _lost(task, exc: BaseException) -> Reply:
     return Reply(task.task_id, None, error, -1, socket.gethostname(), 0.0)
 
 
-def _wait_for_message(comm, source: int, tag: int, status, poll_max: float = POLL_MAX_S) -> bool:
-    """Sleep-poll until a message is there (True) or never (it does not return False
-    unless interrupted by the caller's timeout logic)."""
-    delay = 0.0005
-    while not comm.Iprobe(source=source, tag=tag, status=status):
-        time.sleep(delay)
-        delay = min(2 * delay, poll_max)
-    return True
-
-
 class MPIExecutor:
     """Rank 0's side of the MPI protocol; ranks 1..N-1 run ``mpi_worker_loop``."""
 
@@ -189,7 +181,7 @@ class MPIExecutor:
         self.capacity = PREFETCH * len(workers)
         self._outstanding: dict[int, int] = dict.fromkeys(workers, 0)
         comm.bcast(job.model_dump_json(), root=0)
-        warm_up(job)  # compile once, into numba's cache, before the workers load it
+        prepare(job)  # compile once, into numba's cache, before the workers load it
         comm.Barrier()
 
     @property
@@ -209,15 +201,14 @@ class MPIExecutor:
 
         status = MPI.Status()
         deadline = time.monotonic() + timeout
-        delay = 0.0005
+        backoff = Backoff()
         while not (
             self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=REPLY, status=status)
             or self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=ABANDONED, status=status)
         ):
             if time.monotonic() >= deadline:
                 return None
-            time.sleep(delay)
-            delay = min(2 * delay, POLL_MAX_S)
+            backoff.sleep()
         source = status.Get_source()
         return self._take(source, status.Get_tag())
 
@@ -241,10 +232,12 @@ class MPIExecutor:
             self.comm.send(None, dest=rank, tag=STOP)
         status = MPI.Status()
         deadline = time.monotonic() + grace
+        backoff = Backoff()
         while waiting and time.monotonic() < deadline:
             if not self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=MPI.ANY_TAG, status=status):
-                time.sleep(0.005)
+                backoff.sleep()
                 continue
+            backoff.reset()
             source, tag = status.Get_source(), status.Get_tag()
             if tag == STOPPED:
                 self.comm.recv(source=source, tag=tag)
@@ -292,11 +285,14 @@ def mpi_worker_loop(comm) -> None:
         return
     job = JobSpec.model_validate_json(job_json)
     comm.Barrier()  # rank 0 has compiled the kernels into numba's cache
-    warm_up(job)
+    prepare(job)
     rank = comm.Get_rank()
     status = MPI.Status()
+    backoff = Backoff()
     while True:
-        _wait_for_message(comm, 0, MPI.ANY_TAG, status)
+        backoff.reset()
+        while not comm.Iprobe(source=0, tag=MPI.ANY_TAG, status=status):
+            backoff.sleep()
         message = comm.recv(source=0, tag=status.Get_tag())
         if status.Get_tag() == STOP:
             comm.send(None, dest=0, tag=STOPPED)
@@ -315,7 +311,8 @@ def mpi_worker_loop(comm) -> None:
             # the whole run is probably stopping: give the master's STOP a moment
             # to overtake the task queued behind this one
             deadline = time.monotonic() + ABANDON_WAIT_S
+            backoff.reset()
             while time.monotonic() < deadline and not comm.Iprobe(source=0, tag=STOP):
-                time.sleep(0.01)
+                backoff.sleep()
             continue
         comm.send(reply, dest=0, tag=REPLY)

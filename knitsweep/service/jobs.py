@@ -24,23 +24,27 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from .. import SCHEMA_VERSION
+from ..analysis.transitions import GAP_THRESHOLD
 from ..config import (
+    DEFAULT_PRESET,
+    PRESETS,
     Fidelity,
     InputError,
     SolverSettings,
+    StartSettings,
     StitchParams,
+    SweepProtocol,
     describe_validation_error,
+    preset_sections,
 )
-from ..presets import DEFAULT_PRESET, PRESETS, preset_settings
-from ..strain_sweep import SweepProtocol
-from ..zero_force import StartSettings
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
+JOB_SCHEMA_VERSION = 1
+"""The job-file format this knitsweep reads (``schema_version`` in a job file)."""
 _STRICT = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 MAX_POINTS = 1_000_000
 
@@ -174,7 +178,7 @@ class AdaptiveSettings(BaseModel):
 
     tolerance_mm: float = Field(0.005, gt=0.0, le=1.0, description="final bracket width in L (mm)")
     threshold_mJ: float = Field(
-        5e-5, gt=0.0, description="energy-gap threshold between jammed and unjammed (mJ)"
+        GAP_THRESHOLD, gt=0.0, description="energy-gap threshold between jammed and unjammed (mJ)"
     )
     secant_span_mm: float = Field(
         0.05, gt=0.0, description="shortest L span of the secant that extrapolates the gap (mm)"
@@ -189,7 +193,7 @@ class JobSpec(BaseModel):
     model_config = _STRICT
 
     schema_version: int = Field(
-        description=f"job file format; this knitsweep reads {SCHEMA_VERSION}"
+        description=f"job file format; this knitsweep reads {JOB_SCHEMA_VERSION}"
     )
     name: str = Field(min_length=1, max_length=200)
     description: str = ""
@@ -213,22 +217,17 @@ class JobSpec(BaseModel):
     def _apply_preset(cls, data: Any) -> Any:
         if not isinstance(data, dict):
             return data
-        data = dict(data)
         name = data.get("preset", DEFAULT_PRESET)
-        if name not in PRESETS:
+        if not isinstance(name, str) or name not in PRESETS:
             return data  # reported by the field validator below
-        for section in ("fidelity", "solver", "protocol"):
-            given = data.get(section, {})
-            if isinstance(given, dict):
-                data[section] = {**preset_settings(name, section), **given}
-        return data
+        return {**data, **preset_sections(name, data)}
 
     @field_validator("schema_version")
     @classmethod
     def _known_schema(cls, v: int) -> int:
-        if v != SCHEMA_VERSION:
+        if v != JOB_SCHEMA_VERSION:
             raise ValueError(
-                f"this knitsweep reads job files of schema_version {SCHEMA_VERSION}; "
+                f"this knitsweep reads job files of schema_version {JOB_SCHEMA_VERSION}; "
                 f"convert the file or use the knitsweep version that wrote it"
             )
         return v

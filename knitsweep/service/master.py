@@ -14,7 +14,6 @@ arrived, closes the file and returns exit code 3 (the CLI prints how to resume).
 from __future__ import annotations
 
 import json
-import math
 import os
 import signal
 import socket
@@ -25,10 +24,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..analysis.metrics import energy_gaps
-from ..config import InputError
+from ..config import DONE, FAILED, InputError
+from .adaptive import Refiner
 from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, sweep_task
-from .refiner import Refiner
+from .progress import progress_line
 from .results_file import (
     POINTS,
     SERIES,
@@ -38,8 +37,9 @@ from .results_file import (
     iter_entries,
     progress_path,
     read_entry,
+    split_record,
 )
-from .worker import DONE, FAILED, Reply
+from .worker import Reply
 
 EXIT_INTERRUPTED = 3
 
@@ -86,26 +86,6 @@ def shard_tasks(job: JobSpec, shard: tuple[int, int] | None):
     points = [p for k, p in enumerate(points) if k % n == i]
     keep = {p.task_id for p in points}
     return points, [s for s in sweeps if s.point_id in keep]
-
-
-def _duration(s: float) -> str:
-    if not math.isfinite(s):
-        return "--"
-    s = int(s)
-    return f"{s // 3600}h{s % 3600 // 60:02d}m" if s >= 3600 else f"{s // 60}m{s % 60:02d}s"
-
-
-def progress_line(c: dict[str, Any]) -> str:
-    """One status line from progress counts (shared by the bar and ``status``)."""
-    finished = c["done"] + c["failed"] + c["not_knittable"]
-    width = 24
-    filled = int(width * finished / max(c["total"], 1))
-    rate = c.get("rate_per_s") or 0.0
-    eta = (c["running"] + c["pending"]) / rate if rate > 0 else math.inf
-    return (f"[{'#' * filled}{'.' * (width - filled)}] {finished}/{c['total']}  "
-            f"done {c['done']}  failed {c['failed']}  not_knittable {c['not_knittable']}  "
-            f"running {c['running']}  pending {c['pending']}  {rate * 60:.1f}/min  "
-            f"ETA {_duration(eta)}")  # fmt: skip
 
 
 class _Master:
@@ -191,10 +171,6 @@ class _Master:
         return {**self.zero[pid], "params": self.points[pid].params}
 
     def _record_sweep(self, s: SweepTask, record: dict[str, Any], meta: dict[str, Any]) -> None:
-        if record:
-            gaps = energy_gaps(record["bending_energy"], record["contact_energy"])
-            meta |= {"delta_E_b": gaps.delta_E_b, "delta_E_c": gaps.delta_E_c,
-                     "energy_gap": gaps.jamming_gap(s.direction)}  # fmt: skip
         self.writer.add(SWEEPS, s.task_id, record, meta)
         self.finished[SWEEPS][s.task_id] = meta
         self._count(str(meta["status"]))
@@ -217,7 +193,6 @@ class _Master:
         meta: dict[str, Any] = {
             "status": status,
             "message": message,
-            "params": params.model_dump(mode="json"),
             **params.model_dump(mode="json"),
             "L_over_r": params.L_over_r,
         }
@@ -275,7 +250,8 @@ class _Master:
             record = dict(reply.record)
             status = record.pop("status")
             message = record.pop("message")
-        meta = self._meta(task, status, message, reply)
+        record, scalars = split_record(record)
+        meta = self._meta(task, status, message, reply) | scalars
         if isinstance(task, SweepTask):
             self._record_sweep(task, record, meta)
             return
@@ -283,7 +259,7 @@ class _Master:
         self.finished[POINTS][task.task_id] = meta
         self._count(status)
         if status == DONE:
-            self.zero[task.task_id] = {**record, "status": status, "message": message}
+            self.zero[task.task_id] = {**record, **meta}
         for s in self.sweeps_of.pop(task.task_id, []):
             self._release(s, meta)
 
@@ -304,10 +280,6 @@ class _Master:
             self._last_line = t
             end = "\r" if self.tty and not force else "\n"
             print(progress_line(counts), end=end, file=sys.stderr, flush=True)
-
-
-def _payload(point: PointTask, record: dict[str, Any]) -> dict[str, Any]:
-    return {**record, "params": point.params}
 
 
 def run_job(

@@ -13,20 +13,25 @@ So at any instant the HDF5 file on disk is a complete, readable version, and
 no result that arrived is lost; readers (``knitsweep status``, the
 post-processor) see the file plus the journal, deduplicated by task id.
 
-Schema (``schema_version`` 1; documented in the README):
+Schema (``schema_version`` 2, :data:`RESULTS_SCHEMA_VERSION`; documented in the
+README). Files of schema 1 (knitsweep before the record round trip) still read;
+they cannot be resumed or merged into.
 
 * root attributes: ``schema_version``, ``knitsweep_version``, ``git_commit``,
   ``job_json`` (effective job spec), ``job_hash``, ``job_name``, library versions
   (``numpy_version`` … ``mpi_library_version``), ``host``, ``slurm_job_id``,
   ``started_at``, ``finished_at``, ``run_status``, ``n_points``, ``n_sweeps``;
-* ``/points/<id>``: one grid point's zero-force relaxation over all starts;
-* ``/sweeps/<id>``: one strain sweep (arrays over steps, step 0 = zero force),
-  with its energy gaps ``delta_E_b``, ``delta_E_c`` and ``energy_gap`` (the
-  direction's jamming gap: ΔE_c in x, ΔE_b in y) as attributes;
+* ``/points/<id>``: one grid point's zero-force relaxation over all starts
+  (``ZeroForce.to_record``: every field of every start);
+* ``/sweeps/<id>``: one strain sweep (``SweepResult.to_record``: arrays over steps,
+  step 0 = zero force), with its energy gaps ``delta_E_b``, ``delta_E_c`` and
+  ``energy_gap`` (the direction's jamming gap: ΔE_c in x, ΔE_b in y) as attributes;
 * ``/series/<id>`` (adaptive jobs): one L series' final transition bracket.
 Each task group has attributes ``status`` (done | failed | not_knittable),
-``message``, ``rank``, ``host``, ``seconds`` and, on failure, ``error_kind``,
-``error_message``, ``traceback``.
+``message``, the stitch parameters (``L_mm`` … ``twist_bound``, and ``L_over_r``),
+``rank``, ``host``, ``seconds`` and, on failure, ``error_kind``,
+``error_message``, ``traceback``. Scalars of a record are attributes, arrays are
+datasets.
 """
 
 from __future__ import annotations
@@ -46,9 +51,13 @@ from typing import Any
 
 import numpy as np
 
-from .. import SCHEMA_VERSION, __version__
+from .. import __version__
 from ..config import InputError
 
+RESULTS_SCHEMA_VERSION = 2
+"""The results-file format this knitsweep writes."""
+READABLE_SCHEMAS = (1, 2)
+"""Results-file formats this knitsweep reads."""
 POINTS, SWEEPS, SERIES = "points", "sweeps", "series"
 KINDS = (POINTS, SWEEPS, SERIES)
 _STR = None  # h5py string dtype, created lazily
@@ -146,6 +155,13 @@ def _git_commit() -> str:
 # ---- writing ---------------------------------------------------------------------
 
 
+def split_record(record: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(arrays, scalars) of a task's record: what becomes datasets and what becomes
+    attributes of its group."""
+    arrays = {k: v for k, v in record.items() if isinstance(v, np.ndarray) and v.ndim > 0}
+    return arrays, {k: v for k, v in record.items() if k not in arrays}
+
+
 def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
     for key, value in {**meta, **record}.items():
         if value is None:
@@ -239,7 +255,7 @@ class ResultWriter:
             return
         tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         with h5py.File(tmp, "w") as f:
-            f.attrs["schema_version"] = SCHEMA_VERSION
+            f.attrs["schema_version"] = RESULTS_SCHEMA_VERSION
             f.attrs["job_json"] = self.job.model_dump_json()
             f.attrs["job_hash"] = self.job.job_hash
             f.attrs["job_name"] = self.job.name
@@ -318,10 +334,12 @@ def check_compatible(path: Path, job) -> None:
         raise InputError(
             f"{path} exists but is not a readable HDF5 file ({e}); move it away"
         ) from None
-    if version != SCHEMA_VERSION:
+    if version != RESULTS_SCHEMA_VERSION:
+        readable = " (it still reads: status, phase-diagram)" if version in READABLE_SCHEMAS else ""
         raise InputError(
-            f"{path} has schema_version {version}, this knitsweep writes {SCHEMA_VERSION}: "
-            "write to a new file (--out) or use the knitsweep version that made it"
+            f"{path} has results schema_version {version}{readable}, this knitsweep writes "
+            f"{RESULTS_SCHEMA_VERSION}: write to a new file (--out), or resume it with the "
+            "knitsweep version that made it"
         )
     if their_hash != job.job_hash:
         from .jobs import JobSpec
@@ -412,10 +430,11 @@ def read_root(path: str | Path) -> dict[str, Any]:
             attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
     except OSError as e:
         raise InputError(f"{path}: not a readable HDF5 file ({e})") from None
-    if attrs.get("schema_version") != SCHEMA_VERSION:
+    if attrs.get("schema_version") not in READABLE_SCHEMAS:
         raise InputError(
-            f"{path}: schema_version {attrs.get('schema_version')} is not {SCHEMA_VERSION}, "
-            "the one this knitsweep reads; use the knitsweep version that wrote it"
+            f"{path}: results schema_version {attrs.get('schema_version')!r}; this knitsweep "
+            f"reads {' and '.join(map(str, READABLE_SCHEMAS))}: use the knitsweep version that "
+            "wrote it"
         )
     return attrs
 

@@ -1,4 +1,4 @@
-"""Entry points behind ``knitsweep run`` and ``knitsweep status``.
+"""Entry points behind ``knitsweep run``, ``knitsweep status`` and ``knitsweep merge``.
 
 ``run`` picks the executor: under ``mpirun -n N`` (N > 1) rank 0 is the master
 and ranks 1..N-1 work; otherwise the job runs here, serially or in ``workers``
@@ -12,10 +12,11 @@ import time
 from pathlib import Path
 from typing import Any, Literal
 
-from ..config import InputError
+from ..config import DONE, FAILED, InputError
 from .jobs import JobSpec, load_job
 from .results_file import (
     POINTS,
+    RESULTS_SCHEMA_VERSION,
     SERIES,
     iter_entries,
     lock_path,
@@ -23,7 +24,6 @@ from .results_file import (
     read_root,
     writer_alive,
 )
-from .worker import DONE, FAILED
 
 ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
 
@@ -152,6 +152,11 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
         raise InputError("merge needs at least one input file")
     out = Path(out)
     roots = [read_root(p) for p in inputs]
+    old = [str(p) for p, r in zip(inputs, roots, strict=True)
+           if r.get("schema_version") != RESULTS_SCHEMA_VERSION]  # fmt: skip
+    if old:
+        raise InputError(f"{', '.join(old)}: results schema older than {RESULTS_SCHEMA_VERSION}; "
+                         "merge them with the knitsweep version that wrote them")  # fmt: skip
     hashes = {r["job_hash"] for r in roots}
     if len(hashes) != 1:
         names = ", ".join(

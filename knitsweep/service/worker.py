@@ -2,9 +2,10 @@
 
 A task is a value (``PointTask`` or ``SweepTask`` plus, for a sweep, its
 point's zero-force record); a reply is ``Reply(task_id, record, error, rank,
-host, seconds)``. Records are flat dicts of numbers, strings and numpy arrays:
-exactly what the master writes to HDF5. A failing task never takes the run down:
-its exception comes back as an error with the traceback, rank and host.
+host, seconds)``. Records are flat dicts of numbers, strings and numpy arrays,
+finished here (energy gaps included): exactly what the master writes to HDF5.
+A failing task never takes the run down: its exception comes back as an error
+with the traceback, rank and host.
 """
 
 from __future__ import annotations
@@ -19,10 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from ..relax import CONVERGED, NOT_KNITTABLE, Relaxation
+from ..config import CONVERGED, DONE, FAILED, NOT_KNITTABLE
 from .jobs import JobSpec, PointTask, SweepTask
 
-DONE, FAILED = "done", "failed"
 _STATUS = {CONVERGED: DONE, NOT_KNITTABLE: NOT_KNITTABLE}
 
 
@@ -56,8 +56,15 @@ def wall_time_budget(seconds: float):
         signal.signal(signal.SIGALRM, previous)
 
 
+def prepare(job: JobSpec) -> None:
+    """Compile (or load from numba's cache) the kernels this job's tasks use."""
+    from ..model import compile_kernels
+
+    compile_kernels(job.fidelity)
+
+
 def execute(job: JobSpec, task: PointTask | SweepTask, zero: dict | None, rank: int) -> Reply:
-    """Run one task under the job's wall-time budget; never raises."""
+    """Run one task under the job's wall-time budget, single-threaded; never raises."""
     from threadpoolctl import threadpool_limits
 
     t0 = time.perf_counter()
@@ -99,15 +106,16 @@ def _signal_cause(e: Exception) -> Exception:
 
 
 def run_point(job: JobSpec, task: PointTask) -> dict[str, Any]:
+    """The zero-force record of one point (``ZeroForce.to_record`` plus the task
+    status, the winner's thickness and, if stored, its contact forces)."""
     from ..model import CellModel
     from ..zero_force import zero_force
 
     zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed)
-    record = zero_force_record(zf)
+    record = zf.to_record()
+    record["status"] = _STATUS.get(zf.status, FAILED)
     best = zf.best
     model = CellModel(task.params, job.fidelity)
-    record["status"] = _STATUS.get(zf.status, FAILED)
-    record["message"] = zf.message
     if np.all(np.isfinite(best.x)):
         record["thickness"] = model.thickness(best.x)
         if job.store.contact_forces:
@@ -115,83 +123,26 @@ def run_point(job: JobSpec, task: PointTask) -> dict[str, Any]:
     return record
 
 
-def zero_force_record(zf) -> dict[str, Any]:
-    """The zero-force result as storable arrays (every start, and the winner)."""
-    rs: tuple[Relaxation, ...] = zf.relaxations
-    return {
-        "winner": zf.winner,
-        "labels": np.array(zf.labels, dtype=object),
-        "stages": np.array(zf.stages, dtype=np.int64),
-        "x": np.array([r.x for r in rs]),
-        "bending_energy": np.array([r.bending_energy for r in rs]),
-        "contact_energy": np.array([r.contact_energy for r in rs]),
-        "length": np.array([r.length for r in rs]),
-        "start_status": np.array([r.status for r in rs], dtype=object),
-        "start_message": np.array([r.message for r in rs], dtype=object),
-        "iterations": np.array([r.iterations for r in rs], dtype=np.int64),
-        "evaluations": np.array([r.evaluations for r in rs], dtype=np.int64),
-        "min_zeta": np.array([r.min_zeta for r in rs]),
-        "kkt_residual": np.array([r.kkt_residual for r in rs]),
-        "length_residual": np.array([r.length_residual for r in rs]),
-        "twist_active": np.array([r.twist_active for r in rs]),
-        "relax_seconds": np.array([r.seconds for r in rs]),
-    }
-
-
-def zero_force_from_record(rec: dict[str, Any]):
-    """Rebuild the ``ZeroForce`` a sweep needs from a stored record."""
-    from ..zero_force import ZeroForce
-
-    rs = []
-    for i in range(len(rec["x"])):
-        rs.append(
-            Relaxation(
-                x=np.asarray(rec["x"][i], dtype=float),
-                bending_energy=float(rec["bending_energy"][i]),
-                contact_energy=float(rec["contact_energy"][i]),
-                length=float(rec["length"][i]),
-                status=str(rec["start_status"][i]),
-                message=str(rec["start_message"][i]),
-                iterations=int(rec["iterations"][i]),
-                evaluations=int(rec["evaluations"][i]),
-                length_residual=float(rec["length_residual"][i]),
-                twist_margin=float("nan"),
-                twist_active=bool(rec["twist_active"][i]),
-                min_zeta=float(rec["min_zeta"][i]),
-                kkt_residual=float(rec["kkt_residual"][i]),
-                length_multiplier=float("nan"),
-                period_forces=(0.0, 0.0),
-                seconds=float(rec["relax_seconds"][i]),
-            )
-        )
-    status = CONVERGED if rec["status"] == DONE else str(rec["status"])
-    return ZeroForce(tuple(rs), tuple(map(str, rec["labels"])), tuple(rec["stages"]),
-                     int(rec["winner"]), status, str(rec["message"]))  # fmt: skip
-
-
 # ---- sweeps ---------------------------------------------------------------------
+
+_SWEEP_STATUS = {"done": DONE, "incomplete": DONE, "not_knittable": NOT_KNITTABLE}
+"""Task status of a sweep: an 'incomplete' sweep (step limit) still holds valid
+steps; its ``sweep_status`` says so."""
 
 
 def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, Any]:
+    """The record of one sweep (``SweepResult.to_record`` plus the task status and
+    the optional per-step observables); ``zero`` is its point's stored record."""
     from ..model import CellModel
     from ..strain_sweep import strain_sweep
+    from ..zero_force import ZeroForce
 
     params = zero["params"]
-    zf = zero_force_from_record(zero)
+    zf = ZeroForce.from_record(zero)
     result = strain_sweep(params, zf, task.direction, job.protocol, job.fidelity, job.solver)
-    # an 'incomplete' sweep (step limit) still holds valid steps; its sweep_status says so
-    status = {"done": DONE, "incomplete": DONE, "not_knittable": NOT_KNITTABLE}
-    record: dict[str, Any] = {
-        "status": status.get(result.status, FAILED),
-        "message": result.stop_reason,
-        "sweep_status": result.status,
-        "relaxations": result.relaxations,
-        "wall_seconds": result.wall_seconds,
-    }
-    arrays = result.arrays()
-    states = arrays.pop("states")
-    record.update(arrays)
-    record["total_energy"] = result.total_energy
+    record = result.to_record()
+    record["status"] = _SWEEP_STATUS.get(result.status, FAILED)
+    states = record.pop("states")
     if job.store.states:
         record["states"] = states
     if job.store.geometry or job.store.contact_forces:

@@ -22,12 +22,20 @@ import numpy as np
 
 from ..analysis import energy_gaps, offset_stress, secant_modulus
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
-from ..config import Fidelity, SolverSettings, StitchParams
-from ..formats import shipped_state
-from ..model import CellModel
-from ..presets import PRESETS, preset_settings
-from ..strain_sweep import SweepProtocol, strain_sweep
-from ..zero_force import StartSettings, zero_force
+from ..analysis.transitions import GAP_THRESHOLD, threshold_crossing
+from ..config import (
+    PRESETS,
+    Fidelity,
+    InputError,
+    Numerics,
+    SolverSettings,
+    StartSettings,
+    StitchParams,
+    SweepProtocol,
+)
+from ..model import compile_kernels
+from ..strain_sweep import strain_sweep
+from ..zero_force import zero_force
 
 # around the k = 0.1 mN/mm^2 transition (L = 11.4-11.5 mm in x and y, paper Fig. 3)
 DEFAULT_SERIES = [11.3, 11.4, 11.5, 11.6, 11.7]
@@ -53,20 +61,24 @@ class Setting:
 def setting(spec: str) -> Setting:
     """'converged' or 'converged:samples_per_segment=6+ftol=1e-8' -> Setting."""
     name, _, overrides = spec.partition(":")
-    fid = preset_settings(name, "fidelity")
-    sol = preset_settings(name, "solver")
-    pro = preset_settings(name, "protocol")
+    fields = {}
     for item in filter(None, overrides.split("+")):
-        key, _, value = item.partition("=")
-        target = (
-            fid
-            if key in Fidelity.model_fields
-            else sol
-            if key in SolverSettings.model_fields
-            else pro
-        )
-        target[key] = value
-    return Setting(spec, Fidelity(**fid), SolverSettings(**sol), SweepProtocol(**pro))
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise InputError(f"setting {spec!r}: {item!r} is not field=value")
+        fields[key] = _number(value)
+    n = Numerics.from_preset(name, **fields)
+    return Setting(spec, n.fidelity, n.solver, n.protocol)
+
+
+def _number(text: str) -> int | float | str:
+    """A value of a setting spec: an integer, a number, or the text itself."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
 
 
 @dataclass
@@ -79,22 +91,12 @@ class SettingResult:
     errors: dict[str, float | None] = field(default_factory=dict)
 
 
-def _crossing(Ls: list[float], gaps: list[float], threshold: float, r: float) -> float | None:
-    """Interpolated L/r where the gap first falls below the threshold."""
-    for i in range(1, len(Ls)):
-        if gaps[i] < threshold <= gaps[i - 1]:
-            t = (gaps[i - 1] - threshold) / (gaps[i - 1] - gaps[i])
-            return (Ls[i - 1] + t * (Ls[i] - Ls[i - 1])) / r
-    return None
-
-
 def run_setting(point: StitchParams, s: Setting, series: list[float], threshold: float,
                 progress=None) -> SettingResult:  # fmt: skip
     """Every measurement of one setting (one start: Init_1, as the reference)."""
     starts = StartSettings(count=1)
     out = SettingResult(s.name)
-    # load the compiled kernels before the clock starts
-    CellModel(point, s.fidelity).energy_and_gradients(shipped_state(1))
+    compile_kernels(s.fidelity)  # load the compiled kernels before the clock starts
     t = time.perf_counter()
     zf = zero_force(point, s.fidelity, s.solver, starts)
     out.seconds_relax = time.perf_counter() - t
@@ -125,7 +127,8 @@ def run_setting(point: StitchParams, s: Setting, series: list[float], threshold:
         sweep_times.append(time.perf_counter() - t)
         relaxations.append(sw.relaxations)
         gap_series.append(energy_gaps(sw.bending_energy, sw.contact_energy).delta_E_c)
-    out.values["L_over_r_trans_x"] = _crossing(series, gap_series, threshold, point.r_mm)
+    crossing = threshold_crossing(series, gap_series, threshold)
+    out.values["L_over_r_trans_x"] = None if crossing is None else crossing / point.r_mm
     out.seconds_sweep = float(np.median(sweep_times))
     out.relaxations_per_sweep = float(np.mean(relaxations))
     if progress:
@@ -137,7 +140,7 @@ def accuracy_study(
     point: StitchParams,
     specs: list[str] | None = None,
     series: list[float] | None = None,
-    threshold: float = 5e-5,
+    threshold: float = GAP_THRESHOLD,
     workers: int = 1,
     progress=None,
 ) -> list[SettingResult]:
