@@ -1,6 +1,32 @@
 """knitsweep: fast simulations of jammed stockinette knitted fabric.
 
 Importing the package does no work: no MPI, no numba compilation, no file access.
+``knitsweep.load(*paths)`` reads results files into pandas DataFrames and an
+xarray Dataset (``knitsweep.report.results``).
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from .report.results import Results
+
 __version__ = "0.1.0"
+__all__ = ["__version__", "load"]
+
+
+def load(*paths: str | Path, threshold: float | None = None) -> Results:
+    """Read one or several results files (also while a run writes them) into
+    :class:`knitsweep.report.results.Results`: ``points``, ``sweeps``, ``curves``,
+    ``transitions`` and ``problems`` DataFrames and ``to_xarray()``.
+
+    ``threshold``: the energy-gap threshold between jammed and unjammed (mJ;
+    default the paper's, ``knitsweep.analysis.transitions.GAP_THRESHOLD``).
+    """
+    from .analysis.transitions import GAP_THRESHOLD
+    from .report.results import load as _load
+
+    return _load(*paths, threshold=GAP_THRESHOLD if threshold is None else threshold)

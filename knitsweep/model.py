@@ -7,6 +7,7 @@ are numpy arrays of shape (30,), laid out as in ``knitsweep.state``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -182,11 +183,18 @@ class CellModel:
         return float(z.max() - z.min() + 2.0 * self.ip.r)
 
 
-def compile_kernels(fidelity: Fidelity | None = None) -> None:
+def compile_kernels(
+    fidelity: Fidelity | None = None, notice: Callable[[str], None] | None = None
+) -> None:
     """Compile (or load from numba's cache) every kernel a task uses, once, before
-    work fans out to other processes."""
+    work fans out to other processes. ``notice`` is told first when the kernels are
+    not cached yet, so that a user knows why the first run waits."""
+    from . import kernels
     from .formats import shipped_state
 
+    if notice is not None and not kernels.cached():
+        notice(f"compiling numerical kernels, once per install: ~{kernels.COMPILE_SECONDS} s "
+               f"(cached in {kernels.numba.config.CACHE_DIR})")  # fmt: skip
     model = CellModel(StitchParams(), fidelity)
     x = shipped_state(1)
     model.energy_and_gradients(x)

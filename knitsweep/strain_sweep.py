@@ -77,7 +77,7 @@ class SweepResult:
     min_zeta: np.ndarray = field(default_factory=lambda: np.empty(0))
     length_residual: np.ndarray = field(default_factory=lambda: np.empty(0))
     kkt_residual: np.ndarray = field(default_factory=lambda: np.empty(0))
-    seconds: np.ndarray = field(default_factory=lambda: np.empty(0))
+    relax_seconds: np.ndarray = field(default_factory=lambda: np.empty(0))
     states: np.ndarray = field(default_factory=lambda: np.empty((0, N_STATE)))
     status: str = "done"
     stop_reason: str = ""
@@ -127,7 +127,7 @@ class SweepResult:
 
 _STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "bending_energy",
                 "contact_energy", "thickness", "winner", "converged", "iterations", "evaluations",
-                "min_zeta", "length_residual", "kkt_residual", "seconds", "states")  # fmt: skip
+                "min_zeta", "length_residual", "kkt_residual", "relax_seconds", "states")  # fmt: skip
 
 
 def centred_stress(energy: np.ndarray, a: np.ndarray, a_perp0: float) -> np.ndarray:
@@ -255,7 +255,7 @@ def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, r
         min_zeta=np.array([s.min_zeta for s in steps]),
         length_residual=np.array([s.length_residual for s in steps]),
         kkt_residual=np.array([s.kkt_residual for s in steps]),
-        seconds=np.array([s.seconds for s in steps]),
+        relax_seconds=np.array([s.seconds for s in steps]),
         states=np.array([s.x for s in steps]),
         status=status,
         stop_reason=reason,

@@ -70,14 +70,14 @@ def test_tiny_job_cli_tables(tiny, tmp_path):
     sweeps = read_csv(tmp_path / "pd" / "sweeps.csv")
     assert len(sweeps) == 4
     for col in ("task_id", "direction", "L_mm", "L_over_r", "k_mN_per_mm2", "Y_sec_N_per_mm",
-                "sigma0_N_per_mm", "has_linear_regime", "delta_E_b", "delta_E_c",
+                "sigma0_N_per_mm", "has_linear_regime", "delta_E_b_mJ", "delta_E_c_mJ",
                 "aspect_ratio", "area_strain_min", "thickness_strain_max", "regime",
                 "partial"):  # fmt: skip
         assert col in sweeps[0], col
     trans = read_csv(tmp_path / "pd" / "transitions.csv")
     for col in ("direction", *SERIES_PARAMS, "status", "L_over_r_trans", "bracket_lower",
                 "bracket_upper", "fit_slope_per_mm", "fit_intercept", "fit_max_abs_residual",
-                "fit_mean_abs_residual", "fit_mse", "delta_L_over_r", "threshold"):  # fmt: skip
+                "fit_mean_abs_residual", "fit_mse", "delta_L_over_r", "threshold_mJ"):  # fmt: skip
         assert col in trans[0], col
 
 
@@ -264,6 +264,7 @@ def test_adaptive_series_bracket_is_reported(tmp_path):
         g = f.create_group("series/s0.1x")
         for key, value in {"status": "done", "direction": "x", "k_mN_per_mm2": 0.1,
                            "B_mN_mm2": 90.0, "r_core_mm": 0.22, "r_mm": 0.5, "p": 2.4,
+                           "regularization_mN_mm4": 2.0, "twist_bound": 0.9,
                            "bracket_lower": 22.9, "bracket_upper": 23.0}.items():  # fmt: skip
             g.attrs[key] = value
     red = reduce_results(path)

@@ -13,7 +13,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import TINY, assert_same_results
+from conftest import TINY, assert_same_results, physics
 
 from knitsweep import service
 from knitsweep.config import InputError
@@ -76,14 +76,41 @@ def test_rerun_skips_finished_tasks(tiny_reference, tmp_path):
     assert_same_results(tiny_reference, out)
 
 
-def test_different_job_is_refused_and_file_kept(tiny_reference, tmp_path):
+def test_other_numerics_are_refused_and_file_kept(tiny_reference, tmp_path):
     out = tmp_path / "kept.h5"
     shutil.copy(tiny_reference, out)
     other = tmp_path / "other.toml"
-    other.write_text(TINY.read_text().replace("[11.4, 12.0]", "[11.4, 12.1]"))
-    with pytest.raises(InputError, match=r"different job \(differs in grid.L_mm\)"):
+    other.write_text(TINY.read_text().replace("step_mm = 0.02", "step_mm = 0.01")
+                     .replace("[11.4, 12.0]", "[11.4, 12.1]"))  # fmt: skip
+    with pytest.raises(InputError, match=r"other settings \(differs in protocol.step_mm\)"):
         service.run(other, out, executor="serial", show_progress=False)
     assert_same_results(tiny_reference, out)
+
+
+def test_grown_grid_adds_only_the_new_tasks(tiny_reference, tmp_path):
+    """Tasks are content-addressed: one more L in the job computes one more point
+    and its two sweeps; the finished ones are kept bit for bit."""
+    import json
+
+    out = tmp_path / "grown.h5"
+    shutil.copy(tiny_reference, out)
+    grown = tmp_path / "grown.toml"
+    grown.write_text(TINY.read_text().replace("[11.4, 12.0]", "[11.4, 12.0, 12.3]"))
+    summary = service.run(grown, out, executor="serial", show_progress=False)
+    assert (summary.total, summary.skipped, summary.counts["done"]) == (9, 6, 9)
+    with h5py.File(tiny_reference) as f:
+        original = f.attrs["job_hash"]
+    with h5py.File(out) as f:
+        assert f.attrs["grown_from"] == original
+        assert json.loads(f.attrs["job_json"])["grid"]["L_mm"] == [11.4, 12.0, 12.3]
+        assert set(f["points"]) > set(h5py.File(tiny_reference)["points"])
+    s = service.status(out)
+    assert (s["done"], s["total"], s["pending"]) == (9, 9, 0)
+    ref = physics(tiny_reference)
+    now = physics(out)
+    for key, rec in ref.items():
+        for name, value in rec.items():
+            assert np.array_equal(value, now[key][name]), (key, name)
 
 
 def test_failing_task_is_isolated(tmp_path, monkeypatch):

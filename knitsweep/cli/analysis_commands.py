@@ -19,6 +19,7 @@ from .common import (
     RegOpt,
     ROpt,
     app,
+    compile_notice,
     stitch_inputs,
     user_errors,
 )
@@ -26,10 +27,15 @@ from .common import (
 
 @app.command("phase-diagram")
 def phase_diagram(
-    results: Annotated[Path, typer.Argument(help="results file written by knitsweep run")],
+    results: Annotated[
+        list[Path],
+        typer.Argument(help="results file(s) written by knitsweep run; several combine"),
+    ],
     out: Annotated[
         Path | None,
-        typer.Option("--out", help="directory for the CSV and PNG files [<results>_phase_diagram]"),
+        typer.Option(
+            "--out", help="directory for the CSV and figure files [<first results>_phase_diagram]"
+        ),
     ] = None,
     threshold: Annotated[
         float | None,
@@ -38,8 +44,9 @@ def phase_diagram(
     no_figures: Annotated[bool, typer.Option("--no-figures", help="write the tables only")] = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Jamming transitions (L/r)_trans, ΔL/r and regimes of a results file, as a printed
-    table, CSV files and the paper's figures; also on a file a run is still writing."""
+    """Jamming transitions (L/r)_trans, ΔL/r and regimes of one or several results files,
+    as a printed table, CSV files and the paper's figures; also on a file a run is
+    still writing."""
     from ..analysis.transitions import GAP_THRESHOLD
     from ..report import phase_diagram as make_phase_diagram
 
@@ -49,7 +56,8 @@ def phase_diagram(
     if as_json:
         red = report.reduction
         typer.echo(json.dumps({
-            "file": str(red.path), "run_status": red.run_status, "partial": red.partial,
+            "files": [str(p) for p in red.paths], "run_status": red.run_status,
+            "partial": red.partial,
             "partial_reason": red.partial_reason, "threshold": red.threshold,
             "transitions": red.transitions, "problems": red.problems,
             "tables": [str(p) for p in report.tables],
@@ -59,6 +67,27 @@ def phase_diagram(
         return
     for line in report.lines():
         typer.echo(line)
+
+
+@app.command()
+def report(
+    results: Annotated[list[Path], typer.Argument(help="results file(s) written by knitsweep run")],
+    out: Annotated[Path, typer.Option("--out", help="the page to write (.html)")] = Path(
+        "report.html"
+    ),
+    threshold: Annotated[
+        float | None,
+        typer.Option("--threshold", help="energy-gap threshold, mJ [the paper's 5·10⁻⁵]"),
+    ] = None,
+) -> None:  # fmt: skip
+    """One self-contained HTML page of results files: figures inline, the transitions,
+    sweep metrics and zero-force states, failures, the job specs and provenance."""
+    from ..analysis.transitions import GAP_THRESHOLD
+    from ..report.html import write_report
+
+    with user_errors():
+        path = write_report(results, out, GAP_THRESHOLD if threshold is None else threshold)
+    typer.echo(f"wrote {path}")
 
 
 @app.command()
@@ -146,6 +175,7 @@ def accuracy(
 
         for spec in specs:
             setting(spec)  # validate every setting before any compute
+    compile_notice()
     results = accuracy_study(params, specs, Ls, workers=workers,
                              progress=lambda m: typer.echo(m, err=True))  # fmt: skip
     typer.echo(table(results))

@@ -66,6 +66,15 @@ def user_errors():
         raise typer.Exit(2) from None
 
 
+def compile_notice() -> None:
+    """Tell the user when this command will first compile the numerical kernels."""
+    from .. import kernels
+
+    if not kernels.cached():
+        typer.echo(f"compiling numerical kernels, once per install: ~{kernels.COMPILE_SECONDS} s",
+                   err=True)  # fmt: skip
+
+
 def stitch_inputs(config, **flags):
     """(StitchParams, Fidelity) from defaults < an authors' config < explicit flags."""
     from ..config import Fidelity, StitchParams

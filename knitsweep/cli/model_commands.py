@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -24,6 +23,7 @@ from .common import (
     SamplesOpt,
     _print_result,
     app,
+    compile_notice,
     stitch_inputs,
     user_errors,
 )
@@ -47,6 +47,7 @@ def energy(
             samples=samples, quadrature_nodes=quadrature_nodes, images=images,
         )  # fmt: skip
         x = read_state(state)
+        compile_notice()
         result = CellModel(params, fidelity).energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
     _print_result(result, as_json, ENERGY_UNITS)
@@ -87,6 +88,7 @@ def relax(
                                  quadrature_nodes=quadrature_nodes, images=images)  # fmt: skip
         settings = StartSettings() if starts is None else StartSettings(count=starts)
         x0 = None if state is None else read_state(state)
+        compile_notice()
         t0 = time.perf_counter()
         best = zero_force(params, n.fidelity, n.solver, settings, seed, initial=x0).best
         seconds = time.perf_counter() - t0
@@ -118,6 +120,7 @@ def sweep(
     """One point's strain sweep, with a progress bar; prints the stress–strain table."""
     from ..config import InputError, Numerics, StartSettings
     from ..report.sweep_table import sweep_table, write_sweep
+    from ..service.progress import SweepProgress
     from ..strain_sweep import NoRestState, strain_sweep_from_rest
 
     with user_errors():
@@ -134,19 +137,12 @@ def sweep(
         )  # fmt: skip
         protocol = n.protocol
         settings = StartSettings() if starts is None else StartSettings(count=starts)
-    with typer.progressbar(length=1000, label=f"{direction} sweep", file=sys.stderr) as bar:
-        shown = [0]
-
-        def progress(step_no, strain, stress):
-            frac = max(abs(strain) / protocol.max_strain, stress / protocol.stop_stress_N_per_mm)
-            target = int(1000 * min(max(frac, 0.0), 1.0))
-            if target > shown[0]:
-                bar.update(target - shown[0])
-                shown[0] = target
-
+    compile_notice()
+    with SweepProgress(f"{direction} sweep", protocol.max_strain,
+                       protocol.stop_stress_N_per_mm) as bar:  # fmt: skip
         try:
             _, result = strain_sweep_from_rest(params, direction, protocol, n.fidelity, n.solver,
-                                               settings, seed, progress)  # fmt: skip
+                                               settings, seed, bar.update)  # fmt: skip
         except NoRestState as e:
             typer.echo(f"error: {e}", err=True)
             raise typer.Exit(1) from None

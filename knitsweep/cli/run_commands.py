@@ -51,15 +51,24 @@ def run(
 @app.command()
 def status(
     results: Annotated[Path, typer.Argument(help="results file written by knitsweep run")],
+    by: Annotated[
+        str | None,
+        typer.Option("--by", help="count per value of a parameter: L_mm, k_mN_per_mm2, …, "
+                     "direction"),
+    ] = None,
     as_json: JsonOpt = False,
-) -> None:
-    """Counts of a results file (done, failed, running, pending, rate, ETA), also
-    while a run is writing it."""
+) -> None:  # fmt: skip
+    """Counts of a results file (done, failed, running, pending), elapsed time and ETA
+    while a run writes it, wall time once finished."""
     from .. import service
-    from ..service.master import progress_line
+    from ..config import InputError
+    from ..quantities import PARAMETERS
+    from ..service.progress import progress_line
 
     with user_errors():
-        s = service.status(results)
+        if by is not None and by not in (*PARAMETERS, "direction"):
+            raise InputError(f"by = {by!r}: must be one of {', '.join((*PARAMETERS, 'direction'))}")
+        s = service.status(results, by=by)
     if as_json:
         typer.echo(json.dumps(s))
         return
@@ -72,6 +81,12 @@ def status(
     )
     typer.echo(f"{s['file']}  job {s['job']}  {s['run_status']}{state}")
     typer.echo(progress_line(s))
+    if not s["live"]:
+        typer.echo(f"started {s['started_at']}, finished {s['finished_at'] or '-'}")
+    for name, groups in s["by"].items():
+        for value, counts in groups.items():
+            listing = "  ".join(f"{k} {v}" for k, v in counts.items())
+            typer.echo(f"  {name} = {value}: {listing}")
     for line in s["failures"][:20]:
         typer.echo(f"  failed {line}")
 

@@ -1,20 +1,24 @@
-"""The post-processor: a results file → tables and the paper's figures (docs/model.md §9).
+"""The post-processor: results files → tables and the paper's figures (docs/model.md §9).
 
 * :mod:`.reduce` — per-sweep metrics, per-series transitions, per-point regimes;
+* :mod:`.results` — ``knitsweep.load``: the same tables as pandas DataFrames and xarray;
 * :mod:`.tables` — CSV files and the printed table;
-* :mod:`.figures` — the PNG figures (matplotlib, imported only when drawing).
+* :mod:`.figures` — the figures (matplotlib, imported only when drawing).
 
-:func:`phase_diagram` is what ``knitsweep phase-diagram`` calls.
+:func:`phase_diagram` is what ``knitsweep phase-diagram`` calls; it reads its files
+with :func:`.results.load`, so the command and the Python API cannot disagree.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..analysis import GAP_THRESHOLD
 from .reduce import Reduction, reduce_results
+from .results import Results, load
 from .tables import problems_text, transitions_text, write_tables
 
 if TYPE_CHECKING:
@@ -23,6 +27,8 @@ if TYPE_CHECKING:
 __all__ = [
     "PhaseDiagramReport",
     "Reduction",
+    "Results",
+    "load",
     "phase_diagram",
     "problems_text",
     "reduce_results",
@@ -33,11 +39,15 @@ __all__ = [
 
 @dataclass(frozen=True)
 class PhaseDiagramReport:
-    """What :func:`phase_diagram` did: the reduction, the tables and the figures."""
+    """What :func:`phase_diagram` did: the results, the tables and the figures."""
 
-    reduction: Reduction
+    results: Results
     tables: list[Path]
     figures: list[FigureOutcome]
+
+    @property
+    def reduction(self) -> Reduction:
+        return self.results.reduction
 
     def lines(self) -> list[str]:
         """The report as printed by the command."""
@@ -51,32 +61,32 @@ class PhaseDiagramReport:
 
 
 def phase_diagram(
-    results: str | Path,
+    results: str | Path | Sequence[str | Path],
     out_dir: str | Path | None = None,
     threshold: float = GAP_THRESHOLD,
     figures: bool = True,
 ) -> PhaseDiagramReport:
-    """Reduce a results file and write its tables and figures.
+    """Read results files and write their tables and figures.
 
     Args:
-        results: HDF5 results file of ``knitsweep run`` (also while it is written).
-        out_dir: directory for the CSV and PNG files [``<results stem>_phase_diagram``
-            beside the results file].
+        results: HDF5 results file(s) of ``knitsweep run`` (also while written);
+            several files combine into one study (e.g. two values of k, paper Fig. 5a).
+        out_dir: directory for the CSV and figure files [``<first results
+            stem>_phase_diagram`` beside the first file].
         threshold: energy-gap threshold, mJ (paper: ``GAP_THRESHOLD``).
-        figures: write the PNG figures (False: tables only).
+        figures: write the figures (False: tables only).
 
     Raises:
         InputError: unreadable or wrong-schema results file, threshold ≤ 0.
     """
-    results = Path(results)
-    red = reduce_results(results, threshold)
-    out = (
-        Path(out_dir) if out_dir is not None else results.with_name(f"{results.stem}_phase_diagram")
-    )
-    tables = write_tables(red, out)
+    paths = [Path(results)] if isinstance(results, (str, Path)) else [Path(p) for p in results]
+    res = load(*paths, threshold=threshold)
+    first = paths[0]
+    out = Path(out_dir) if out_dir is not None else first.with_name(f"{first.stem}_phase_diagram")
+    tables = write_tables(res, out)
     outcomes: list[FigureOutcome] = []
     if figures:
         from .figures import write_figures
 
-        outcomes = write_figures(red, out)
-    return PhaseDiagramReport(red, tables, outcomes)
+        outcomes = write_figures(res.reduction, out)
+    return PhaseDiagramReport(res, tables, outcomes)

@@ -60,19 +60,31 @@ class FigureOutcome:
         return f"{self.name} skipped: {self.reason}"
 
 
+def render_figure(red: Reduction, name: str, make: Callable, fmt: str = "png",
+                  dpi: float | None = None) -> tuple[FigureOutcome, bytes | None]:  # fmt: skip
+    """Draw one figure into memory: (its outcome, the file's bytes or None if skipped)."""
+    import io
+
+    notes: list[str] = []
+    with style():
+        try:
+            fig = make(red, notes)
+        except SkipFigure as e:
+            return FigureOutcome(name, None, str(e), tuple(notes)), None
+        buf = io.BytesIO()
+        fig.savefig(buf, format=fmt, dpi=dpi)
+    return FigureOutcome(name, None, None, tuple(notes)), buf.getvalue()
+
+
 def write_figures(red: Reduction, out_dir: str | Path) -> list[FigureOutcome]:
     """Write every figure of :data:`FIGURES` that the reduction has data for."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     outcomes = []
-    with style():
-        for name, make in FIGURES.items():
-            notes: list[str] = []
-            try:
-                fig = make(red, notes)
-            except SkipFigure as e:
-                outcomes.append(FigureOutcome(name, None, str(e), tuple(notes)))
-                continue
-            fig.savefig(out / name)
-            outcomes.append(FigureOutcome(name, out / name, None, tuple(notes)))
+    for name, make in FIGURES.items():
+        outcome, data = render_figure(red, name, make, Path(name).suffix.lstrip("."))
+        if data is not None:
+            (out / name).write_bytes(data)
+            outcome = FigureOutcome(name, out / name, None, outcome.notes)
+        outcomes.append(outcome)
     return outcomes

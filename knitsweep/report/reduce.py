@@ -21,7 +21,7 @@ r_core in mm, energies in mJ, stresses in N/mm, forces in N.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -36,8 +36,10 @@ from ..config import InputError
 from ..service.results_file import POINTS, SWEEPS, Entry, iter_entries, read_root
 from ..state import CONTACT_CLASSES, IDX_AX, IDX_AY
 
-SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p")
-"""The parameters held fixed along a series in L (the paper's k, B, r_core, r, p)."""
+SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regularization_mN_mm4",
+                 "twist_bound")  # fmt: skip
+"""The parameters held fixed along a series in L (the paper's k, B, r_core, r, p, and the
+regularisation and twist bound, which files of different jobs may differ in)."""
 
 PARAM_SYMBOLS = {
     "k_mN_per_mm2": ("k", "mN/mm²"),
@@ -45,6 +47,8 @@ PARAM_SYMBOLS = {
     "r_core_mm": ("r_core", "mm"),
     "r_mm": ("r", "mm"),
     "p": ("p", ""),
+    "regularization_mN_mm4": ("reg", "mN·mm⁴"),
+    "twist_bound": ("c_tw", ""),
 }
 
 CONTACT_COLUMNS = tuple(f"F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
@@ -81,7 +85,7 @@ class Reduction:
     """Everything the phase-diagram command prints, writes and plots.
 
     Attributes:
-        path: the results file.
+        path: the (first) results file; paths: all of them.
         job_name, run_status: from the file's root attributes.
         partial: True unless the run is 'complete' and every planned task is present.
         partial_reason: why it is partial (None when it is not).
@@ -93,6 +97,7 @@ class Reduction:
         varying: the series parameters that take more than one value in the file.
         constants: the series parameters that take one value, with it.
         notes: remarks worth printing (e.g. an adaptive bracket that disagrees).
+        entries: every task read (with its arrays), for the per-step tables.
     """
 
     path: Path
@@ -112,6 +117,8 @@ class Reduction:
     varying: tuple[str, ...] = ()
     constants: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    paths: tuple[Path, ...] = ()
+    entries: list[Entry] = field(default_factory=list, repr=False)
 
     @property
     def status_line(self) -> str:
@@ -373,11 +380,38 @@ def _partial_reasons(root: Mapping[str, Any], n_found: int) -> list[str]:
     return reasons
 
 
-def reduce_results(path: str | Path, threshold: float = GAP_THRESHOLD) -> Reduction:
-    """Reduce a results file (complete, partial, or still being written) to tables.
+def read_tasks(paths: Sequence[str | Path]) -> tuple[list[dict[str, Any]], list[Entry]]:
+    """Root attributes of each results file (with ``file`` and ``n_found``, the
+    number of its point and sweep tasks), and every finished task of all of them
+    (journals included), each task once: a result that is not 'failed' wins over a
+    failed one, the first file over later ones. Each entry's meta gets ``file``."""
+    roots, chosen = [], {}
+    seen = set()
+    for path in map(Path, paths):
+        key = path.resolve()
+        if key in seen:
+            raise InputError(f"{path}: given twice")
+        seen.add(key)
+        root = read_root(path) | {"file": str(path), "n_found": 0}
+        roots.append(root)
+        for e in iter_entries(path, with_data=True):
+            e.meta["file"] = str(path)
+            root["n_found"] += e.kind in (POINTS, SWEEPS)
+            old = chosen.get((e.kind, e.task_id))
+            if old is None or (old.meta.get("status") == "failed" != e.meta.get("status")):
+                chosen[(e.kind, e.task_id)] = e
+    return roots, list(chosen.values())
+
+
+def reduce_results(
+    paths: str | Path | Sequence[str | Path], threshold: float = GAP_THRESHOLD
+) -> Reduction:
+    """Reduce one or several results files (complete, partial, or still being
+    written) to tables; several files combine as one study (tasks are
+    content-addressed: a task in two files counts once).
 
     Args:
-        path: an HDF5 results file of ``knitsweep run`` (schema 1).
+        paths: HDF5 results file(s) of ``knitsweep run`` (results schema 1 or 2).
         threshold: energy-gap threshold, mJ (paper: ``GAP_THRESHOLD``): a sweep with jamming gap
             (ΔE_c for x, ΔE_b for y) below it is unjammed.
 
@@ -389,15 +423,16 @@ def reduce_results(path: str | Path, threshold: float = GAP_THRESHOLD) -> Reduct
         InputError: a missing or unreadable file, a wrong schema version, or task
             groups without the attributes this schema guarantees; threshold ≤ 0.
     """
-    path = Path(path)
+    paths = [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
+    if not paths:
+        raise InputError("give at least one results file")
     if not (threshold > 0.0 and np.isfinite(threshold)):
         raise InputError(f"threshold = {threshold!r}: must be a finite number > 0 (mJ)")
-    root = read_root(path)
-    entries = list(iter_entries(path, with_data=True))
+    roots, entries = read_tasks(paths)
     tasks = {POINTS: [], SWEEPS: []}
     for e in entries:
         if e.kind in tasks:  # other kinds (an adaptive job's /series) are read below
-            tasks[e.kind].append((e, _check_meta(path, e)))
+            tasks[e.kind].append((e, _check_meta(Path(e.meta["file"]), e)))
     point_of = {e.task_id: e for e, _ in tasks[POINTS]}
     points, sweeps, problems, curves = [], [], [], []
     for e, meta in sorted(tasks[POINTS], key=lambda em: (_series_key(em[1]), em[1]["L_mm"])):
@@ -428,15 +463,17 @@ def reduce_results(path: str | Path, threshold: float = GAP_THRESHOLD) -> Reduct
     for row in (*points, *sweeps):
         row["regime"] = _regime(row, transition_of) if row["status"] == "done" else None
     n_found = len(tasks[POINTS]) + len(tasks[SWEEPS])
-    reasons = _partial_reasons(root, n_found)
+    reasons = [f"{Path(r['file']).name}: {why}" if len(roots) > 1 else why
+               for r in roots
+               for why in _partial_reasons(r, r["n_found"])]  # fmt: skip
     values = {k: sorted({row[k] for row in points + sweeps}) for k in SERIES_PARAMS}
     return Reduction(
-        path=path,
-        job_name=str(root.get("job_name", "")) or _job_name(root),
-        run_status=str(root.get("run_status", "unknown")),
+        path=paths[0],
+        job_name=" + ".join(str(r.get("job_name", "")) or _job_name(r) for r in roots),
+        run_status=" + ".join(sorted({str(r.get("run_status", "unknown")) for r in roots})),
         partial=bool(reasons),
         partial_reason=", ".join(reasons) or None,
-        n_expected=int(root.get("n_points", 0)) + int(root.get("n_sweeps", 0)),
+        n_expected=sum(int(r.get("n_points", 0)) + int(r.get("n_sweeps", 0)) for r in roots),
         n_found=n_found,
         threshold=float(threshold),
         sweeps=sweeps,
@@ -448,6 +485,8 @@ def reduce_results(path: str | Path, threshold: float = GAP_THRESHOLD) -> Reduct
         varying=tuple(k for k, v in values.items() if len(v) > 1),
         constants={k: v[0] for k, v in values.items() if len(v) == 1},
         notes=notes,
+        paths=tuple(paths),
+        entries=entries,
     )
 
 

@@ -1,4 +1,5 @@
-"""Stress–strain tables of a single sweep, as CSV text or a small HDF5 file."""
+"""Stress–strain tables of a single sweep (``knitsweep sweep``), as CSV text or a
+small HDF5 file, named as everywhere else (``knitsweep.quantities``)."""
 
 from __future__ import annotations
 
@@ -8,28 +9,19 @@ from pathlib import Path
 import numpy as np
 
 from ..config import StitchParams
+from ..quantities import STEP_QUANTITIES
 from ..strain_sweep import SweepResult
 
-COLUMNS = (
-    ("strain", "strain", "1"),
-    ("a_x", "a_x", "mm"),
-    ("a_y", "a_y", "mm"),
-    ("stress", "stress", "N/mm"),
-    ("stress_envelope", "stress_envelope", "N/mm"),
-    ("bending_energy", "E_b", "mJ"),
-    ("contact_energy", "E_c", "mJ"),
-    ("total_energy", "E", "mJ"),
-    ("thickness", "dz", "mm"),
-    ("winner", "start", "-"),
-    ("converged", "converged", "-"),
-)
+COLUMNS = ("strain", "a_x", "a_y", "stress", "stress_envelope", "bending_energy",
+           "contact_energy", "total_energy", "thickness", "winner", "converged")  # fmt: skip
+"""The per-step quantities of the CSV table, in order."""
 
 
 def sweep_table(result: SweepResult) -> str:
-    """CSV with a header line naming each column and its unit."""
+    """CSV whose header names each column with its unit suffix (``stress_N_per_mm``)."""
     buf = io.StringIO()
-    buf.write(",".join(f"{label} [{unit}]" for _, label, unit in COLUMNS) + "\n")
-    cols = [getattr(result, name) for name, _, _ in COLUMNS]
+    buf.write(",".join(STEP_QUANTITIES[name].column for name in COLUMNS) + "\n")
+    cols = [getattr(result, name) for name in COLUMNS]
     for row in zip(*cols, strict=True):
         buf.write(",".join(_fmt(v) for v in row) + "\n")
     return buf.getvalue()
@@ -51,11 +43,14 @@ def write_sweep(path: str | Path, result: SweepResult, params: StitchParams) -> 
         return
     import h5py
 
+    from ..service.results_file import SWEEPS, describe_dataset
+
     with h5py.File(path, "w") as f:
         f.attrs["direction"] = result.direction
         f.attrs["status"] = result.status
         f.attrs["stop_reason"] = result.stop_reason
-        f.attrs["params"] = params.model_dump_json()
-        for name, value in result.arrays().items():
+        for key, value in params.model_dump().items():
+            f.attrs[key] = value
+        for name, value in {**result.arrays(), "total_energy": result.total_energy}.items():
             f.create_dataset(name, data=value)
-        f.create_dataset("total_energy", data=result.total_energy)
+            describe_dataset(f, SWEEPS, name)

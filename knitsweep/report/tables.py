@@ -1,8 +1,8 @@
 """The reduction as CSV files and as a printed table (paper Fig. 4, Table S4).
 
 CSV columns carry their units in their names (``L_mm``, ``Y_sec_N_per_mm``,
-``F_self_x_N``); energies and gaps are in mJ (= N·mm, the paper's "J"); L/r and
-strains are dimensionless. Empty cells mean "not available" (e.g. σ0 of a sweep
+``delta_E_c_mJ``, ``F_self_x_N``; ``knitsweep.quantities``); energies and gaps are in
+mJ (= N·mm, the paper's "J"); L/r and strains are dimensionless. Empty cells mean "not available" (e.g. σ0 of a sweep
 without a linear regime). Every file has a ``partial`` column, true when the
 results file is not a complete run.
 """
@@ -15,7 +15,9 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .reduce import PARAM_SYMBOLS, SERIES_PARAMS, Reduction
+from ..quantities import table_column
+from .reduce import PARAM_SYMBOLS, Reduction
+from .results import Results
 
 TABLES = ("transitions.csv", "sweeps.csv", "points.csv", "problems.csv")
 
@@ -31,42 +33,40 @@ def _cell(value: Any) -> str:
 
 
 def write_csv(path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> Path:
-    """Write ``rows`` with the given column order (missing keys → empty cells)."""
+    """Write ``rows`` with the given column order (missing keys → empty cells); the
+    header names each column as ``knitsweep.quantities`` does (unit suffixes), the
+    same names as the DataFrames of ``knitsweep.load``."""
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(columns)
+        w.writerow([table_column(c) for c in columns])
         for row in rows:
             w.writerow([_cell(row.get(c)) for c in columns])
     return path
 
 
-def _columns(rows: Iterable[Mapping[str, Any]], first: Sequence[str] = ()) -> list[str]:
-    cols = list(first)
-    for row in rows:
-        cols += [k for k in row if k not in cols]
-    return cols
-
-
-def write_tables(red: Reduction, out_dir: str | Path) -> list[Path]:
-    """Write transitions.csv, sweeps.csv, points.csv and problems.csv into ``out_dir``.
+def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
+    """Write transitions.csv, sweeps.csv, points.csv and problems.csv into ``out_dir``:
+    the DataFrames of ``knitsweep.load`` (same columns, same order) plus ``partial``.
 
     Returns:
         The paths written, in the order of :data:`TABLES`.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    flag = {"partial": red.partial}
     written = []
-    for name, rows, first in (
-        ("transitions.csv", red.transitions, ["direction", *SERIES_PARAMS]),
-        ("sweeps.csv", red.sweeps, ["task_id", "point_id", "direction", "L_mm", "L_over_r"]),
-        ("points.csv", red.points, ["task_id", "status", "L_mm", "L_over_r"]),
-        ("problems.csv", red.problems, ["kind", "task_id", "status", "direction", "L_mm"]),
-    ):
-        rows = [{**r, **flag} for r in rows]
-        cols = _columns(rows, first) if rows else [*first, "partial"]
-        written.append(write_csv(out / name, rows, cols))
+    for name, frame in zip(TABLES, (results.transitions, results.sweeps, results.points,
+                                    results.problems), strict=True):  # fmt: skip
+        rows = [{k: _missing(v) for k, v in row.items()} for row in frame.to_dict("records")]
+        rows = [{**r, "partial": results.partial} for r in rows]
+        written.append(write_csv(out / name, rows, [*frame.columns, "partial"]))
     return written
+
+
+def _missing(value: Any) -> Any:
+    """pandas' missing values (NaN, NA, None) as None: an empty cell."""
+    import pandas as pd
+
+    return None if not isinstance(value, (list, tuple)) and pd.isna(value) else value
 
 
 def series_label(values: Mapping[str, float], names: Iterable[str]) -> str:

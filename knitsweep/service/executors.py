@@ -33,7 +33,7 @@ import signal
 import socket
 import time
 
-from .worker import Reply, execute, prepare
+from .worker import Reply, execute, prepare, stderr_notice
 
 TASK, REPLY, STOP, STOPPED, ABANDONED = 1, 2, 3, 4, 5
 PREFETCH = 2  # tasks held by each MPI worker: the one it computes and the next
@@ -73,6 +73,7 @@ class SerialExecutor:
     def __init__(self, job) -> None:
         self.job = job
         self._queue: collections.deque = collections.deque()
+        prepare(job, stderr_notice)
 
     @property
     def in_flight(self) -> int:
@@ -115,7 +116,7 @@ class ProcessExecutor:
     def __init__(self, job, workers: int) -> None:
         self.job = job
         self.capacity = workers
-        prepare(job)  # compile once here; the workers then load numba's cache
+        prepare(job, stderr_notice)  # compile once here; the workers then load numba's cache
         ctx = multiprocessing.get_context("spawn")
         self._pool = ctx.Pool(workers, initializer=_process_worker_init, initargs=(job,))
         self._replies: queue.Queue = queue.Queue()
@@ -181,7 +182,7 @@ class MPIExecutor:
         self.capacity = PREFETCH * len(workers)
         self._outstanding: dict[int, int] = dict.fromkeys(workers, 0)
         comm.bcast(job.model_dump_json(), root=0)
-        prepare(job)  # compile once, into numba's cache, before the workers load it
+        prepare(job, stderr_notice)  # compile once, into numba's cache, before the workers load it
         comm.Barrier()
 
     @property

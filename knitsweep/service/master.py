@@ -27,7 +27,7 @@ from typing import Any
 from ..config import DONE, FAILED, InputError
 from .adaptive import Refiner
 from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, sweep_task
-from .progress import progress_line
+from .progress import RunProgress, task_line
 from .results_file import (
     POINTS,
     SERIES,
@@ -95,13 +95,10 @@ class _Master:
     sweeps of this point get computed (its zero-force task first, if needed).
     """
 
-    def __init__(self, job, points, writer, executor, summary, retry_failed, show):
+    def __init__(self, job, points, writer, executor, summary, retry_failed, progress):
         self.job, self.writer, self.executor, self.summary = job, writer, executor, summary
-        self.show = show
-        self.tty = sys.stderr.isatty()
-        self.t0 = time.monotonic()
-        self.finished_now = 0
-        self._last_line = self._last_file = 0.0
+        self.progress: RunProgress = progress
+        self._last_file = 0.0
         self.points: dict[str, PointTask] = {}
         self.sweeps: dict[str, SweepTask] = {}
         self.sweeps_of: dict[str, list[SweepTask]] = {}  # waiting for their point
@@ -136,6 +133,7 @@ class _Master:
         if new_point:
             self.points[pid] = p
             self.summary.total += 1
+            self.progress.add_tasks("point", finished=pid in self.finished[POINTS])
             if pid in self.finished[POINTS]:
                 self.summary.skipped += 1
                 self._count(str(self.finished[POINTS][pid]["status"]))
@@ -145,6 +143,7 @@ class _Master:
                 continue
             self.sweeps[s.task_id] = s
             self.summary.total += 1
+            self.progress.add_tasks("sweep", finished=s.task_id in self.finished[SWEEPS])
             if s.task_id in self.finished[SWEEPS]:
                 self.summary.skipped += 1
                 self._count(str(self.finished[SWEEPS][s.task_id]["status"]))
@@ -163,6 +162,7 @@ class _Master:
             return
         meta = self._meta(s, status, f"zero-force state: {point_meta.get('message', status)}")
         self._record_sweep(s, {}, meta)
+        self.progress.finished("sweep", 0.0, self._line(s, status, 0.0), measured=False)
 
     def _payload(self, pid: str) -> dict[str, Any]:
         if pid not in self.zero:
@@ -238,7 +238,6 @@ class _Master:
             else:
                 self.ready_sweeps.appendleft((task, self._payload(task.point_id)))
             return
-        self.finished_now += 1
         if reply.error is not None:
             status = FAILED
             message = f"failed: {reply.error['kind']}: {reply.error['message']}"
@@ -252,6 +251,9 @@ class _Master:
             message = record.pop("message")
         record, scalars = split_record(record)
         meta = self._meta(task, status, message, reply) | scalars
+        kind = "sweep" if isinstance(task, SweepTask) else "point"
+        where = f"rank {reply.rank}@{reply.host}"
+        self.progress.finished(kind, reply.seconds, self._line(task, status, reply.seconds, where))
         if isinstance(task, SweepTask):
             self._record_sweep(task, record, meta)
             return
@@ -263,23 +265,34 @@ class _Master:
         for s in self.sweeps_of.pop(task.task_id, []):
             self._release(s, meta)
 
+    def _line(self, task, status: str, seconds: float, where: str = "") -> str:
+        sweep = isinstance(task, SweepTask)
+        params = (self.points[task.point_id] if sweep else task).params
+        return task_line("sweep" if sweep else "point", params, task.direction if sweep else None,
+                         status, seconds, self.progress.varying, where)  # fmt: skip
+
     def _progress(self, force: bool = False) -> None:
+        """The progress file ``knitsweep status`` reads (every second) and the
+        display's periodic summary."""
         t = time.monotonic()
         if not force and t - self._last_file < 1.0:
             return
         self._last_file = t
         c = self.summary.counts
-        rate = self.finished_now / max(t - self.t0, 1e-9)
         counts = {"done": c[DONE], "failed": c[FAILED], "not_knittable": c["not_knittable"],
-                  "running": self.executor.in_flight,
-                  "pending": self.pending,
-                  "total": self.summary.total, "rate_per_s": rate, "pid": os.getpid(),
-                  "host": socket.gethostname(), "updated": time.time()}  # fmt: skip
+                  "running": self.executor.in_flight, "pending": self.pending,
+                  "total": self.summary.total, "pid": os.getpid(),
+                  "host": socket.gethostname(), "updated": time.time(),
+                  **self.progress.counts()}  # fmt: skip
         atomic_write_bytes(progress_path(self.writer.path), json.dumps(counts).encode())
-        if self.show and (force or t - self._last_line > (0.5 if self.tty else 15.0)):
-            self._last_line = t
-            end = "\r" if self.tty and not force else "\n"
-            print(progress_line(counts), end=end, file=sys.stderr, flush=True)
+        self.progress.summary(counts, force=force)
+
+
+def varying_parameters(job: JobSpec) -> tuple[str, ...]:
+    """The grid parameters that take more than one value (ties included)."""
+    axes = job.grid.axes()
+    tied = tuple(n for n, tie in job.grid.ties().items() if len(axes.get(tie.to, ())) > 1)
+    return tuple(n for n, v in axes.items() if len(v) > 1) + tied
 
 
 def run_job(
@@ -319,9 +332,11 @@ def run_job(
     status = "interrupted"
     master = None
     stopped_cleanly = True
+    progress = RunProgress(varying_parameters(job), show=show_progress)
     try:
-        master = _Master(job, points, writer, executor, summary, retry_failed, show_progress)
-        status = master.run(stop)
+        with progress:
+            master = _Master(job, points, writer, executor, summary, retry_failed, progress)
+            status = master.run(stop)
     except Interrupted:
         pass
     finally:
@@ -333,9 +348,9 @@ def run_job(
         finally:
             for s, h in old.items():
                 signal.signal(s, h)
-            sizes = {}
+            sizes = {"run_seconds": writer.previous_run_seconds + time.monotonic() - t0}
             if master is not None:
-                sizes = {"n_points": len(master.points), "n_sweeps": len(master.sweeps)}
+                sizes |= {"n_points": len(master.points), "n_sweeps": len(master.sweeps)}
             writer.close(status, sizes)
             progress_path(out).unlink(missing_ok=True)
             summary.seconds = time.monotonic() - t0

@@ -163,6 +163,10 @@ def split_record(record: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]
 
 
 def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
+    """A task's record as datasets (arrays) and attributes (scalars) of ``group``;
+    every dataset gets ``units`` and ``long_name`` and labelled dimension scales
+    (``step`` in a sweep, ``start`` in a point, then e.g. ``state_entry``)."""
+    kind = group.name.strip("/").split("/")[0]
     for key, value in {**meta, **record}.items():
         if value is None:
             continue
@@ -174,6 +178,7 @@ def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
                 group.create_dataset(
                     key, data=value, compression="gzip" if value.size > 256 else None
                 )
+            describe_dataset(group, kind, key)
         elif isinstance(value, dict):
             group.attrs[key] = json.dumps(value, sort_keys=True)
         elif isinstance(value, (bool, np.bool_)):
@@ -184,6 +189,42 @@ def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
             group.attrs[key] = float(value)
         else:
             group.attrs[key] = str(value)
+
+
+_LEADING_DIM = {POINTS: ("start", "start of the zero-force relaxation"),
+                SWEEPS: ("step", "strain step (0: the zero-force state)")}  # fmt: skip
+
+
+def describe_dataset(group, kind: str, name: str) -> None:
+    """``units``, ``long_name`` and dimension scales of dataset ``name`` (xarray and
+    netCDF readers then see named dimensions and coordinates)."""
+    from ..quantities import AXES, TRAILING_DIMS, dataset_quantity
+
+    ds = group[name]
+    q = dataset_quantity(kind, name)
+    ds.attrs["units"] = q.units if q else "1"
+    ds.attrs["long_name"] = q.long_name if q else name.replace("_", " ")
+    trailing = TRAILING_DIMS.get(name, ())
+    dims = list(trailing[-(ds.ndim) :]) if ds.ndim <= len(trailing) else list(trailing)
+    if ds.ndim > len(trailing) and kind in _LEADING_DIM:
+        dims = [_LEADING_DIM[kind][0], *dims]
+    if len(dims) != ds.ndim:
+        return
+    for axis, dim in enumerate(dims):
+        scale = group.get(dim)
+        if scale is None:
+            labels = AXES.get(dim)
+            if labels is None:  # the leading dimension: 0 … n-1
+                scale = group.create_dataset(dim, data=np.arange(ds.shape[axis]))
+                scale.attrs["long_name"] = _LEADING_DIM[kind][1]
+            else:
+                scale = group.create_dataset(dim, data=np.array(labels, dtype=object),
+                                             dtype=_string_dtype())  # fmt: skip
+                scale.attrs["long_name"] = dim.replace("_", " ")
+            scale.attrs["units"] = "1"
+            scale.make_scale(dim)
+        if scale.shape[0] == ds.shape[axis]:
+            ds.dims[axis].attach_scale(scale)
 
 
 @dataclass
@@ -204,6 +245,8 @@ class ResultWriter:
         self.job = job
         self.journal = journal_dir(self.path)
         self._lock_fd: int | None = None
+        self._root_updates: dict[str, Any] = {}
+        self.previous_run_seconds = 0.0  # wall time of the earlier runs into this file
         self._acquire_lock()
         try:
             self._open_or_create(extra_meta or {})
@@ -251,7 +294,15 @@ class ResultWriter:
         for stale in self.journal.glob(".*.tmp"):
             stale.unlink(missing_ok=True)
         if self.path.exists():
-            check_compatible(self.path, self.job)
+            grown = check_compatible(self.path, self.job)
+            with h5py.File(self.path, "r") as f:
+                self.previous_run_seconds = float(f.attrs.get("run_seconds", 0.0))
+            # the file describes the job now running; applied at the first checkpoint
+            self._root_updates = {**extra_meta, "run_status": "running"}
+            if grown is not None:
+                self._root_updates |= {"job_json": self.job.model_dump_json(),
+                                       "job_hash": self.job.job_hash, "job_name": self.job.name,
+                                       "grown_from": grown}  # fmt: skip
             return
         tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         with h5py.File(tmp, "w") as f:
@@ -276,6 +327,8 @@ class ResultWriter:
     def checkpoint(self, attrs: dict[str, Any] | None = None) -> int:
         """Fold journalled results into the HDF5 file atomically; returns how many."""
         entries = list(_journal_entries(self.journal))
+        attrs = {**self._root_updates, **(attrs or {})}
+        self._root_updates = {}
         if not entries and not attrs:
             return 0
         h5py = _h5()
@@ -322,14 +375,23 @@ def writer_alive(lock: Path) -> bool:
     return False
 
 
-def check_compatible(path: Path, job) -> None:
-    """Refuse to write ``job`` into a file made by a different job."""
+GROWABLE = ("grid", "directions")
+"""What a job may change and still run into an existing results file: its tasks are
+content-addressed, so a grown grid adds only the new tasks (a shrunk one keeps the
+old results in the file)."""
+
+
+def check_compatible(path: Path, job) -> str | None:
+    """Refuse to write ``job`` into a file made by a job with other numerics,
+    protocol, starts or stored observables. Returns None for the same job, or the
+    job hashes the file grew from (comma-separated) when only ``GROWABLE`` differ."""
     h5py = _h5()
     try:
         with h5py.File(path, "r") as f:
             version = int(f.attrs.get("schema_version", -1))
             their_hash = str(f.attrs.get("job_hash", ""))
             their_json = str(f.attrs.get("job_json", "{}"))
+            history = str(f.attrs.get("grown_from", ""))
     except OSError as e:
         raise InputError(
             f"{path} exists but is not a readable HDF5 file ({e}); move it away"
@@ -341,14 +403,19 @@ def check_compatible(path: Path, job) -> None:
             f"{RESULTS_SCHEMA_VERSION}: write to a new file (--out), or resume it with the "
             "knitsweep version that made it"
         )
-    if their_hash != job.job_hash:
-        from .jobs import JobSpec
+    if their_hash == job.job_hash:
+        return None
+    from .jobs import JobSpec
 
-        diff = _differences(JobSpec.model_validate_json(their_json).canonical(), job.canonical())
+    diff = _differences(JobSpec.model_validate_json(their_json).canonical(), job.canonical())
+    fixed = [d for d in diff if d.split(".")[0] not in GROWABLE]
+    if fixed or not diff:
         raise InputError(
-            f"{path} holds results of a different job (differs in {', '.join(diff) or 'settings'}); "
-            "choose another --out file, or rerun the job that made it"
+            f"{path} holds results of a job with other settings (differs in "
+            f"{', '.join(fixed) or 'settings'}); only the grid and directions may change "
+            "between runs into one file: choose another --out file, or rerun that job"
         )
+    return ", ".join(filter(None, [history, their_hash]))
 
 
 def _differences(a: Any, b: Any, prefix: str = "") -> list[str]:
@@ -377,6 +444,8 @@ def _read_group(group) -> tuple[dict[str, Any], dict[str, Any]]:
     attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in group.attrs.items()}
     data = {}
     for k, ds in group.items():
+        if ds.is_scale:  # a dimension's coordinates, not a field of the record
+            continue
         v = ds[()]
         if ds.dtype.kind == "O":
             v = np.array([s.decode() if isinstance(s, bytes) else s for s in v], dtype=object)

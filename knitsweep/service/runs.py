@@ -8,6 +8,7 @@ workers are released instead of left waiting.
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Any, Literal
@@ -88,15 +89,18 @@ def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress):
                    show_progress=show_progress)  # fmt: skip
 
 
-def status(path: str | Path) -> dict[str, Any]:
+def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
     """Counts of a results file (done, failed, not_knittable, running, pending),
-    live from the running master's progress file when there is one."""
+    live from the running master's progress file when there is one; its elapsed
+    time and ETA while it runs, its wall time once finished. ``by``: a parameter
+    (``L_mm``, ``k_mN_per_mm2``, …, ``direction``) to count the tasks per value of."""
     path = Path(path)
     root = read_root(path)
     counts = {DONE: 0, FAILED: 0, "not_knittable": 0}
     failures = []
     n_points = 0
     series = []
+    groups: dict[Any, dict[str, int]] = {}
     for e in iter_entries(path):
         if e.kind == SERIES:
             series.append(e.meta)
@@ -104,6 +108,10 @@ def status(path: str | Path) -> dict[str, Any]:
         s = str(e.meta.get("status", FAILED))
         counts[s] = counts.get(s, 0) + 1
         n_points += e.kind == POINTS
+        if by is not None:
+            value = e.meta.get(by, "-") if by != "direction" or e.kind != POINTS else "-"
+            group = groups.setdefault(value.item() if hasattr(value, "item") else value, {})
+            group[s] = group.get(s, 0) + 1
         if s == FAILED:
             failures.append(f"{e.kind[:-1]} {e.task_id}: {e.meta.get('message', '')}")
     total = int(root.get("n_points", 0)) + int(root.get("n_sweeps", 0))
@@ -130,12 +138,33 @@ def status(path: str | Path) -> dict[str, Any]:
         "rate_per_s": float(live.get("rate_per_s", 0.0)) if fresh else 0.0,
         "started_at": root.get("started_at", ""),
         "finished_at": root.get("finished_at", ""),
+        "elapsed_s": float(live.get("elapsed_s", math.nan)) if fresh else _wall_seconds(root),
+        "eta_s": float(live.get("eta_s", math.inf)) if fresh else 0.0,
         "failures": failures,
+        "by": {by: {str(k): v for k, v in sorted(groups.items(), key=lambda kv: str(kv[0]))}}
+        if by is not None
+        else {},
         "series": {
             "done": sum(m.get("status") == "done" for m in series),
             "total": len(series),
         },
     }
+
+
+def _wall_seconds(root: dict[str, Any]) -> float:
+    """The wall time of the runs into a file: ``run_seconds`` (every run, resumes
+    added up), else the span from its start to its end."""
+    if "run_seconds" in root:
+        return float(root["run_seconds"])
+    from datetime import datetime
+
+    try:
+        span = datetime.fromisoformat(root["finished_at"]) - datetime.fromisoformat(
+            root["started_at"]
+        )
+    except (KeyError, TypeError, ValueError):
+        return math.nan
+    return span.total_seconds()
 
 
 def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:

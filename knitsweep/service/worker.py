@@ -15,6 +15,7 @@ import signal
 import socket
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -56,11 +57,19 @@ def wall_time_budget(seconds: float):
         signal.signal(signal.SIGALRM, previous)
 
 
-def prepare(job: JobSpec) -> None:
-    """Compile (or load from numba's cache) the kernels this job's tasks use."""
+def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> None:
+    """Compile (or load from numba's cache) the kernels this job's tasks use;
+    ``notice`` hears first if that means compiling (see ``compile_kernels``)."""
     from ..model import compile_kernels
 
-    compile_kernels(job.fidelity)
+    compile_kernels(job.fidelity, notice)
+
+
+def stderr_notice(message: str) -> None:
+    """A one-line notice for the person running the job."""
+    import sys
+
+    print(message, file=sys.stderr, flush=True)
 
 
 def execute(job: JobSpec, task: PointTask | SweepTask, zero: dict | None, rank: int) -> Reply:

@@ -1,0 +1,222 @@
+"""The one naming scheme of stored and tabulated quantities: name, unit, long name.
+
+A quantity has a base name (``bending_energy``) and a unit (``mJ``). HDF5 datasets
+use the base name and carry ``units`` and ``long_name`` attributes; tables (CSV files,
+pandas DataFrames) append the unit to the name: ``bending_energy_mJ``,
+``stress_N_per_mm``, ``thickness_mm``. Dimensionless quantities have unit "1" and no
+suffix. The stitch parameters keep their job-file names, which carry their units
+already (``L_mm``, ``k_mN_per_mm2``). The README's table of names is this module's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .state import CONTACT_CLASSES, STATE_NAMES
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One quantity: base ``name``, ``units`` (UDUNITS-style; "1" if dimensionless)
+    and a ``long_name`` (what it is, in words)."""
+
+    name: str
+    units: str
+    long_name: str
+
+    @property
+    def column(self) -> str:
+        """The name of its column in a table: the base name plus the unit suffix."""
+        return column_name(self.name, self.units)
+
+
+_SUFFIX = {
+    "1": "",
+    "mm": "mm",
+    "mJ": "mJ",
+    "N": "N",
+    "N/mm": "N_per_mm",
+    "mJ/mm": "mJ_per_mm",
+    "s": "s",
+    "rad": "rad",
+    "mN/mm2": "mN_per_mm2",
+    "mN mm2": "mN_mm2",
+    "mN mm4": "mN_mm4",
+}
+
+
+def column_name(name: str, units: str) -> str:
+    """``name`` with the suffix of ``units`` (unless it already ends with it)."""
+    suffix = _SUFFIX[units]
+    if not suffix or name.endswith("_" + suffix) or (units == "s" and name.endswith("seconds")):
+        return name
+    return f"{name}_{suffix}"
+
+
+def _q(name: str, units: str, long_name: str) -> tuple[str, Quantity]:
+    return name, Quantity(name, units, long_name)
+
+
+PARAMETERS = dict(
+    (
+        _q("L_mm", "mm", "yarn length per stitch L"),
+        _q("k_mN_per_mm2", "mN/mm2", "compression constant k"),
+        _q("B_mN_mm2", "mN mm2", "bending modulus B"),
+        _q("r_mm", "mm", "yarn radius r"),
+        _q("r_core_mm", "mm", "incompressible core radius r_core"),
+        _q("p", "1", "contact exponent p"),
+        _q("regularization_mN_mm4", "mN mm4", "curvature-derivative regularisation"),
+        _q("twist_bound", "1", "bound c_tw on the crossover twist, cos(tw) >= c_tw"),
+        _q("L_over_r", "1", "stitch density L/r"),
+    )
+)
+"""The stitch parameters, named as in job files."""
+
+STEP_QUANTITIES = dict(
+    (
+        _q("a_fixed", "mm", "period held fixed at this step (a_x in x pulls, a_y in y pulls)"),
+        _q("a_x", "mm", "cell period along the course, a_x"),
+        _q("a_y", "mm", "cell period along the wale, a_y"),
+        _q("strain", "1", "strain of the pulled period, (a - a0)/a0"),
+        _q("stress", "N/mm", "2D stress, second-order difference of the energy / a_perp0"),
+        _q("stress_envelope", "N/mm", "2D stress from the length constraint's multiplier"),
+        _q("bending_energy", "mJ", "bending energy E_b"),
+        _q("contact_energy", "mJ", "contact energy E_c"),
+        _q("total_energy", "mJ", "total energy E = E_b + E_c"),
+        _q("thickness", "mm", "thickness z_max - z_min + 2r of the centre-line"),
+        _q("winner", "1", "start (chain) whose relaxation has the lowest energy"),
+        _q("converged", "1", "the winning relaxation converged"),
+        _q("iterations", "1", "minimiser iterations"),
+        _q("evaluations", "1", "energy and gradient evaluations"),
+        _q("min_zeta", "1", "smallest compression zeta of any contact (1: none)"),
+        _q("length_residual", "mm", "yarn length minus L"),
+        _q("kkt_residual", "mJ", "largest stationarity residual |dE - lambda dl| per state entry"),
+        _q("relax_seconds", "s", "wall time of the relaxation"),
+        _q("states", "1", "state vector (lengths mm, angles rad; see state_entry)"),
+        _q("control_points", "mm", "Bézier control points of the 8 segments"),
+        _q("contact_forces", "N", "contact forces by class: -dE_c/da_x, -dE_c/da_y, z push"),
+    )
+)
+"""Per-step datasets of a sweep (the first dimension is ``step``)."""
+
+START_QUANTITIES = dict(
+    (
+        _q("x", "1", "relaxed state of each start (lengths mm, angles rad)"),
+        _q("bending_energy", "mJ", "bending energy E_b"),
+        _q("contact_energy", "mJ", "contact energy E_c"),
+        _q("length", "mm", "yarn length"),
+        _q("start_status", "1", "how the relaxation ended"),
+        _q("start_message", "1", "the minimiser's message"),
+        _q("iterations", "1", "minimiser iterations"),
+        _q("evaluations", "1", "energy and gradient evaluations"),
+        _q("length_residual", "mm", "yarn length minus L"),
+        _q("twist_margin", "1", "cos(tw) - c_tw (>= 0: the twist bound holds)"),
+        _q("twist_active", "1", "the twist bound is active"),
+        _q("min_zeta", "1", "smallest compression zeta of any contact (1: none)"),
+        _q("kkt_residual", "mJ", "largest stationarity residual |dE - lambda dl| per state entry"),
+        _q("length_multiplier", "mJ/mm", "Lagrange multiplier of the length constraint"),
+        _q("period_forces", "N", "dE*/da_x, dE*/da_y at the relaxed state (0 at zero force)"),
+        _q("relax_seconds", "s", "wall time of the relaxation"),
+        _q("labels", "1", "where the start came from"),
+        _q("stages", "1", "continuation stages from the start's parameters"),
+        _q("contact_forces", "N", "contact forces by class of the winner"),
+    )
+)
+"""Per-start datasets of a point (the first dimension is ``start``)."""
+
+AXES = {
+    "state_entry": STATE_NAMES,
+    "segment": tuple(f"segment_{i}" for i in range(8)),
+    "control_point": tuple(f"P{i}" for i in range(6)),
+    "axis": ("x", "y", "z"),
+    "contact_class": CONTACT_CLASSES,
+    "component": ("x", "y", "z"),
+    "period": ("a_x", "a_y"),
+}
+"""Labelled trailing dimensions of multi-dimensional datasets."""
+
+TRAILING_DIMS = {
+    "x": ("state_entry",),
+    "states": ("state_entry",),
+    "control_points": ("segment", "control_point", "axis"),
+    "contact_forces": ("contact_class", "component"),
+    "period_forces": ("period",),
+}
+"""Trailing dimensions of a dataset by name (after ``step`` or ``start``)."""
+
+SCALARS = dict(
+    (
+        _q("delta_E_b", "mJ", "bending-energy gap E_b(zero force) - min E_b"),
+        _q("delta_E_c", "mJ", "contact-energy gap E_c(zero force) - min E_c"),
+        _q("energy_gap", "mJ", "the pulling direction's jamming gap (x: delta_E_c, y: delta_E_b)"),
+        _q("jamming_gap", "mJ", "the pulling direction's jamming gap (x: delta_E_c, y: delta_E_b)"),
+        _q("E_b_rest", "mJ", "bending energy at zero force"),
+        _q("E_c_rest", "mJ", "contact energy at zero force"),
+        _q("E_b_min", "mJ", "smallest bending energy of the sweep"),
+        _q("E_c_min", "mJ", "smallest contact energy of the sweep"),
+        _q("thickness", "mm", "thickness at zero force"),
+        _q("seconds", "s", "wall time of the task on its worker"),
+        _q("wall_seconds", "s", "wall time of the sweep's computation"),
+        _q("relaxations", "1", "relaxations the sweep computed"),
+        _q("threshold", "mJ", "energy-gap threshold between jammed and unjammed"),
+    )
+)
+"""Scalar attributes of task groups with units (attributes cannot carry attributes:
+their units are these, and their table columns carry the suffix)."""
+
+METRICS = dict(
+    (
+        _q("Y_sec", "N/mm", "secant modulus sigma(0.02)/0.02 (paper Eq. 1)"),
+        _q("stress_at_secant", "N/mm", "stress at the secant strain 0.02"),
+        _q("sigma0", "N/mm", "offset stress: zero-strain intercept of the softened regime"),
+        _q("softened_slope", "N/mm", "tangent modulus of the softened linear regime"),
+        _q("max_stress", "N/mm", "largest stress of the sweep"),
+        _q("max_strain", "1", "last strain of the sweep"),
+        _q("n_steps", "1", "steps of the sweep, zero force included"),
+        _q("a_x0", "mm", "zero-force period a_x0"),
+        _q("a_y0", "mm", "zero-force period a_y0"),
+        _q("aspect_ratio", "1", "zero-force aspect ratio a_y0/a_x0"),
+        _q("thickness0", "mm", "zero-force thickness"),
+        _q("area_strain_min", "1", "smallest area strain a_x a_y/(a_x0 a_y0) - 1"),
+        _q("area_strain_max", "1", "largest area strain"),
+        _q("thickness_strain_min", "1", "smallest thickness strain"),
+        _q("thickness_strain_max", "1", "largest thickness strain"),
+        _q("thickness_strain_at_secant", "1", "thickness strain at strain 0.02"),
+        _q(
+            "force_ratio_xy",
+            "1",
+            "x force of self + same-row contacts over the y force of "
+            "NN + NNN same-column contacts, zero strain (paper Fig. 6h)",
+        ),
+        _q("L_over_r_trans", "1", "onset of unjamming (L/r)_trans"),
+        _q("L_trans", "mm", "onset of unjamming in L"),
+        _q("bracket_lower", "1", "last jammed L/r below (L/r)_trans"),
+        _q("bracket_upper", "1", "(L/r)_trans, the first unjammed L/r"),
+        _q("delta_L_over_r", "1", "width of the transition, Delta L/r (paper Fig. 4a)"),
+    )
+)
+"""Columns of the post-processor's tables (``knitsweep.report``) with units."""
+
+KNOWN_UNITS = {
+    name: q.units
+    for table in (SCALARS, METRICS, STEP_QUANTITIES, PARAMETERS)
+    for name, q in table.items()
+}
+
+COLUMN_QUANTITY = {
+    q.column: q for table in (PARAMETERS, METRICS, SCALARS, STEP_QUANTITIES) for q in table.values()
+}
+"""Table column name -> its quantity (units, long name)."""
+
+
+def table_column(name: str) -> str:
+    """The table column of a stored name: with its unit suffix if it is a known
+    quantity, unchanged otherwise (names that carry their unit already, flags, ids)."""
+    units = KNOWN_UNITS.get(name)
+    return name if units is None else column_name(name, units)
+
+
+def dataset_quantity(kind: str, name: str) -> Quantity | None:
+    """The quantity of dataset ``name`` in a ``points`` or ``sweeps`` group."""
+    table = STEP_QUANTITIES if kind == "sweeps" else START_QUANTITIES
+    return table.get(name)

@@ -1,0 +1,211 @@
+"""``knitsweep report``: one self-contained HTML page of one or several results files.
+
+Figures are inlined (PNG as data URIs), tables are HTML, nothing is fetched: the
+page reads offline, can be mailed, and prints. It holds the transitions, the
+per-sweep metrics, the zero-force states, every task that failed or could not be
+knitted, each job's spec and the provenance of each file (versions, git commit,
+host, times). A few lines of inline script count the figures that decoded into
+``data-figures-loaded`` on the page, so a headless browser can check it.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from collections.abc import Sequence
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from ..analysis.transitions import GAP_THRESHOLD
+from ..config import InputError
+from .results import Results, load
+
+_STYLE = """
+body { font: 14px/1.45 system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
+       max-width: 1100px; padding: 0 1em; color: #222; }
+h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { margin-top: 2em; border-bottom: 1px solid #ddd; }
+.meta { color: #555; } .partial { color: #b00020; font-weight: 600; }
+table { border-collapse: collapse; margin: 0.8em 0; font-size: 12.5px; }
+th, td { border: 1px solid #ddd; padding: 3px 7px; text-align: right; white-space: nowrap; }
+th { background: #f4f4f4; position: sticky; top: 0; } td.text { text-align: left; }
+.scroll { max-height: 28em; overflow: auto; border: 1px solid #eee; }
+figure { margin: 1.2em 0; } figure img { max-width: 100%; border: 1px solid #eee; }
+figcaption { color: #555; font-size: 0.92em; } pre { background: #f7f7f7; padding: 0.8em;
+overflow: auto; font-size: 12px; } .skipped { color: #777; }
+"""
+
+_SCRIPT = """
+window.addEventListener("load", function () {
+  var imgs = document.querySelectorAll("figure img");
+  var ok = 0;
+  imgs.forEach(function (im) { if (im.complete && im.naturalWidth > 0) { ok += 1; } });
+  document.body.setAttribute("data-figures-loaded", ok + "/" + imgs.length);
+});
+"""
+
+_TRANSITION_COLUMNS = ("direction", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm", "p",
+                       "status", "L_over_r_trans", "bracket_lower", "bracket_upper",
+                       "L_trans_mm", "delta_L_over_r", "n_points", "n_missing")  # fmt: skip
+_SWEEP_COLUMNS = ("direction", "L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm",
+                  "r_core_mm", "Y_sec_N_per_mm", "sigma0_N_per_mm", "delta_E_b_mJ",
+                  "delta_E_c_mJ", "jammed", "regime", "n_steps", "max_strain")  # fmt: skip
+_POINT_COLUMNS = ("L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm",
+                  "status", "a_x0_mm", "a_y0_mm", "aspect_ratio", "E_b_rest_mJ",
+                  "E_c_rest_mJ", "thickness0_mm", "regime")  # fmt: skip
+_PROBLEM_COLUMNS = ("kind", "status", "direction", "L_mm", "k_mN_per_mm2", "message", "task_id")
+_PROBLEM_COLUMNS = ("kind", "status", "direction", "L_mm", "k_mN_per_mm2", "message", "task_id")
+_PROVENANCE = ("job_name", "run_status", "started_at", "finished_at", "run_seconds",
+               "knitsweep_version", "git_commit", "host", "slurm_job_id", "python_version",
+               "numpy_version", "scipy_version", "numba_version", "h5py_version",
+               "hdf5_version", "mpi_library_version", "schema_version", "n_points",
+               "n_sweeps")  # fmt: skip
+
+
+def _cell(value: Any) -> str:
+    if value is None or (isinstance(value, float) and value != value):
+        return "<td>–</td>"
+    if isinstance(value, bool):
+        return f"<td class='text'>{'yes' if value else 'no'}</td>"
+    if isinstance(value, (int, float)):
+        return f"<td>{value:.6g}</td>"
+    return f"<td class='text'>{html.escape(str(value))}</td>"
+
+
+def table(frame: Any, columns: Sequence[str], table_id: str) -> str:
+    """An HTML table of ``frame``'s ``columns`` (those it has), ``id=table_id``."""
+    cols = [c for c in columns if c in frame.columns]
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    rows = []
+    for record in frame[cols].to_dict("records"):
+        rows.append("<tr>" + "".join(_cell(_plain(record[c])) for c in cols) + "</tr>")
+    body = "".join(rows) or f"<tr><td colspan='{len(cols)}' class='text'>none</td></tr>"
+    return (f"<div class='scroll'><table id='{table_id}'><thead><tr>{head}</tr></thead>"
+            f"<tbody>{body}</tbody></table></div>")  # fmt: skip
+
+
+def _plain(value: Any) -> Any:
+    if hasattr(value, "item"):
+        value = value.item()
+    try:
+        import pandas as pd
+
+        if not isinstance(value, (list, tuple)) and pd.isna(value):
+            return None
+    except (TypeError, ValueError):
+        pass
+    return value
+
+
+def _figures(results: Results) -> tuple[list[str], list[str]]:
+    """(<figure> blocks with inline PNGs, lines for the figures that were skipped)."""
+    from .figures import FIGURES, render_figure
+
+    blocks, skipped = [], []
+    for name, make in FIGURES.items():
+        outcome, png = render_figure(results.reduction, name, make, "png")
+        if png is None:
+            skipped.append(f"{html.escape(name)}: {html.escape(outcome.reason or '')}")
+            continue
+        data = base64.b64encode(png).decode()
+        doc = getattr(make, "__doc__", None) or getattr(getattr(make, "func", None), "__doc__", "")
+        caption = html.escape((doc or "").strip().split("\n\n")[0].replace("\n", " "))
+        notes = "".join(f" ({html.escape(n)})" for n in outcome.notes)
+        blocks.append(f"<figure><img alt='{html.escape(name)}' src='data:image/png;base64,"
+                      f"{data}'><figcaption><b>{html.escape(name)}</b>: {caption}{notes}"
+                      f"</figcaption></figure>")  # fmt: skip
+    return blocks, skipped
+
+
+def report_html(results: Results, title: str | None = None) -> str:
+    """The page for ``results`` (from ``knitsweep.load``)."""
+    red = results.reduction
+    title = title or f"knitsweep report: {red.job_name}"
+    blocks, skipped = _figures(results)
+    roots = _roots(results)
+    status = (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}</p>"
+              if red.partial else "<p>All planned tasks are present; every run is complete.</p>")  # fmt: skip
+    files = "".join(f"<li><code>{html.escape(str(p))}</code></li>" for p in results.paths)
+    jobs = "".join(
+        f"<h3>{html.escape(r.get('job_name', ''))} (<code>{html.escape(r['file'])}</code>)</h3>"
+        f"<pre>{html.escape(_pretty(r.get('job_json', '{}')))}</pre>"
+        for r in roots
+    )
+    prov_rows = "".join(
+        "<tr><td class='text'>" + html.escape(key) + "</td>"
+        + "".join(_cell(_plain(r.get(key))) for r in roots) + "</tr>"
+        for key in _PROVENANCE
+    )  # fmt: skip
+    prov_head = "".join(f"<th>{html.escape(Path(r['file']).name)}</th>" for r in roots)
+    skipped_html = "".join(f"<li class='skipped'>{s}</li>" for s in skipped)
+    sections = [
+        f"<h1>{html.escape(title)}</h1>",
+        f"<p class='meta'>{len(red.points)} points, {len(red.sweeps)} sweeps, "
+        f"{len(red.transitions)} series; energy-gap threshold {red.threshold:g} mJ; made by "
+        f"knitsweep {__version__} on {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC</p>",
+        status,
+        f"<ul>{files}</ul>",
+        "<h2 id='transitions'>Transitions</h2>",
+        "<p>The onset of unjamming (L/r)<sub>trans</sub> of each series: the first L/r whose "
+        "jamming gap (ΔE<sub>c</sub> in x, ΔE<sub>b</sub> in y) falls below the threshold; "
+        "the bracket is (last jammed, first unjammed].</p>",
+        table(results.transitions, _TRANSITION_COLUMNS, "transitions-table"),
+        "<h2>Figures</h2>",
+        *blocks,
+        f"<ul>{skipped_html}</ul>" if skipped else "",
+        "<h2>Sweeps</h2>",
+        table(results.sweeps, _SWEEP_COLUMNS, "sweeps-table"),
+        "<h2>Zero-force states</h2>",
+        table(results.points, _POINT_COLUMNS, "points-table"),
+        "<h2 id='problems'>Failed and not knittable</h2>",
+        table(results.problems, _PROBLEM_COLUMNS, "problems-table"),
+        "<h2>Jobs</h2>",
+        jobs,
+        "<h2>Provenance</h2>",
+        f"<div class='scroll'><table id='provenance'><thead><tr><th>attribute</th>{prov_head}"
+        f"</tr></thead><tbody>{prov_rows}</tbody></table></div>",
+    ]
+    body = "\n".join(s for s in sections if s)
+    return (f"<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+            f"<meta name='viewport' content='width=device-width, initial-scale=1'>"
+            f"<title>{html.escape(title)}</title><style>{_STYLE}</style>"
+            f"<script>{_SCRIPT}</script></head>\n<body>\n{body}\n</body></html>\n")  # fmt: skip
+
+
+def _roots(results: Results) -> list[dict[str, Any]]:
+    from ..service.results_file import read_root
+
+    return [read_root(p) | {"file": str(p)} for p in results.paths]
+
+
+def _pretty(job_json: str) -> str:
+    try:
+        return json.dumps(json.loads(job_json), indent=2, sort_keys=True)
+    except (TypeError, json.JSONDecodeError):
+        return str(job_json)
+
+
+def write_report(
+    paths: Sequence[str | Path], out: str | Path, threshold: float = GAP_THRESHOLD
+) -> Path:
+    """Read ``paths`` (``knitsweep.load``) and write the report page to ``out``.
+
+    Raises:
+        InputError: an unreadable results file, or ``out`` not ending in .html.
+    """
+    out = Path(out)
+    if out.suffix.lower() not in (".html", ".htm"):
+        raise InputError(f"out = '{out}': the report is an .html file")
+    if not out.parent.is_dir():
+        raise InputError(f"out = '{out}': directory {out.parent} does not exist")
+    results = load(*paths, threshold=threshold)
+    text = report_html(results)
+    tmp = out.with_name(f".{out.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(out)
+    return out
+
+
+__all__ = ["report_html", "table", "write_report"]

@@ -1,0 +1,195 @@
+"""Integration tier: results as data (``knitsweep.load``, pandas, xarray), the
+self-describing results file, studies that combine, and grids with tied axes."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import TINY
+from results_factory import write_results
+
+import knitsweep
+import knitsweep.report
+from knitsweep.config import InputError
+from knitsweep.quantities import COLUMN_QUANTITY, PARAMETERS, START_QUANTITIES, STEP_QUANTITIES
+from knitsweep.service.jobs import JobSpec, load_job
+from knitsweep.service.results_file import POINTS, SWEEPS, ResultWriter, read_entry
+
+ROOT = Path(__file__).resolve().parents[1]
+PARAMS = list(PARAMETERS)
+
+
+def test_load_gives_dataframes_named_as_job_files(tiny_reference):
+    res = knitsweep.load(tiny_reference)
+    assert (len(res.points), len(res.sweeps), len(res.transitions)) == (2, 4, 2)
+    for table in (res.points, res.sweeps, res.curves):
+        assert set(PARAMS) <= set(table.columns)
+    for col in ("Y_sec_N_per_mm", "sigma0_N_per_mm", "delta_E_b_mJ", "delta_E_c_mJ",
+                "jamming_gap_mJ", "direction", "status"):  # fmt: skip
+        assert col in res.sweeps.columns, col
+    for col in ("strain", "stress_N_per_mm", "stress_envelope_N_per_mm", "bending_energy_mJ",
+                "contact_energy_mJ", "thickness_mm", "winner", "step", "relax_seconds"):  # fmt: skip
+        assert col in res.curves.columns, col
+    assert res.transitions["L_over_r_trans"].notna().any()
+    # the curves are the stored arrays, step by step
+    sid = res.sweeps["task_id"].iloc[0]
+    stored = read_entry(tiny_reference, SWEEPS, sid).record
+    curve = res.curves[res.curves["task_id"] == sid]
+    np.testing.assert_array_equal(curve["stress_N_per_mm"], stored["stress"])
+    np.testing.assert_array_equal(curve["step"], np.arange(len(stored["stress"])))
+    assert len(res.curves) == res.sweeps["n_steps"].sum()
+    assert "4 sweeps" in repr(res)
+
+
+def test_csv_tables_and_dataframes_share_their_names(tiny_reference, tmp_path):
+    import pandas as pd
+
+    report = knitsweep.report.phase_diagram(tiny_reference, tmp_path / "pd", figures=False)
+    res = report.results
+    for name, frame in (("sweeps", res.sweeps), ("points", res.points),
+                        ("transitions", res.transitions)):  # fmt: skip
+        csv = pd.read_csv(tmp_path / "pd" / f"{name}.csv")
+        assert list(csv.columns) == [*frame.columns, "partial"], name
+
+
+def test_to_xarray_carries_units_and_long_names(tiny_reference):
+    ds = knitsweep.load(tiny_reference).to_xarray()
+    assert dict(ds.sizes)["sweep"] == 4 and dict(ds.sizes)["point"] == 2
+    assert ds["stress"].dims == ("sweep", "step")
+    for name, var in {**ds.data_vars, **ds.coords}.items():
+        assert "units" in var.attrs and "long_name" in var.attrs, name
+    assert ds["stress"].attrs["units"] == "N/mm"
+    assert ds["Y_sec_N_per_mm"].attrs["units"] == "N/mm"
+    x = ds.where(ds.direction == "x", drop=True)
+    assert x.sizes["sweep"] == 2 and np.all(np.isfinite(x["strain"].isel(step=0)))
+
+
+def test_every_dataset_of_a_run_is_self_describing(tiny_reference):
+    """units, long_name and a named dimension on every dataset; no phony dimensions."""
+    import xarray as xr
+
+    with h5py.File(tiny_reference) as f:
+        for kind, table in ((POINTS, START_QUANTITIES), (SWEEPS, STEP_QUANTITIES)):
+            for tid, group in f[kind].items():
+                for name, ds in group.items():
+                    assert "units" in ds.attrs and "long_name" in ds.attrs, (kind, name)
+                    if not ds.is_scale:
+                        assert name in table, f"{kind}/{name} is not in knitsweep.quantities"
+                        assert all(len(d) for d in ds.dims), (kind, name)
+                assert "seconds" in group.attrs  # the task's wall time: an attribute
+                opened = xr.open_dataset(tiny_reference, engine="h5netcdf",
+                                         group=f"{kind}/{tid}")  # fmt: skip
+                assert not [d for d in opened.dims if d.startswith("phony")], opened.dims
+                assert ("step" if kind == SWEEPS else "start") in opened.dims
+
+
+def test_several_files_combine_and_old_schema_reads(tmp_path):
+    """Two files of different jobs (k = 0.1 and k = 1.0; results schema 1)."""
+    a = write_results(tmp_path / "a.h5", ks=(0.1,), not_knittable_L=None)
+    b = write_results(tmp_path / "b.h5", ks=(1.0,), not_knittable_L=None)
+    both = knitsweep.load(a, b)
+    assert sorted(both.transitions["k_mN_per_mm2"].unique()) == [0.1, 1.0]
+    assert len(both.sweeps) == len(knitsweep.load(a).sweeps) + len(knitsweep.load(b).sweeps)
+    assert set(both.points["file"]) == {str(a), str(b)}
+    with pytest.raises(InputError, match="given twice"):
+        knitsweep.load(a, a)
+    out = subprocess.run([sys.executable, "-m", "knitsweep", "phase-diagram", str(a), str(b),
+                          "--out", str(tmp_path / "pd"), "--no-figures"],
+                         capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "pd" / "transitions.csv").read_text().count("\n") == 1 + 4
+
+
+def test_load_reads_a_file_being_written(tiny_reference, tmp_path):
+    """A result still in the journal (not yet checkpointed) is read."""
+    job = load_job(TINY)
+    out = tmp_path / "live.h5"
+    writer = ResultWriter(out, job, {"n_points": 2, "n_sweeps": 4})
+    try:
+        res = knitsweep.load(out)
+        assert len(res.points) == 0
+        with h5py.File(tiny_reference) as f:
+            pid = next(iter(f["points"]))
+        entry = read_entry(tiny_reference, POINTS, pid)
+        writer.add(POINTS, pid, entry.record, entry.meta)
+        res = knitsweep.load(out)
+        assert list(res.points["task_id"]) == [pid] and res.partial
+    finally:
+        writer.close("partial")
+
+
+def test_example_script_runs(tiny_reference, tmp_path):
+    png = tmp_path / "ss.png"
+    out = subprocess.run([sys.executable, str(ROOT / "examples" / "stress_strain_by_L.py"),
+                          str(tiny_reference), "--out", str(png)],
+                         capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert png.stat().st_size > 10_000 and "Y_sec_N_per_mm" in out.stdout
+
+
+def test_column_quantities_know_their_units():
+    assert COLUMN_QUANTITY["stress_N_per_mm"].units == "N/mm"
+    assert COLUMN_QUANTITY["delta_E_c_mJ"].units == "mJ"
+    assert COLUMN_QUANTITY["L_mm"].units == "mm"
+
+
+# ---- grids with ties and zipped axes -----------------------------------------------
+
+
+def _job(**grid):
+    return JobSpec(schema_version=1, name="t", grid=grid)
+
+
+def test_tied_core_radius_follows_the_yarn_radius():
+    job = _job(L_mm=12.0, r_mm=[0.66, 0.7, 0.74], r_core_mm="0.45 * r_mm")
+    assert [(p.r_mm, p.r_core_mm) for p in job.points()] == [(0.66, 0.297), (0.7, 0.315),
+                                                             (0.74, 0.333)]  # fmt: skip
+    again = JobSpec.model_validate_json(job.model_dump_json())
+    assert again.job_hash == job.job_hash and again.points() == job.points()
+    assert job.job_hash != _job(L_mm=12.0, r_mm=[0.66, 0.7, 0.74]).job_hash
+
+
+def test_zipped_axes_vary_together():
+    job = _job(L_mm=[11.0, 12.0], r_mm=[0.7, 0.75], k_mN_per_mm2=[0.1, 1.0],
+               zip=[["L_mm", "r_mm"]])  # fmt: skip
+    assert [(p.k_mN_per_mm2, p.L_mm, p.r_mm) for p in job.points()] == [
+        (0.1, 11.0, 0.7), (0.1, 12.0, 0.75), (1.0, 11.0, 0.7), (1.0, 12.0, 0.75)]  # fmt: skip
+
+
+def test_plain_grids_keep_their_hashes():
+    """Ties and zips enter the job hash only when used: older files still resume."""
+    assert "ties" not in _job(L_mm=11.0).canonical()["grid"]
+    assert "zip" not in _job(L_mm=11.0).canonical()["grid"]
+
+
+@pytest.mark.parametrize(
+    ("grid", "message"),
+    [
+        ({"L_mm": 12.0, "r_core_mm": "0.45 * r_core_mm"}, "cannot follow itself"),
+        ({"L_mm": 12.0, "r_core_mm": "0.45 * q"}, "'q' is not one of"),
+        ({"L_mm": 12.0, "r_core_mm": "0.45 * r_mm", "r_mm": "L_mm"}, "is itself tied"),
+        ({"L_mm": 12.0, "r_core_mm": "half of r"}, "a tie is '<number> \\* <parameter>'"),
+        ({"L_mm": 12.0, "r_core_mm": "-0.4 * r_mm"}, "factor must be a finite number > 0"),
+        ({"L_mm": [1.0, 2.0], "r_mm": [0.7], "zip": [["L_mm", "r_mm"]]}, "same number"),
+        ({"L_mm": [10.0, 11.0], "r_mm": [0.7, 0.8], "zip": [["L_mm", "L_mm"]]}, "different"),
+        ({"L_mm": 12.0, "r_core_mm": "1.2 * r_mm"}, "r_core_mm < r_mm"),
+    ],
+)
+def test_bad_ties_and_zips_are_refused(tmp_path, grid, message):
+    path = tmp_path / "j.toml"
+    lines = ["schema_version = 1", 'name = "t"', "[grid]"]
+    lines += [f"{k} = {json.dumps(v)}" for k, v in grid.items()]
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=message):
+        load_job(path)
+
+
+def test_shipped_fixed_ratio_radius_job():
+    job = load_job(ROOT / "jobs" / "paper_radius_fixed_ratio.toml")
+    points = job.points()
+    assert len({p.r_mm for p in points}) == len(points) > 5
+    assert all(abs(p.r_core_mm / p.r_mm - 0.45) < 1e-9 and p.L_mm == 12.0 for p in points)
