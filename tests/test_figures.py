@@ -214,3 +214,57 @@ def test_render_bad_suffix_and_cells(tmp_path):
         render(tmp_path / "x.jpg", state=tmp_path / "s.dat")
     with pytest.raises(InputError, match="cells = 0"):
         render(tmp_path / "x.png", state=tmp_path / "s.dat", cells=0)
+
+
+# ---- publication options: formats, journal widths, titles, style ---------------------
+
+
+def test_formats_and_journal_widths(tmp_path):
+    """png, pdf and svg of every figure; at column width 3.4 in, fonts of 7-8 pt."""
+    from PIL import Image
+
+    from knitsweep.report.figures import write_figures
+    from knitsweep.report.plotting import JOURNAL_RC, FigureOptions
+
+    red = reduce_results(write_results(tmp_path / "r.h5"))
+    opts = FigureOptions(formats=("png", "pdf", "svg"), width="column")
+    outcomes = write_figures(red, tmp_path / "fig", opts)
+    written = [o for o in outcomes if o.path is not None]
+    assert len(written) >= 10
+    for o in written:
+        stem = o.path.stem
+        for fmt in ("png", "pdf", "svg"):
+            assert (tmp_path / "fig" / f"{stem}.{fmt}").stat().st_size > 1000, (stem, fmt)
+        with Image.open(o.path) as im:  # 3.4 in at 300 dpi
+            assert im.size[0] == round(3.4 * 300), (stem, im.size)
+    assert (tmp_path / "fig" / "fig3_energy_gaps.pdf").read_bytes().startswith(b"%PDF")
+    assert min(v for k, v in JOURNAL_RC.items() if "size" in k and "marker" not in k) >= 7
+
+
+def test_no_title_and_style(tmp_path):
+    import matplotlib
+
+    from knitsweep.report.fig_energy import fig3_energy_gaps
+    from knitsweep.report.plotting import FigureOptions, style
+
+    red = reduce_results(write_results(tmp_path / "r.h5"))
+    with style(FigureOptions(title=False)):
+        assert fig3_energy_gaps(red, []).get_suptitle() == ""
+    with style(FigureOptions()):
+        assert "Energy gaps" in fig3_energy_gaps(red, []).get_suptitle()
+    # the user's matplotlib style is kept unless --style asks for another
+    with matplotlib.rc_context({"axes.facecolor": "#123456"}):
+        with style(FigureOptions()):
+            fig = fig3_energy_gaps(red, [])
+            assert matplotlib.colors.to_hex(fig.axes[0].get_facecolor()) == "#123456"
+        with style(FigureOptions(style="knitsweep")):
+            fig = fig3_energy_gaps(red, [])
+            assert matplotlib.colors.to_hex(fig.axes[0].get_facecolor()) == "#ffffff"
+
+
+def test_bad_figure_options_are_refused(tiny, tmp_path):
+    for args, fragment in ((["--format", "gif"], "png, pdf, svg"),
+                           (["--width", "poster"], "auto, column or page"),
+                           (["--style", "no-such-style"], "not a matplotlib style")):  # fmt: skip
+        out = knitsweep("phase-diagram", str(tiny), "--out", str(tmp_path / "x"), *args)
+        assert out.returncode == 2 and fragment in out.stderr, (args, out.stderr)

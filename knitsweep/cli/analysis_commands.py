@@ -42,17 +42,33 @@ def phase_diagram(
         typer.Option("--threshold", help="energy-gap threshold, mJ [the paper's 5·10⁻⁵]"),
     ] = None,
     no_figures: Annotated[bool, typer.Option("--no-figures", help="write the tables only")] = False,
+    formats: Annotated[
+        str, typer.Option("--format", help="figure formats, comma-separated: png, pdf, svg")
+    ] = "png",
+    width: Annotated[
+        str, typer.Option("--width", help="auto, column (3.4 in) or page (7.0 in): journal "
+                          "widths with 7-8 pt fonts")
+    ] = "auto",
+    no_title: Annotated[bool, typer.Option("--no-title", help="figures without titles")] = False,
+    style: Annotated[
+        str | None, typer.Option("--style", help="matplotlib style (name or file), or "
+                                 "'knitsweep' [default: your matplotlibrc]")
+    ] = None,
     as_json: JsonOpt = False,
-) -> None:
+) -> None:  # fmt: skip
     """Jamming transitions (L/r)_trans, ΔL/r and regimes of one or several results files,
     as a printed table, CSV files and the paper's figures; also on a file a run is
     still writing."""
     from ..analysis.transitions import GAP_THRESHOLD
     from ..report import phase_diagram as make_phase_diagram
+    from ..report.plotting import FigureOptions
 
     with user_errors():
         threshold = GAP_THRESHOLD if threshold is None else threshold
-        report = make_phase_diagram(results, out, threshold, figures=not no_figures)
+        options = FigureOptions(tuple(f.strip() for f in formats.split(",") if f.strip()), width,
+                                not no_title, style)  # fmt: skip
+        report = make_phase_diagram(results, out, threshold, figures=not no_figures,
+                                    options=options)  # fmt: skip
     if as_json:
         red = report.reduction
         typer.echo(json.dumps({

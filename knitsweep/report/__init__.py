@@ -23,6 +23,7 @@ from .tables import problems_text, transitions_text, write_tables
 
 if TYPE_CHECKING:
     from .figures import FigureOutcome
+    from .plotting import FigureOptions
 
 __all__ = [
     "PhaseDiagramReport",
@@ -65,6 +66,7 @@ def phase_diagram(
     out_dir: str | Path | None = None,
     threshold: float = GAP_THRESHOLD,
     figures: bool = True,
+    options: FigureOptions | None = None,
 ) -> PhaseDiagramReport:
     """Read results files and write their tables and figures.
 
@@ -75,6 +77,7 @@ def phase_diagram(
             stem>_phase_diagram`` beside the first file].
         threshold: energy-gap threshold, mJ (paper: ``GAP_THRESHOLD``).
         figures: write the figures (False: tables only).
+        options: formats, width, titles and style of the figures.
 
     Raises:
         InputError: unreadable or wrong-schema results file, threshold ≤ 0.
@@ -88,5 +91,5 @@ def phase_diagram(
     if figures:
         from .figures import write_figures
 
-        outcomes = write_figures(res.reduction, out)
+        outcomes = write_figures(res.reduction, out, options)
     return PhaseDiagramReport(res, tables, outcomes)

@@ -26,8 +26,10 @@ from .plotting import (
     THRESHOLD_COLOUR,
     TRANSITION_LINE,
     SkipFigure,
+    current_options,
     grid_of_panels,
     label_of,
+    legend_columns,
     limit_panels,
     new_figure,
     parameter_axis,
@@ -54,7 +56,7 @@ def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, 
         ax.axvline(t.L_over_r_trans, color="0.25", ls="--", lw=1.2,
                    label=r"$(L/r)_{\rm trans}$")  # fmt: skip
         ax.text(t.L_over_r_trans, 1.0, f" {t.L_over_r_trans:.2f}", transform=ax.get_xaxis_transform(),
-                ha="left", va="top", fontsize=10, color="0.2")  # fmt: skip
+                ha="left", va="top", fontsize="medium", color="0.2")  # fmt: skip
     for g, colour, marker, name in ((gc, CONTACT_COLOUR, "o", r"$\Delta E_c$ (contact)"),
                                     (gb, BENDING_COLOUR, "s", r"$\Delta E_b$ (bending)")):  # fmt: skip
         y = np.maximum(g, floor) if log else g
@@ -70,10 +72,10 @@ def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, 
         ax.plot(xs, t.fit.intercept + t.fit.slope * xs, color=colour, ls=(0, (1, 1.5)), lw=1.3,
                 label="jammed-regime line fit", zorder=2)  # fmt: skip
     if t is not None and t.status != "transition":
-        text = ("jammed throughout the sampled range" if t.status == "jammed_throughout"
-                else "unjammed from the first point")  # fmt: skip
+        text = ("jammed at every L" if t.status == "jammed_throughout"
+                else "unjammed from the first L")  # fmt: skip
         ax.text(0.98, 0.45 if log else 0.97, text, transform=ax.transAxes, ha="right",
-                va="center" if log else "top", fontsize=10, color="0.25",
+                va="center" if log else "top", fontsize="medium", color="0.25",
                 bbox={"fc": "white", "ec": "0.7", "pad": 2.5})  # fmt: skip
     if log:
         ax.set_yscale("log")
@@ -110,12 +112,14 @@ def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any
                 continue
             _gap_panel(ax, red, rows, red.transition_of.get((key, d)), d, log)
             lab = label_of(red, key)
-            ax.set_title(f"pulled in {d}: jamming gap {GAP_LABEL[d]}" + (f"\n{lab}" if lab else ""))
+            head = (f"{d}: {GAP_LABEL[d]}" if current_options().width == "column"
+                    else f"pulled in {d}: jamming gap {GAP_LABEL[d]}")  # fmt: skip
+            ax.set_title(head + (f"\n{lab}" if lab else ""))
             for h, name in zip(*ax.get_legend_handles_labels(), strict=True):
                 handles.setdefault(name, h)
             ax.xaxis.set_tick_params(labelbottom=True)
     fig.legend(handles.values(), handles.keys(), loc="outside lower center",
-               ncols=min(len(handles), 4), frameon=False)  # fmt: skip
+               ncols=legend_columns(min(len(handles), 4)), frameon=False)  # fmt: skip
     scale = "log scale" if log else "linear scale"
     title(fig, red, f"Energy gaps against $L/r$ ({scale})")
     return fig
@@ -155,7 +159,7 @@ def fig4b_deltaL_vs_k(red: Reduction, notes: list[str]) -> Any:
     ax.set_xlabel(r"compression constant $k$ (mN/mm$^2$)")
     ax.set_ylabel(r"transition width $\Delta L/r$")
     ax.text(0.99, 0.02, "error bars: +0, −one step of $L/r$; series offset slightly in $k$",
-            transform=ax.transAxes, ha="right", va="bottom", fontsize=9, color="0.35")  # fmt: skip
+            transform=ax.transAxes, ha="right", va="bottom", fontsize="medium", color="0.35")  # fmt: skip
     ax.legend(frameon=False)
     title(fig, red, r"Width of the jamming transition $\Delta L/r$ against $k$")
     return fig
@@ -225,7 +229,8 @@ def _regime_legend(fig: Any, axes: list, with_lines: bool) -> None:
                            label=rf"$(L/r)_{{\rm trans}}$, pulled in {d}") for d in "xy"]  # fmt: skip
         handles.append(Line2D([], [], color="0.3", marker=r"$\uparrow$", ls="none", ms=9,
                               label="beyond the sampled $L/r$"))  # fmt: skip
-    fig.legend(handles=handles, loc="outside lower center", ncols=3, frameon=False)
+    fig.legend(handles=handles, loc="outside lower center", ncols=legend_columns(3),
+               frameon=False)  # fmt: skip
 
 
 def _lim(red: Reduction) -> tuple[float, float]:
@@ -307,7 +312,7 @@ def _regime_strip(red: Reduction, key: tuple, by_key: dict) -> Any:
             ax.plot([t["L_over_r_trans"]] * 2, [yi - 0.3, yi + 0.3], color=TRANSITION_LINE[d],
                     lw=2.2, zorder=3)  # fmt: skip
             ax.text(t["L_over_r_trans"], yi + 0.34, f"{t['L_over_r_trans']:.2f}", ha="center",
-                    va="bottom", color=TRANSITION_LINE[d], fontsize=10)  # fmt: skip
+                    va="bottom", color=TRANSITION_LINE[d], fontsize="medium")  # fmt: skip
     ax.set_xlim(*lim)
     ax.set_ylim(-0.6, 1.75)
     ax.set_yticks([1.0, 0.0])
@@ -315,7 +320,7 @@ def _regime_strip(red: Reduction, key: tuple, by_key: dict) -> Any:
     ax.grid(False)
     ax.set_xlabel(L_OVER_R)
     ax.text(0.99, 0.02, "filled: jammed (gap ≥ threshold), open: unjammed",
-            transform=ax.transAxes, ha="right", va="bottom", fontsize=9, color="0.3")  # fmt: skip
+            transform=ax.transAxes, ha="right", va="bottom", fontsize="medium", color="0.3")  # fmt: skip
     _regime_legend(fig, [ax], with_lines=False)
     title(fig, red, r"Regimes along $L/r$ (one series: no parameter varies)")
     return fig

@@ -30,6 +30,7 @@ from .plotting import (
     grid_of_panels,
     jammed_legend,
     label_of,
+    legend_columns,
     limit_panels,
     new_figure,
     series_keys,
@@ -280,7 +281,8 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
                        Line2D([], [], color="0.4", ls=":", label=r"$(L/r)_{\rm trans}$ in y")],
               loc="upper right", frameon=True, framealpha=0.9)  # fmt: skip
     if len(keys) > 1:
-        fig.legend(*series_handles, loc="outside lower center", ncols=min(len(keys), 4),
+        fig.legend(*series_handles, loc="outside lower center",
+                   ncols=legend_columns(min(len(keys), 4)),
                    frameon=False)  # fmt: skip
 
     pts = sorted((r for r in rows if _key(r) == keys[0]), key=lambda r: r["L_over_r"])
@@ -296,8 +298,7 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
                       label=CLASS_LABEL[c]) for j, c in enumerate(CONTACT_CLASSES)]  # fmt: skip
     handles += [Line2D([], [], color="0.3", ls="-", label=r"$F_x$"),
                 Line2D([], [], color="0.3", ls="--", label=r"$F_y$")]  # fmt: skip
-    ax_c.legend(handles=handles, loc="upper right", frameon=True, framealpha=0.9, ncols=2,
-                fontsize=9)  # fmt: skip
+    ax_c.legend(handles=handles, loc="upper right", frameon=True, framealpha=0.9, ncols=2)
     ax_c.set_xlabel(L_OVER_R)
     ax_c.set_ylabel(r"force on the cell period, $-\partial E_c/\partial a$ (N)")
     lab = label_of(red, keys[0])

@@ -22,7 +22,7 @@ from .fig_mechanics import (
     fig6g_thickness_strain_x,
     fig6h_contact_force_ratio,
 )
-from .plotting import SkipFigure, style
+from .plotting import FigureOptions, SkipFigure, style
 from .reduce import Reduction
 
 FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
@@ -60,31 +60,53 @@ class FigureOutcome:
         return f"{self.name} skipped: {self.reason}"
 
 
-def render_figure(red: Reduction, name: str, make: Callable, fmt: str = "png",
-                  dpi: float | None = None) -> tuple[FigureOutcome, bytes | None]:  # fmt: skip
-    """Draw one figure into memory: (its outcome, the file's bytes or None if skipped)."""
+def render_figure(
+    red: Reduction,
+    name: str,
+    make: Callable,
+    formats: tuple[str, ...] = ("png",),
+    options: FigureOptions | None = None,
+) -> tuple[FigureOutcome, dict[str, bytes]]:
+    """Draw one figure into memory: (its outcome, {format: the file's bytes}; empty
+    if the figure was skipped)."""
     import io
 
     notes: list[str] = []
-    with style():
+    files = {}
+    with style(options):
         try:
             fig = make(red, notes)
         except SkipFigure as e:
-            return FigureOutcome(name, None, str(e), tuple(notes)), None
-        buf = io.BytesIO()
-        fig.savefig(buf, format=fmt, dpi=dpi)
-    return FigureOutcome(name, None, None, tuple(notes)), buf.getvalue()
+            return FigureOutcome(name, None, str(e), tuple(notes)), {}
+        for fmt in formats:
+            buf = io.BytesIO()
+            fig.savefig(buf, format=fmt, metadata=_METADATA.get(fmt))
+            files[fmt] = buf.getvalue()
+    return FigureOutcome(name, None, None, tuple(notes)), files
 
 
-def write_figures(red: Reduction, out_dir: str | Path) -> list[FigureOutcome]:
-    """Write every figure of :data:`FIGURES` that the reduction has data for."""
+# reproducible files: no creation dates in PDF/SVG metadata
+_METADATA = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}
+
+
+def write_figures(
+    red: Reduction, out_dir: str | Path, options: FigureOptions | None = None
+) -> list[FigureOutcome]:
+    """Write every figure of :data:`FIGURES` that the reduction has data for, in each
+    of ``options.formats``; one outcome per figure (its path: the first format)."""
+    options = options or FigureOptions()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     outcomes = []
     for name, make in FIGURES.items():
-        outcome, data = render_figure(red, name, make, Path(name).suffix.lstrip("."))
-        if data is not None:
-            (out / name).write_bytes(data)
-            outcome = FigureOutcome(name, out / name, None, outcome.notes)
+        outcome, files = render_figure(red, name, make, options.formats, options)
+        paths = []
+        for fmt, data in files.items():
+            path = out / f"{Path(name).stem}.{fmt}"
+            path.write_bytes(data)
+            paths.append(path)
+        if paths:
+            extra = tuple(f"also {p.name}" for p in paths[1:])
+            outcome = FigureOutcome(name, paths[0], None, outcome.notes + extra)
         outcomes.append(outcome)
     return outcomes

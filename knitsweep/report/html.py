@@ -99,13 +99,14 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _figures(results: Results) -> tuple[list[str], list[str]]:
+def _figures(results: Results, options: Any) -> tuple[list[str], list[str]]:
     """(<figure> blocks with inline PNGs, lines for the figures that were skipped)."""
     from .figures import FIGURES, render_figure
 
     blocks, skipped = [], []
     for name, make in FIGURES.items():
-        outcome, png = render_figure(results.reduction, name, make, "png")
+        outcome, files = render_figure(results.reduction, name, make, ("png",), options)
+        png = files.get("png")
         if png is None:
             skipped.append(f"{html.escape(name)}: {html.escape(outcome.reason or '')}")
             continue
@@ -123,7 +124,9 @@ def report_html(results: Results, title: str | None = None) -> str:
     """The page for ``results`` (from ``knitsweep.load``)."""
     red = results.reduction
     title = title or f"knitsweep report: {red.job_name}"
-    blocks, skipped = _figures(results)
+    from .plotting import FigureOptions
+
+    blocks, skipped = _figures(results, FigureOptions(style="knitsweep"))
     roots = _roots(results)
     status = (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}</p>"
               if red.partial else "<p>All planned tasks are present; every run is complete.</p>")  # fmt: skip

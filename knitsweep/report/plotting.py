@@ -10,7 +10,9 @@ display. Colours follow the paper: contact energy coral and bending energy blue
 from __future__ import annotations
 
 import contextlib
+import contextvars
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -60,6 +62,66 @@ STYLE = {
     "savefig.dpi": 150,
 }
 
+WIDTHS = {"column": 3.4, "page": 7.0}
+"""Journal figure widths, inches: one column, the whole page."""
+
+JOURNAL_RC = {
+    "font.size": 8,
+    "axes.titlesize": 8,
+    "axes.labelsize": 8,
+    "xtick.labelsize": 7,
+    "ytick.labelsize": 7,
+    "legend.fontsize": 7,
+    "legend.title_fontsize": 7,
+    "figure.titlesize": 8,
+    "lines.linewidth": 1.1,
+    "lines.markersize": 3.5,
+    "axes.linewidth": 0.6,
+    "savefig.dpi": 300,
+}
+"""Sizes at journal widths: fonts of 7–8 pt at the printed size."""
+
+
+@dataclass(frozen=True)
+class FigureOptions:
+    """How the figures are drawn (``knitsweep phase-diagram --format/--width/--style``).
+
+    Attributes:
+        formats: file formats to write, of png, pdf, svg.
+        width: 'auto' (each figure its own size, the user's font sizes), 'column'
+            (3.4 in) or 'page' (7.0 in), with fonts of 7–8 pt at that width.
+        title: draw each figure's title (what it shows and the fixed parameters).
+        style: None keeps the user's matplotlib style (matplotlibrc); 'knitsweep' is
+            this project's look; any other name or path is a matplotlib style.
+    """
+
+    formats: tuple[str, ...] = ("png",)
+    width: str = "auto"
+    title: bool = True
+    style: str | None = None
+
+    def __post_init__(self) -> None:
+        from ..config import InputError
+
+        bad = [f for f in self.formats if f not in FORMATS]
+        if bad or not self.formats:
+            raise InputError(f"format = {','.join(self.formats)!r}: give one or more of "
+                             f"{', '.join(FORMATS)}, comma-separated")  # fmt: skip
+        if self.width not in ("auto", *WIDTHS):
+            raise InputError(f"width = {self.width!r}: must be auto, column or page")
+
+
+FORMATS = ("png", "pdf", "svg")
+_OPTIONS: contextvars.ContextVar[FigureOptions | None] = contextvars.ContextVar(
+    "figure_options", default=None
+)
+
+
+def current_options() -> FigureOptions:
+    """The options of the figures being drawn (set by ``style``)."""
+    return _OPTIONS.get() or FigureOptions()
+
+
 L_OVER_R = "$L/r$"
 STRAIN = {"x": r"strain $\varepsilon_x$", "y": r"strain $\varepsilon_y$"}
 MAX_PANELS = 8
@@ -70,19 +132,47 @@ class SkipFigure(Exception):
 
 
 @contextlib.contextmanager
-def style() -> Iterator[None]:
-    """The figures' rcParams, for the duration of drawing and saving."""
+def style(options: FigureOptions | None = None) -> Iterator[None]:
+    """The figures' look for the duration of drawing and saving: the user's
+    matplotlib style unless ``options.style`` names one, plus the journal sizes when
+    a journal width is asked for."""
     import matplotlib
+    import matplotlib.style
 
-    with matplotlib.rc_context(STYLE):
-        yield
+    options = options or FigureOptions()
+    token = _OPTIONS.set(options)
+    try:
+        with contextlib.ExitStack() as stack:
+            if options.style == "knitsweep":  # matplotlib's defaults, then this look
+                stack.enter_context(matplotlib.style.context(["default", STYLE]))
+            elif options.style is not None:
+                try:
+                    stack.enter_context(matplotlib.style.context(options.style))
+                except OSError:
+                    from ..config import InputError
+
+                    raise InputError(f"style = {options.style!r}: not a matplotlib style "
+                                     "(name, file or URL) nor 'knitsweep'") from None  # fmt: skip
+            if options.width != "auto":
+                stack.enter_context(matplotlib.rc_context(JOURNAL_RC))
+            yield
+    finally:
+        _OPTIONS.reset(token)
 
 
 def new_figure(width: float, height: float) -> Any:
-    """A matplotlib Figure on an Agg canvas (constrained layout), size in inches."""
+    """A matplotlib Figure on an Agg canvas (constrained layout). ``width`` and
+    ``height`` (inches) are the figure's own size; at a journal width it is scaled
+    to that width, its aspect ratio kept (within 0.45–1.4 of the width)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    options = current_options()
+    if options.width != "auto":
+        # fonts do not shrink with the figure: the height shrinks less than the width
+        target = WIDTHS[options.width]
+        height = min(max(height * (target / width) ** 0.35, 0.5 * target), 2.2 * target)
+        width = target
     fig = Figure(figsize=(width, height), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
@@ -90,13 +180,20 @@ def new_figure(width: float, height: float) -> Any:
 
 def title(fig: Any, red: Reduction, text: str) -> None:
     """Figure title: what it shows and the fixed parameters; for a partial results
-    file, a first line saying so, and the whole title in red."""
+    file, a first line saying so, and the whole title in red. Without titles
+    (``FigureOptions.title``) a partial file still gets its warning line."""
+    import textwrap
+
+    options = current_options()
     fixed = series_label(red.constants, red.constants)
-    lines = [text] + ([fixed] if fixed else [])
+    lines = [text] + ([fixed] if fixed else []) if options.title else []
+    if options.width != "auto":  # ~13 characters of 8 pt type per inch
+        lines = [w for line in lines for w in textwrap.wrap(line, int(13 * WIDTHS[options.width]))]
     if red.partial:
         lines.insert(0, f"PARTIAL RESULTS ({red.partial_reason})")
-    fig.suptitle("\n".join(lines), fontsize=12,
-                 color=PARTIAL_COLOUR if red.partial else "black")  # fmt: skip
+    if lines:
+        fig.suptitle("\n".join(lines), fontsize="large",
+                     color=PARTIAL_COLOUR if red.partial else "black")  # fmt: skip
 
 
 def series_keys(red: Reduction, direction: str | None = None) -> list[tuple[float, ...]]:
@@ -137,7 +234,8 @@ def L_colourbar(fig: Any, axes: Any, cmap: Any, norm: Any) -> None:
     from matplotlib.cm import ScalarMappable
 
     cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.6, aspect=25)
-    cb.set_label("yarn length per stitch $L$ (mm)")
+    cb.set_label("$L$ (mm)" if current_options().width != "auto" else
+                 "yarn length per stitch $L$ (mm)")  # fmt: skip
 
 
 def jammed_legend(fig: Any, directions: Sequence[str]) -> None:
@@ -151,7 +249,13 @@ def jammed_legend(fig: Any, directions: Sequence[str]) -> None:
         Line2D([], [], color="0.3", ls="-", label=f"jammed (gap ≥ threshold: {gaps})"),
         Line2D([], [], color="0.3", ls="--", label="unjammed"),
     ]
-    fig.legend(handles=handles, loc="outside lower center", ncols=2, frameon=False)
+    fig.legend(handles=handles, loc="outside lower center", ncols=legend_columns(2),
+               frameon=False)  # fmt: skip
+
+
+def legend_columns(n: int) -> int:
+    """Columns of a figure legend of ``n`` entries: one at column width."""
+    return 1 if current_options().width == "column" else n
 
 
 def grid_of_panels(fig: Any, n: int, ncols: int) -> list[Any]:
