@@ -8,6 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from conftest import SHIPPED
 from results_factory import write_results
 
 from knitsweep.config import InputError, StitchParams
@@ -268,3 +269,20 @@ def test_bad_figure_options_are_refused(tiny, tmp_path):
                            (["--style", "no-such-style"], "not a matplotlib style")):  # fmt: skip
         out = knitsweep("phase-diagram", str(tiny), "--out", str(tmp_path / "x"), *args)
         assert out.returncode == 2 and fragment in out.stderr, (args, out.stderr)
+
+
+def test_render_defaults_show_the_stitches(tmp_path):
+    """The default tube is the paper's 0.5/0.74 of r (a tube of radius r is a solid
+    wall), one hue per row with no seams between cells, holes in shadow, not white."""
+    from PIL import Image
+
+    from knitsweep.report.render import BACKGROUND, RADIUS_FRACTION, render
+
+    path, stitch = render(tmp_path / "s.png", state=SHIPPED / "Init_1.dat", cells=2,
+                          width_px=500)  # fmt: skip
+    assert abs(RADIUS_FRACTION * stitch.r_mm - 0.5) < 1e-12 and stitch.r_mm == 0.74
+    pixels = np.asarray(Image.open(path).convert("RGB"), dtype=float) / 255.0
+    white = np.all(pixels > 0.98, axis=-1)
+    inner = white[60:-60, 60:-60]  # inside the picture frame: no white at all
+    assert not inner.any(), int(inner.sum())
+    assert np.isclose(pixels, BACKGROUND, atol=0.02).all(axis=-1).any()  # the holes

@@ -125,7 +125,8 @@ def render(
     r_core: RcOpt = None, config: ConfigOpt = None,
     radius: Annotated[
         float | None,
-        typer.Option("--radius", help="tube radius to draw, mm (default: r; the paper drew 0.5)"),
+        typer.Option("--radius", help="tube radius to draw, mm [0.68 r: the paper's 0.5 mm "
+                     "for r = 0.74 mm]"),
     ] = None,
     cells: Annotated[int, typer.Option("--cells", help="stitches per side of the picture")] = 3,
     side: Annotated[str, typer.Option("--side", help="face (knit side) or back (purl side)")] = "face",
@@ -133,6 +134,8 @@ def render(
         float, typer.Option("--elevation", help="view angle above the fabric plane, degrees")
     ] = 72.0,
     width: Annotated[int, typer.Option("--width", help="rendering resolution, pixels across")] = 1100,
+    highlight: Annotated[bool, typer.Option("--highlight", help="wash out all stitches but the "
+                                            "unit cell")] = False,
 ) -> None:  # fmt: skip
     """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a: a task of a results
     file (point, or sweep at --step) or a state file."""
@@ -150,6 +153,7 @@ def render(
         path, stitch = rendering.render(
             out, results=results, task=task, step=step, state=state, params=params,
             radius=radius, cells=cells, side=side, elevation_deg=elevation, width_px=width,
+            highlight=highlight,
         )  # fmt: skip
     typer.echo(f"wrote {path}: {stitch.label}")
 

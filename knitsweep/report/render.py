@@ -28,6 +28,10 @@ ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
 
 OUT_SUFFIXES = (".png", ".pdf", ".svg")
 
+BACKGROUND = np.array([0.17, 0.17, 0.19])
+"""What shows through the holes between the loops: shadow, so that a hole reads as
+one (a white background made the small holes at the cell corners look like defects)."""
+
 
 @dataclass(frozen=True)
 class Stitch:
@@ -108,16 +112,21 @@ def _shade(base: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return np.clip(rgb, 0.0, 1.0)
 
 
-def _cell_tint(row: int, column: int, centre: tuple[int, int]) -> np.ndarray:
-    """Row hue, lighter or darker by column; the central stitch saturated, the rest
-    washed towards grey so that the unit cell stands out."""
+def _cell_tint(row: int, column: int, centre: tuple[int, int] | None) -> np.ndarray:
+    """The row's hue, the same along the whole yarn (no seams where cells meet);
+    with a ``centre`` cell, the others washed towards grey so that it stands out."""
     from matplotlib.colors import to_rgb
 
     rgb = np.array(to_rgb(ROW_COLOURS[row % len(ROW_COLOURS)]))
-    rgb = rgb * (1.0 + 0.12 * ((column % 3) - 1))
-    if (row, column) != centre:
+    if centre is not None and (row, column) != centre:
         rgb = 0.55 * rgb + 0.45 * np.array([0.78, 0.76, 0.72])
     return np.clip(rgb, 0.0, 1.0)
+
+
+RADIUS_FRACTION = 0.5 / 0.74
+"""Default tube radius as a fraction of the yarn radius r: the paper drew its Fig. 1a
+with 0.5 mm for r = 0.74 mm "to better display the yarn structure" (a tube of the full
+radius, whose compressible shells overlap, looks like a solid wall)."""
 
 
 def dense_cell_path(control_points: np.ndarray, spacing: float) -> np.ndarray:
@@ -148,7 +157,7 @@ def window(stitch: Stitch, cells: int, view: np.ndarray) -> np.ndarray:
 
 
 def rasterize(stitch: Stitch, cells: int, radius: float, view: np.ndarray, box: np.ndarray,
-              width_px: int) -> np.ndarray:  # fmt: skip
+              width_px: int, highlight: bool = False) -> np.ndarray:  # fmt: skip
     """The fabric seen through ``box`` as an RGB image (H, width_px, 3) in [0, 1].
 
     The tube surfaces are sampled more finely than a pixel and drawn with a depth
@@ -159,13 +168,13 @@ def rasterize(stitch: Stitch, cells: int, radius: float, view: np.ndarray, box: 
     px = (box[1] - box[0]) / width_px
     height_px = int(np.ceil((box[3] - box[2]) / px))
     zbuf = np.full(height_px * width_px, -np.inf)
-    image = np.ones((height_px * width_px, 3))
+    image = np.tile(BACKGROUND, (height_px * width_px, 1))
     step = px / 1.6
     one = dense_cell_path(stitch.control_points, step)
     per_cell = len(one) - 1
     eye = view[2]  # unit vector towards the viewer, fabric coordinates
     offsets = np.linspace(-0.56 * np.pi, 0.56 * np.pi, int(np.ceil(1.12 * np.pi * radius / step)))
-    centre = (cells // 2, cells // 2)
+    centre = (cells // 2, cells // 2) if highlight else None
     t_c = np.array([stitch.a_x, 0.0, 0.0])
     t_w = np.array([0.0, stitch.a_y, 0.0])
     reach = radius + 2.0 * px
@@ -221,20 +230,21 @@ def _fill_holes(image: np.ndarray, zbuf: np.ndarray) -> np.ndarray:
 
 def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float | None = None,
                 elevation_deg: float = 72.0, azimuth_deg: float = 0.0, side: str = "face",
-                width_px: int = 1100) -> Path:  # fmt: skip
+                width_px: int = 1100, highlight: bool = False) -> Path:  # fmt: skip
     """Draw a window onto ``cells`` × ``cells`` stitches to ``out`` (.png, .pdf, .svg).
 
     Args:
         stitch: the cell to repeat.
         cells: stitches per side of the window (the paper's Fig. 1a look: 3).
-        radius: tube radius, mm [the yarn radius r; the paper drew r = 0.5 mm instead
-            of 0.74 mm to show the structure better].
+        radius: tube radius, mm [``RADIUS_FRACTION`` × r, the paper's 0.5 mm for
+            r = 0.74 mm, which shows the stitches].
         elevation_deg: angle between the viewing direction and the fabric plane
             (90: straight onto the fabric).
         azimuth_deg: rotation of the fabric about its normal.
         side: 'face' (knit side) or 'back' (purl side), see :data:`SIDES`.
         width_px: resolution of the rendering, pixels across (the saved figure is
             7 inches wide at 160 dpi either way).
+        highlight: wash out every stitch but the central one (the unit cell).
     """
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -242,10 +252,10 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
 
     if side not in SIDES:
         raise InputError(f"side = {side!r}: must be one of {', '.join(SIDES)}")
-    r = stitch.r_mm if radius is None else radius
+    r = RADIUS_FRACTION * stitch.r_mm if radius is None else radius
     view = _view_matrix(elevation_deg, azimuth_deg, side)
     box = window(stitch, cells, view)
-    image = rasterize(stitch, cells, r, view, box, width_px)
+    image = rasterize(stitch, cells, r, view, box, width_px, highlight)
     out = Path(out)
     width = 7.0  # inches at 160 dpi: the picture is shown 1120 px wide whatever width_px is
     height = width * image.shape[0] / image.shape[1] + 0.8
@@ -260,9 +270,10 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
         for spine in ax.spines.values():
             spine.set_color("0.6")
         ax.set_title(stitch.label, fontsize=11)
-        ax.text(1.0, -0.01, f"{cells} × {cells} stitches, {side} side; tube radius {r:g} mm; "
-                "saturated: one unit cell", transform=ax.transAxes, ha="right", va="top",
-                fontsize=10, color="0.35")  # fmt: skip
+        note = f"{cells} × {cells} stitches, {side} side; tube radius {r:.3g} mm (yarn r = "
+        note += f"{stitch.r_mm:g} mm)" + ("; saturated: one unit cell" if highlight else "")
+        ax.text(1.0, -0.01, note, transform=ax.transAxes, ha="right", va="top", fontsize=10,
+                color="0.35")  # fmt: skip
         fig.savefig(out, dpi=160, facecolor="white")
     return out
 
@@ -349,6 +360,7 @@ def render(
     side: str = "face",
     elevation_deg: float = 72.0,
     width_px: int = 1100,
+    highlight: bool = False,
 ) -> tuple[Path, Stitch]:
     """Draw a stitch from a results-file task or from a state file (``knitsweep render``).
 
@@ -386,5 +398,5 @@ def render(
         x = read_state(state)
         stitch = stitch_from_state(x, params or StitchParams(), f"state {Path(state).name}")
     path = draw_stitch(stitch, out, cells, radius, elevation_deg=elevation_deg, side=side,
-                       width_px=width_px)  # fmt: skip
+                       width_px=width_px, highlight=highlight)  # fmt: skip
     return path, stitch
