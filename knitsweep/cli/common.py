@@ -66,11 +66,11 @@ def user_errors():
         raise typer.Exit(2) from None
 
 
-def compile_notice() -> None:
+def compile_notice(energy_only: bool = False) -> None:
     """Tell the user when this command will first compile the numerical kernels."""
     from .. import kernels
 
-    if not kernels.cached():
+    if not (kernels.cached(("cell.cell_energy-",)) if energy_only else kernels.cached()):
         typer.echo(f"compiling numerical kernels, once per install: ~{kernels.COMPILE_SECONDS} s",
                    err=True)  # fmt: skip
 

@@ -47,7 +47,7 @@ def energy(
             samples=samples, quadrature_nodes=quadrature_nodes, images=images,
         )  # fmt: skip
         x = read_state(state)
-        compile_notice()
+        compile_notice(energy_only=True)
         result = CellModel(params, fidelity).energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
     _print_result(result, as_json, ENERGY_UNITS)

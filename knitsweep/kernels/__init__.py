@@ -41,8 +41,9 @@ _ENTRY_POINTS = ("cell.cell_energy-", "cell.cell_energy_listed-", "contact.min_z
                  "forces.contact_forces_by_class-")  # fmt: skip
 
 
-def cached() -> bool:
-    """Whether numba's on-disk cache holds this version's main kernels already (if
-    not, the first call compiles them: about ``COMPILE_SECONDS``)."""
+def cached(entry_points: tuple[str, ...] = _ENTRY_POINTS) -> bool:
+    """Whether numba's on-disk cache holds this version's kernels (by default the
+    ones every task uses; ``("cell.cell_energy-",)`` for one energy) already; if not,
+    the first call compiles them: up to ``COMPILE_SECONDS``."""
     indexes = [p.name for p in Path(numba.config.CACHE_DIR).glob("**/*.nbi")]
-    return all(any(n.startswith(entry) for n in indexes) for entry in _ENTRY_POINTS)
+    return all(any(n.startswith(entry) for n in indexes) for entry in entry_points)
