@@ -249,7 +249,7 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
 def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
     """(h) Contact-force ratio at zero strain against L/r (paper Fig. 6h): the x force
     of the self and same-row contacts over the y force of the NN and NNN same-column
-    contacts (``reduce._force_columns``); dashed line: equal forces. Right: each
+    contacts (``force_columns.pair_force_columns``); dashed line: equal forces. Right: each
     class's generalised force on a_x and a_y (N; positive widens the cell) for the
     first series."""
     rows = [r for r in red.points if r.get("force_ratio_xy") is not None]
