@@ -224,9 +224,9 @@ def markers(red: Reduction) -> list[str]:
     trans = {t["direction"]: t for t in red.transitions if t["k_mN_per_mm2"] == k}
     out += [
         "",
-        "area dip depth by L: " + ", ".join(f"{L:g}: {max(v, 0.0):.1e}"
+        "area dip depth by L: " + ", ".join(f"{L:g}: {v if v > 0 else 0.0:.1e}"
                                             for L, v in zip(Ls, dip, strict=True)),
-        "z-shrink depth by L: " + ", ".join(f"{L:g}: {max(v, 0.0):.1e}"
+        "z-shrink depth by L: " + ", ".join(f"{L:g}: {v if v > 0 else 0.0:.1e}"
                                             for L, v in zip(Ls, shrink, strict=True)),
         f"force ratio crosses 1: pair forces {_e(ratio, '.2f')} mm, generalised {_e(gen, '.2f')} mm; "
         f"aspect ratio a_y0/a_x0 peaks at L = {peak:g} mm",

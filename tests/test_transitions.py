@@ -440,7 +440,7 @@ def test_table_s4_from_stored_gaps():
     """knitsweep's contact gaps of x pulls (tests/data/paper_series.json, written by
     benchmarks/compare_paper.py from jobs/paper_k0.1_L_sweep.toml and
     jobs/paper_table_s4.toml) give paper Table S4's lines: slopes within 15 % and
-    zeros within 0.15 mm (measured: 1-13 %, 0.03-0.14 mm). A line through every
+    zeros within 0.15 mm (measured at k = 0.1 … 2: 1-13 %, 0.003-0.14 mm). A line through every
     jammed point instead misses the paper's slope by a third at k >= 0.5."""
     r, series = stored_series()
     checked = 0
