@@ -8,8 +8,19 @@ k in mN/mm².
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from itertools import pairwise
 from typing import NamedTuple
+
+TABLE_1 = {"B_mN_mm2": 90.0, "r_core_mm": 0.325, "r_mm": 0.74, "p": 2.4}
+"""Paper Table 1's B, r_core, r and p (its k, 0.6 mN/mm², varies between the tables)."""
+
+
+def at_table_1(params: Mapping[str, float], **values: float) -> bool:
+    """Whether ``params`` (names as in ``StitchParams``) hold Table 1's B, r_core, r, p
+    and the given ``values`` (e.g. ``k_mN_per_mm2=0.1``), to 1e-12."""
+    want = TABLE_1 | values
+    return all(abs(float(params[k]) - v) <= 1e-12 for k, v in want.items())
 
 
 class TableS4Row(NamedTuple):

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.paper import TABLE_S4
+from ..analysis.paper import TABLE_S4, at_table_1
 from ..analysis.transitions import Transition
 from .plotting import (
     BENDING_COLOUR,
@@ -148,10 +148,7 @@ def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any
 def _paper_line(key: tuple, d: str) -> Any:
     """Paper Table S4's row for an x series at Table 1's B, r_core, r, p, else None."""
     params = dict(zip(SERIES_PARAMS, key, strict=True))
-    table1 = {"B_mN_mm2": 90.0, "r_core_mm": 0.325, "r_mm": 0.74, "p": 2.4}
-    if d != "x" or any(abs(params[k] - v) > 1e-12 for k, v in table1.items()):
-        return None
-    return TABLE_S4.get(params["k_mN_per_mm2"])
+    return TABLE_S4.get(params["k_mN_per_mm2"]) if d == "x" and at_table_1(params) else None
 
 
 def fig4a_gap_fit(red: Reduction, notes: list[str]) -> Any:
