@@ -19,6 +19,7 @@ from .kernels.cell import cell_energy, cell_energy_listed
 from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
+from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
 from .kernels.geometry import state_to_control_points
 from .kernels.neighbours import build_neighbour_list
 from .state import CONTACT_CLASSES, IDX_AX, IDX_AY, N_STATE
@@ -175,6 +176,26 @@ class CellModel:
                          self._mode, forces, energies)  # fmt: skip
         return forces, energies
 
+    def contact_pair_forces_by_class(self, x: np.ndarray, weighted: bool = False) -> np.ndarray:
+        """Pair forces between sampled yarn points by contact class, shape (5, 3), N.
+
+        The paper's contact forces (SI "Contact Forces", Table 2, Table S3, Fig. 6h;
+        docs/model.md §9): every contact's pair force f = -dV/dR along the
+        separation, on both of its samples, projected on x, y, z; positive extends
+        the fabric (pushes the two stitches apart along an axis on which they are
+        offset, else pushes the sample away from its own stitch's mid-plane).
+        Rows ``CONTACT_CLASSES``. Unweighted, the bare force between two samples,
+        whose sums depend on the sampling (the paper's 10 samples per segment);
+        ``weighted=True`` multiplies each pair by ds ds' as in E_c (N mm^2), the
+        sampling-independent integral.
+        """
+        ip = self.ip
+        x = _as_state(x)
+        forces = np.empty((N_CLASSES, 3))
+        _pair_forces_by_class(self.control_points(x), self._ctab, x[IDX_AX], x[IDX_AY], ip.r,
+                              ip.rc, ip.k, ip.p, self._mode, weighted, forces)  # fmt: skip
+        return forces
+
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
         """Cell thickness dz = z_max - z_min + 2r of the centre-line (paper SI S4), mm."""
         cp = self.control_points(x)
@@ -202,6 +223,7 @@ def compile_kernels(
     model.min_zeta(x)
     model.thickness(x)
     model.contacts_by_class(x)
+    model.contact_pair_forces_by_class(x)
 
 
 def _as_state(x: np.ndarray) -> np.ndarray:

@@ -23,6 +23,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from knitsweep.formats import shipped_state
+
 R_MM = 0.5
 L_OVER_R = (20.0, 21.0, 22.0, 23.0, 24.0)
 
@@ -66,7 +68,6 @@ def _sweep_arrays(direction: str, x: float, g: float, contact_forces: bool) -> d
     out = {
         "strain": strain,
         "stress": 0.02 * strain / (0.01 + strain) + 0.5 * strain**2 * (1.0 + 0.02 * x),
-        "stress_envelope": np.zeros(n),
         "bending_energy": 0.3 + gap_b * profile,  # ΔE_b = E_b[0] − min E_b = gap_b
         "contact_energy": 0.01 + gap_c * profile,
         "a_x": a_x,
@@ -77,6 +78,7 @@ def _sweep_arrays(direction: str, x: float, g: float, contact_forces: bool) -> d
         "winner": np.zeros(n, dtype=np.int64),
     }
     out["total_energy"] = out["bending_energy"] + out["contact_energy"]
+    out["stress_envelope"] = out["stress"].copy()
     if contact_forces:
         out["contact_forces"] = np.tile(_forces(x), (n, 1, 1))
     return out
@@ -114,7 +116,7 @@ def write_results(
                 pid = f"p{k:g}_{x:g}"
                 pg = points.create_group(pid)
                 _attrs(pg, _params(L, k), "done", "lowest of 1 starts")
-                state = np.zeros((1, 30))
+                state = shipped_state(1)[None, :].copy()  # a real stitch, for the pair forces
                 state[0, 28:] = (2.5 + 0.01 * x, 1.9 + 0.005 * x - 0.002 * (x - 22.0) ** 2)
                 pg["x"] = state
                 pg["bending_energy"] = np.array([0.3])

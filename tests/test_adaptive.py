@@ -161,3 +161,33 @@ def test_adaptive_resume_after_sigterm(adaptive_run, tmp_path):
 def test_adaptive_jobs_cannot_be_sharded(tmp_path):
     with pytest.raises(InputError, match="cannot be split into shards"):
         service.run(JOB, tmp_path / "s.h5", executor="serial", shard="0/2", show_progress=False)
+
+
+def test_status_counts_add_up_while_an_adaptive_job_grows(tmp_path):
+    """`knitsweep status` during an adaptive run: the total grows with the refinements,
+    and finished + running + pending is always that total (it once read 39/30)."""
+    out = tmp_path / "live.h5"
+    cmd = [sys.executable, "-m", "knitsweep", "run", str(JOB), "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})  # fmt: skip
+    import time
+
+    seen = []
+    while proc.poll() is None:
+        try:
+            s = service.status(out)
+        except InputError:  # the file does not exist yet
+            time.sleep(0.05)
+            continue
+        finished = s["done"] + s["failed"] + s["not_knittable"]
+        seen.append((s["live"], finished, s["running"], s["pending"], s["total"]))
+        time.sleep(0.05)
+    _, err = proc.communicate()
+    assert proc.returncode == 0, err
+    live = [row for row in seen if row[0]]
+    planned = 12  # the coarse grid: 4 points, 8 sweeps
+    assert live and max(row[4] for row in live) > planned  # the refinements were seen
+    for _, finished, running, pending, total in seen:
+        assert finished + running + pending == total and finished <= total
+    s = service.status(out)
+    assert not s["live"] and s["pending"] == 0 and s["done"] == s["total"] > planned

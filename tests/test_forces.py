@@ -1,10 +1,17 @@
 """Property tier: contact forces and energies by class (kernels.forces) against
-finite differences, and the force balance on the cell periods (docs/model.md §9)."""
+finite differences, and the force balance on the cell periods (docs/model.md §9); the
+pair forces against their rule, the virial of the image shifts, and paper Table S3."""
+
+import json
+from itertools import pairwise
 
 import numpy as np
 import pytest
 
+from knitsweep.analysis.paper import TABLE_S3, table_s3_crossing_mm
 from knitsweep.config import Fidelity, SolverSettings, StartSettings, StitchParams
+from knitsweep.kernels.contact import find_contacts, pair_potential
+from knitsweep.kernels.forces import contact_class, contact_forces_by_class
 from knitsweep.model import CellModel
 from knitsweep.relax import relax
 from knitsweep.state import CONTACT_CLASSES, IDX_AX, IDX_AY
@@ -93,3 +100,99 @@ def test_class_forces_plus_bending_balance_the_period_force(request, which):
         assert max(map(abs, r.period_forces)) < 5e-3 * scale
     else:
         assert r.period_forces[0] > 1e-3 * scale  # pulled: the cell resists
+
+
+# ---------------------------------------------------------------- pair forces (Table S3)
+
+
+def _pair_reference(model, x, weighted):
+    """The rule of kernels.forces.contact_pair_forces_by_class, in numpy, on the
+    contact kernel's pairs: each contact's force on both samples, positive where it
+    pushes two stitches apart (offset axes) or a sample away from its own mid-plane."""
+    ip = model.ip
+    cp = model.control_points(x)
+    tab = model._ctab
+    pts, _, speed, idx, sep = find_contacts(cp, tab, x[IDX_AX], x[IDX_AY], ip.r, model._mode)
+    dv = np.array([pair_potential(d, ip.r, ip.rc, ip.k, ip.p)[1] for d in sep[:, 3]])
+    f = -dv / sep[:, 3]
+    if weighted:
+        f = f * speed[idx[:, 0]] * speed[idx[:, 1]] / tab.shape[1] ** 2
+    force_on_i = f[:, None] * sep[:, :3]
+    offset = np.column_stack([idx[:, 2], idx[:, 3], np.zeros(len(idx), dtype=np.int64)])
+    apart = -2.0 * np.sign(offset) * force_on_i
+    outward = force_on_i * (np.sign(pts[idx[:, 0]]) - np.sign(pts[idx[:, 1]]))
+    contribution = np.where(offset != 0, apart, outward)
+    out = np.zeros((len(CONTACT_CLASSES), 3))
+    classes = [contact_class(m, n) for m, n in idx[:, 2:]]
+    np.add.at(out, classes, contribution)
+    return out
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_pair_forces_follow_their_rule(rest, pulled, weighted):
+    model = CellModel(PARAMS, FIDELITY)
+    for x in (rest.x, pulled.x):
+        got = model.contact_pair_forces_by_class(x, weighted=weighted)
+        np.testing.assert_allclose(got, _pair_reference(model, x, weighted), rtol=1e-12,
+                                   atol=1e-14 * np.abs(got).max())  # fmt: skip
+
+
+@pytest.mark.parametrize("col, index, cls, per_offset", [
+    (0, IDX_AX, "same_row", 1.0), (1, IDX_AY, "nn_column", 1.0), (1, IDX_AY, "nnn_column", 2.0),
+])  # fmt: skip
+def test_weighted_pair_forces_are_the_image_shift_derivative(rest, col, index, cls, per_offset):
+    """Weighted by ds ds′, a class's pair force along its offset axis is −∂E_c(class)/∂a
+    with the yarn held where it is and only the images moving (the virial of those
+    contacts), divided by the offset |m| or |n| of the class."""
+    model = CellModel(PARAMS, FIDELITY)
+    ip, x = model.ip, rest.x
+    cp = model.control_points(x)
+    dcp = np.zeros((*cp.shape, 2))
+
+    def class_energies(a):
+        periods = [x[IDX_AX], x[IDX_AY]]
+        periods[col] = a
+        forces, energies = np.empty((5, 3)), np.empty(5)
+        contact_forces_by_class(cp, dcp, model._ctab, *periods, ip.r, ip.rc, ip.k, ip.p,
+                                model._mode, forces, energies)  # fmt: skip
+        return energies
+
+    row = CONTACT_CLASSES.index(cls)
+    fd = -(class_energies(x[index] + H)[row] - class_energies(x[index] - H)[row]) / (2 * H)
+    got = model.contact_pair_forces_by_class(x, weighted=True)[row, col]
+    assert got != 0.0
+    assert got * per_offset == pytest.approx(fd, rel=1e-6)
+
+
+def test_no_contact_no_pair_force(rest):
+    thin = StitchParams(L_mm=10.8, r_mm=0.1, r_core_mm=0.05)
+    assert not CellModel(thin, FIDELITY).contact_pair_forces_by_class(rest.x).any()
+
+
+def test_pair_forces_reproduce_table_s3(data_dir):
+    """On knitsweep's own zero-force states of the k = 0.1 series (tests/data/
+    paper_series.json), the unweighted pair forces give Table S3's |F_x| (self + same
+    row) within 5 % at every L (measured: -4 … +2 %), its |F_y| (NN + NNN same
+    column) within 30 % (measured: -28 … +20 %), a ratio crossing 1 within 0.1 mm of
+    Table S3's 11.46 mm, and Table 2's directions at L = 10.5 mm."""
+    states = json.loads((data_dir / "paper_series.json").read_text())["zero_force_states_k0.1"]
+    ratio = {}
+    for text, x in states.items():
+        L = float(text)
+        f = CellModel(
+            StitchParams(L_mm=L, k_mN_per_mm2=0.1), FIDELITY
+        ).contact_pair_forces_by_class(np.array(x))
+        fx, fy = abs(f[0, 0] + f[1, 0]), abs(f[2, 1] + f[3, 1])
+        ratio[L] = fx / fy
+        if L in TABLE_S3:
+            assert fx == pytest.approx(TABLE_S3[L][0], rel=0.05), L
+            assert fy == pytest.approx(TABLE_S3[L][1], rel=0.30), L
+        if L == 10.5:  # paper Table 2 (and Fig. S11, drawn at L = 10.5 mm)
+            i = {c: CONTACT_CLASSES.index(c) for c in CONTACT_CLASSES}
+            assert f[i["self"], 0] > 0 and f[i["same_row"], 0] > 0  # extend in x
+            assert f[i["nn_column"], 1] < 0 < f[i["nnn_column"], 1]  # compress / extend in y
+            assert f[i["nn_column"], 2] == f[:, 2].max() > 0  # NN pushes out of plane most
+    Ls = sorted(ratio)
+    crossing = next(a + (ratio[a] - 1) / (ratio[a] - ratio[b]) * (b - a)
+                    for a, b in pairwise(Ls) if ratio[a] >= 1 > ratio[b])  # fmt: skip
+    assert crossing == pytest.approx(table_s3_crossing_mm(), abs=0.1)

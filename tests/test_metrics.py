@@ -18,6 +18,7 @@ from knitsweep.analysis import (
     fit_line,
     offset_stress,
     secant_modulus,
+    stress_drops,
     sweep_metrics,
     tangent_modulus,
     thickness_strain,
@@ -452,3 +453,52 @@ def test_sweep_metrics_errors():
         sweep_metrics("x", **nan)
     with pytest.raises(ValueError, match="area_tol"):
         sweep_metrics("x", **s, area_tol=-1.0)
+
+
+# ---------------------------------------------------------------- start switches
+
+
+def switching_sweep():
+    """The jammed curve as two starts would give it: the envelope stress is the smooth
+    curve, the finite-difference stress drops by 40 % at ε = 0.015, where the winning
+    start changes (start 1 wins from step 30 on), as the relaxations' energy offsets
+    between chains make it do."""
+    s = make_sweep()
+    eps = s["strain"]
+    envelope = jammed_curve(eps, 100.0)
+    winner = np.where(np.arange(eps.size) >= 30, 1, 0)
+    fd = envelope.copy()
+    fd[30] *= 0.6
+    return dict(s, stress=fd), envelope, winner
+
+
+def test_stress_drops_are_flagged_where_the_start_switches():
+    s, envelope, winner = switching_sweep()
+    d = stress_drops(s["strain"], s["stress"], winner)
+    assert (d.n_switches, d.n_drops, d.n_switching_drops) == (1, 1, 1)
+    assert d.discontinuous and d.first_drop_strain == s["strain"][30]
+    # the same drop with no switch nearby is a drop, not a switching drop
+    far = np.where(np.arange(winner.size) >= 60, 1, 0)
+    d = stress_drops(s["strain"], s["stress"], far)
+    assert (d.n_drops, d.n_switching_drops, d.discontinuous) == (1, 0, False)
+    assert stress_drops(s["strain"], envelope, winner).n_drops == 0
+    assert stress_drops(s["strain"], s["stress"]).n_switches == 0
+    with pytest.raises(ValueError, match="winner"):
+        stress_drops(s["strain"], s["stress"], winner[:-1])
+
+
+def test_sigma0_is_fitted_to_the_envelope_stress_across_a_switch():
+    s, envelope, winner = switching_sweep()
+    # on the finite-difference stress the drop ends the softened-regime search
+    fd = sweep_metrics("x", **s, halfwidth=5, min_span=0.01)
+    assert fd.offset.sigma0 is None and fd.offset.reason and fd.sigma0_source == "stress"
+    m = sweep_metrics("x", **s, stress_envelope=envelope, winner=winner, halfwidth=5,
+                      min_span=0.01)  # fmt: skip
+    assert m.sigma0_source == "envelope" and m.drops.discontinuous
+    assert m.offset.has_linear_regime
+    # only points on the softened line are fitted: σ0 exact up to rounding
+    assert m.offset.sigma0 == pytest.approx(SIGMA0, abs=1e-12)
+    assert m.offset.fit.max_abs_residual < 1e-15
+    assert m.secant == secant_modulus(s["strain"], s["stress"])  # Y_sec stays on σ
+    with pytest.raises(ValueError, match="stress_envelope"):
+        sweep_metrics("x", **s, stress_envelope=envelope[:-1])

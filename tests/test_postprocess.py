@@ -70,14 +70,17 @@ def test_tiny_job_cli_tables(tiny, tmp_path):
     sweeps = read_csv(tmp_path / "pd" / "sweeps.csv")
     assert len(sweeps) == 4
     for col in ("task_id", "direction", "L_mm", "L_over_r", "k_mN_per_mm2", "Y_sec_N_per_mm",
-                "sigma0_N_per_mm", "has_linear_regime", "delta_E_b_mJ", "delta_E_c_mJ",
+                "sigma0_N_per_mm", "has_linear_regime", "sigma0_source", "sigma0_reason",
+                "stress_discontinuous", "n_switching_drops", "delta_E_b_mJ", "delta_E_c_mJ",
                 "aspect_ratio", "area_strain_min", "thickness_strain_max", "regime",
                 "partial"):  # fmt: skip
         assert col in sweeps[0], col
     trans = read_csv(tmp_path / "pd" / "transitions.csv")
     for col in ("direction", *SERIES_PARAMS, "status", "L_over_r_trans", "bracket_lower",
-                "bracket_upper", "fit_slope_per_mm", "fit_intercept", "fit_max_abs_residual",
-                "fit_mean_abs_residual", "fit_mse", "delta_L_over_r", "threshold_mJ"):  # fmt: skip
+                "bracket_upper", "fit_n_points", "fit_L_lo_mm", "fit_L_hi_mm",
+                "fit_slope_mJ_per_mm", "fit_intercept_mJ", "fit_max_abs_residual_mJ",
+                "fit_mean_abs_residual_mJ", "fit_mse_mJ2", "fit_zero_L_mm", "delta_L_over_r",
+                "delta_L_mm", "threshold_mJ"):  # fmt: skip
         assert col in trans[0], col
 
 
@@ -92,12 +95,14 @@ def test_known_transitions(synthetic):
     assert (x["bracket_lower"], x["bracket_upper"]) == (22.0, 23.0)
     assert x["L_trans_mm"] == pytest.approx(11.5)
     assert x["n_jammed"] == 3 and x["fit_n_points"] == 3 and x["n_missing"] == 1
-    assert x["fit_slope_per_L_over_r"] == pytest.approx(-2e-4, rel=1e-9)
-    assert x["fit_slope_per_mm"] == pytest.approx(-4e-4, rel=1e-9)  # per mm: divided by r
-    assert x["fit_intercept"] == pytest.approx(4.5e-3, rel=1e-9)
-    assert x["L_over_r_intercept"] == pytest.approx(22.5, rel=1e-9)
+    assert (x["fit_L_lo_mm"], x["fit_L_hi_mm"]) == pytest.approx((10.0, 11.0))
+    assert x["fit_slope_mJ_per_mm"] == pytest.approx(-4e-4, rel=1e-9)  # per mm: divided by r
+    assert x["fit_intercept_mJ"] == pytest.approx(4.5e-3, rel=1e-9)
+    assert x["fit_zero_L_over_r"] == pytest.approx(22.5, rel=1e-9)
+    assert x["fit_zero_L_mm"] == pytest.approx(11.25, rel=1e-9)
     assert x["delta_L_over_r"] == pytest.approx(0.5, rel=1e-8)
-    assert x["fit_max_abs_residual"] < 1e-12
+    assert x["delta_L_mm"] == pytest.approx(0.25, rel=1e-8)
+    assert x["fit_max_abs_residual_mJ"] < 1e-12 and x["fit_tolerance_mJ"] == 5e-5
     y = transition_of(red, 0.1, "y")
     assert (y["L_over_r_trans"], y["bracket_lower"], y["gap"]) == (24.0, 23.0, "delta_E_b")
     assert y["delta_L_over_r"] == pytest.approx(0.5, rel=1e-8)
@@ -133,9 +138,16 @@ def test_gaps_and_metrics_per_sweep(synthetic):
         assert row["Y_sec_N_per_mm"] is not None and row["Y_sec_N_per_mm"] > 0.0
         widen_x = row["F_self_x_N"] + row["F_same_row_x_N"]
         column_y = row["F_nn_column_y_N"] + row["F_nnn_column_y_N"]
-        assert row["force_ratio_xy"] == pytest.approx(abs(widen_x / column_y))
-        assert row["force_ratio_xy"] != pytest.approx(abs(row["F_x_N"] / row["F_y_N"]))
+        assert row["generalised_force_ratio_xy"] == pytest.approx(abs(widen_x / column_y))
+        assert row["generalised_force_ratio_xy"] != pytest.approx(abs(row["F_x_N"] / row["F_y_N"]))
         assert row["F_self_x_N"] == pytest.approx(0.02)
+        # the paper's ratio comes from the pair forces of the stored zero-force state
+        pair_x = row["pair_F_self_x_N"] + row["pair_F_same_row_x_N"]
+        pair_y = row["pair_F_nn_column_y_N"] + row["pair_F_nnn_column_y_N"]
+        assert row["pair_F_x_self_row_N"] == pytest.approx(pair_x)
+        assert row["force_ratio_xy"] == pytest.approx(abs(pair_x / pair_y))
+        # synthetic curves are smooth and won by one start: σ0 on the envelope, no drops
+        assert row["sigma0_source"] == "envelope" and not row["stress_discontinuous"]
     unjammed_y = [r for r in red.sweeps if r["direction"] == "y" and not r["jammed"]]
     assert unjammed_y and all(not r["min_area_at_zero_force"] for r in unjammed_y)
 
@@ -172,7 +184,9 @@ def test_contact_forces_absent(tmp_path):
     path = write_results(tmp_path / "nf.h5", contact_forces=False)
     red = reduce_results(path)
     assert all(r["force_ratio_xy"] is None for r in red.sweeps + red.points)
+    assert all(r["generalised_force_ratio_xy"] is None for r in red.sweeps + red.points)
     assert all(r[f"F_{CONTACT_CLASSES[0]}_x_N"] is None for r in red.sweeps)
+    assert all(r[f"pair_F_{CONTACT_CLASSES[0]}_x_N"] is None for r in red.points)
 
 
 # ---- partial files -------------------------------------------------------------------

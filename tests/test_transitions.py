@@ -7,6 +7,7 @@ the paper's 0.1-mm grid in L with r = 0.74 mm.
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,11 +19,13 @@ from knitsweep.analysis import (
     Transition,
     fit_line,
     group_series,
+    linear_jammed_run,
     regime,
     series_transitions,
     transition,
     transition_from_bracket,
 )
+from knitsweep.analysis.paper import TABLE_S4
 
 R = 0.74  # mm
 SLOPE_L = -1.55e-3  # N·mm per mm of L (Table S4, k = 0.1)
@@ -88,20 +91,60 @@ def test_fit_columns_match_table_s4_definitions():
     assert res.fit.mse == pytest.approx(np.mean(resid**2), rel=1e-6)
 
 
-def test_curved_tail_is_part_of_the_jammed_fit():
-    """Linear to L = 11.0, then a quadratic tail reaching zero at 11.5: every point
-    before the transition is fitted, and ΔL/r = trans − (fit's zero)."""
+def convex_tail_gap(L: np.ndarray) -> np.ndarray:
+    """The Table S4 line to L = 10.8 mm, then a convex transition region that leaves
+    it tangentially and bends away ever more (the shape of the simulated gaps, paper
+    Fig. 4a), a parabola flattening to zero slope at L = 11.91 mm."""
+    g0 = INTERCEPT + SLOPE_L * 10.8
+    u = np.maximum(L - 10.8, 0.0)
+    vertex = -2.0 * g0 / SLOPE_L
+    tail = g0 + SLOPE_L * u - SLOPE_L / (2.0 * vertex) * u**2
+    return np.where(L <= 10.8, INTERCEPT + SLOPE_L * L, np.where(u < vertex, tail, 0.0))
+
+
+def test_curved_transition_region_is_left_out_of_the_fit():
     L = grid_L()
-    lin = INTERCEPT + SLOPE_L * L
-    g11 = INTERCEPT + SLOPE_L * 11.0
-    tail = g11 * ((11.5 - L) / 0.5) ** 2
-    gap = np.where(L <= 11.0, lin, np.where(L < 11.5, tail, 0.0))
+    gap = convex_tail_gap(L)
     res = transition(L / R, gap)
     i = int(np.flatnonzero(gap < GAP_THRESHOLD)[0])
     assert res.L_over_r_trans == L[i] / R and res.n_jammed == i
-    ref = fit_line(L[:i] / R, gap[:i])
-    assert res.fit == ref
-    assert res.delta_L_over_r == pytest.approx(L[i] / R + ref.intercept / ref.slope, abs=1e-12)
+    run = linear_jammed_run(L[:i] / R, gap[:i])
+    # the rule: from the dense end, the longest run whose line fits within the gap
+    # error; one point more and it does not
+    assert run.start == 0 and 3 <= run.stop <= i - 3
+    assert fit_line(L[run], gap[run]).max_abs_residual <= GAP_THRESHOLD
+    assert fit_line(L[: run.stop + 1], gap[: run.stop + 1]).max_abs_residual > GAP_THRESHOLD
+    assert res.fit == fit_line(L[run] / R, gap[run])
+    assert (res.fit_lower, res.fit_upper) == (L[0] / R, L[run.stop - 1] / R)
+    assert res.fit.max_abs_residual <= res.fit_tolerance == GAP_THRESHOLD
+    # the line stays close to the Table S4 one, and ΔL/r runs from its zero to trans
+    assert res.fit.slope / R == pytest.approx(SLOPE_L, rel=0.1)
+    assert res.delta_L_over_r == pytest.approx(res.L_over_r_trans - res.L_over_r_intercept)
+    assert res.delta_L_over_r > 0.2 / R  # the curved region: ~0.28 mm here
+    # fitting every jammed point, curved region included, would flatten the slope
+    assert fit_line(L[:i], gap[:i]).slope > 0.8 * SLOPE_L  # per mm: L in mm here
+
+
+def test_linear_jammed_run_rule():
+    x = np.arange(8.0)
+    line = 1e-3 * (8.0 - x)
+    assert linear_jammed_run(x, line) == slice(0, 8)  # exactly linear: every point
+    # a point off the line by more than the tolerance ends the run before it
+    bent = line.copy()
+    bent[5:] += 4e-4
+    run = linear_jammed_run(x, bent)
+    assert run.stop <= 5 and fit_line(x[run], bent[run]).max_abs_residual <= GAP_THRESHOLD
+    assert linear_jammed_run(x, bent, tolerance=1e-3) == slice(0, 8)
+    # points that cannot be knitted (gap +inf) are skipped at the dense end only
+    inf = line.copy()
+    inf[:2] = np.inf
+    assert linear_jammed_run(x, inf) == slice(2, 8)
+    inf[5] = np.inf
+    assert linear_jammed_run(x, inf) == slice(2, 5)
+    assert linear_jammed_run(x[:1], line[:1]) == slice(0, 0)
+    assert linear_jammed_run([1.0, 2.0, 3.0], [np.inf, 1e-3, np.inf]) == slice(0, 0)
+    with pytest.raises(ValueError, match="tolerance"):
+        linear_jammed_run(x, line, tolerance=0.0)
 
 
 def test_all_jammed():
@@ -111,6 +154,7 @@ def test_all_jammed():
     assert res.L_over_r_trans is None and res.bracket_upper is None
     assert res.bracket_lower == L[-1] / R  # the transition lies above the series
     assert res.n_jammed == 8 and res.fit.slope == pytest.approx(SLOPE_L * R, rel=1e-12)
+    assert res.fit.n_points == 8 and res.fit_upper == L[-1] / R
     assert res.L_over_r_intercept == pytest.approx(L_ZERO / R, abs=1e-12)
     assert res.delta_L_over_r is None
     d = res.as_dict()
@@ -382,3 +426,37 @@ def test_group_series_missing_fields_and_duplicates():
         match=r"series \{'k': 0.1.*\} in y: L_over_r: the value 15.0 appears more than once",
     ):
         group_series(dup)
+
+
+# ------------------------------------------------- the paper's Table S4, on stored gaps
+
+
+def stored_series():
+    data = json.loads((Path(__file__).parent / "data" / "paper_series.json").read_text())
+    return data["r_mm"], data["series"]
+
+
+def test_table_s4_from_stored_gaps():
+    """knitsweep's contact gaps of x pulls (tests/data/paper_series.json, written by
+    benchmarks/compare_paper.py from jobs/paper_k0.1_L_sweep.toml and
+    jobs/paper_table_s4.toml) give paper Table S4's lines: slopes within 15 % and
+    zeros within 0.15 mm (measured at k = 0.1 … 2: 1-13 %, 0.003-0.14 mm). A line through every
+    jammed point instead misses the paper's slope by a third at k >= 0.5."""
+    r, series = stored_series()
+    checked = 0
+    for s in series.values():
+        k = s["k_mN_per_mm2"]
+        if s["direction"] != "x" or k not in TABLE_S4:
+            continue
+        L, gap = np.array(s["L_mm"]), np.array(s["gap_mJ"])
+        t = transition(L / r, gap)
+        paper = TABLE_S4[k]
+        assert t.status == "transition" and t.fit.max_abs_residual <= GAP_THRESHOLD
+        assert t.fit.slope / r == pytest.approx(paper.slope_mJ_per_mm, rel=0.15), k
+        assert t.L_over_r_intercept * r == pytest.approx(paper.zero_L_mm, abs=0.15), k
+        assert t.delta_L_over_r > 0.0
+        every = fit_line(L[: t.n_jammed], gap[: t.n_jammed])
+        if k >= 0.5:
+            assert every.slope / paper.slope_mJ_per_mm < 0.75, k
+        checked += 1
+    assert checked >= 4

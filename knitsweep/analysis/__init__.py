@@ -6,9 +6,10 @@ Pure numpy, no I/O: arrays and floats in, frozen dataclasses out (each with an
 * :mod:`.metrics` — one sweep: secant modulus Y_sec, offset stress σ0, energy gaps
   ΔE_b and ΔE_c, aspect ratio, area and thickness strains.
 * :mod:`.transitions` — a series in L/r: the onset of unjamming (L/r)_trans, its
-  bracket, the jammed-regime line fit (Table S4) and ΔL/r; regimes; grouping of
-  records into series.
+  bracket, the jammed-regime line fit over the linear run (Table S4) and ΔL/r;
+  regimes; grouping of records into series.
 * :mod:`.fitting` — the straight-line least-squares fit both use.
+* :mod:`.paper` — the paper's tabulated numbers, for comparisons only.
 """
 
 from .fitting import LinearFit, fit_line
@@ -18,12 +19,14 @@ from .metrics import (
     EnergyGaps,
     OffsetStress,
     SecantModulus,
+    StressDrops,
     SweepMetrics,
     area_strain,
     aspect_ratio,
     energy_gaps,
     offset_stress,
     secant_modulus,
+    stress_drops,
     sweep_metrics,
     tangent_modulus,
     thickness_strain,
@@ -36,6 +39,7 @@ from .transitions import (
     GapSeries,
     Transition,
     group_series,
+    linear_jammed_run,
     regime,
     series_transitions,
     threshold_crossing,
@@ -55,6 +59,7 @@ __all__ = [
     "LinearFit",
     "OffsetStress",
     "SecantModulus",
+    "StressDrops",
     "SweepMetrics",
     "Transition",
     "area_strain",
@@ -62,10 +67,12 @@ __all__ = [
     "energy_gaps",
     "fit_line",
     "group_series",
+    "linear_jammed_run",
     "offset_stress",
     "regime",
     "secant_modulus",
     "series_transitions",
+    "stress_drops",
     "sweep_metrics",
     "tangent_modulus",
     "thickness_strain",

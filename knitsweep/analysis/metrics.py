@@ -33,8 +33,10 @@ from .stress_strain import (
     SECANT_STRAIN,
     OffsetStress,
     SecantModulus,
+    StressDrops,
     offset_stress,
     secant_modulus,
+    stress_drops,
     tangent_modulus,
 )
 
@@ -44,12 +46,14 @@ __all__ = [
     "EnergyGaps",
     "OffsetStress",
     "SecantModulus",
+    "StressDrops",
     "SweepMetrics",
     "area_strain",
     "aspect_ratio",
     "energy_gaps",
     "offset_stress",
     "secant_modulus",
+    "stress_drops",
     "sweep_metrics",
     "tangent_modulus",
     "thickness_strain",
@@ -99,7 +103,12 @@ class SweepMetrics(PlainDict):
         max_strain: last strain reached.
         max_stress: N/mm, largest stress reached.
         secant: the secant modulus Y_sec at ε = 0.02.
-        offset: the offset stress σ0 and its fit.
+        offset: the offset stress σ0 and its fit, on the envelope stress when the
+            sweep has one (``sigma0_source``).
+        sigma0_source: 'envelope' (σ0 fitted to the envelope stress, continuous
+            where the winning start switches) or 'stress' (the finite-difference one).
+        drops: where the finite-difference stress falls at start switches (a
+            discontinuous curve).
         gaps: both energy gaps.
         jamming_gap: N·mm, ``gaps.jamming_gap(direction)`` (ΔE_c for x, ΔE_b for y).
         a_x0, a_y0: mm, the zero-force cell periods.
@@ -120,6 +129,8 @@ class SweepMetrics(PlainDict):
     max_stress: float
     secant: SecantModulus
     offset: OffsetStress
+    sigma0_source: str
+    drops: StressDrops
     gaps: EnergyGaps
     jamming_gap: float
     a_x0: float
@@ -202,6 +213,8 @@ def sweep_metrics(
     a_y: np.ndarray,
     thickness: np.ndarray,
     *,
+    stress_envelope: np.ndarray | None = None,
+    winner: np.ndarray | None = None,
     at: float = SECANT_STRAIN,
     window: tuple[float, float] | None = None,
     band: float = 0.25,
@@ -217,6 +230,11 @@ def sweep_metrics(
         strain, stress, bending_energy, contact_energy, a_x, a_y, thickness: per-step
             arrays, all shape (n,), step 0 the zero-force state (units in the module
             docstring).
+        stress_envelope: optional shape (n,), N/mm, the envelope stress (docs/model.md
+            §8). σ0 is fitted to it when given: it needs no differencing across steps
+            won by different starts, so the switching drops of ``stress`` (which stop
+            the softened-regime search) are absent.
+        winner: optional shape (n,), the winning start per step, for ``drops``.
         at: strain of the secant modulus (paper: 0.02).
         window, band, min_points, min_span, halfwidth: passed to :func:`offset_stress`.
         area_tol: tolerance (≥ 0) of ``min_area_at_zero_force``.
@@ -240,9 +258,12 @@ def sweep_metrics(
         raise ValueError(f"area_tol = {area_tol!r}: must be >= 0")
 
     secant = secant_modulus(eps, sig, at)
+    fitted = sig if stress_envelope is None else check_array("stress_envelope", stress_envelope)
+    check_same_length(strain=eps, stress_envelope=fitted)
     offset = offset_stress(
-        eps, sig, window, band=band, min_points=min_points, min_span=min_span, halfwidth=halfwidth
-    )
+        eps, fitted, window, band=band, min_points=min_points, min_span=min_span,
+        halfwidth=halfwidth,
+    )  # fmt: skip
     gaps = energy_gaps(arrays["bending_energy"], arrays["contact_energy"])
     area = area_strain(arrays["a_x"], arrays["a_y"])
     dz = thickness_strain(arrays["thickness"])
@@ -256,6 +277,8 @@ def sweep_metrics(
         max_stress=float(np.max(sig)),
         secant=secant,
         offset=offset,
+        sigma0_source="stress" if stress_envelope is None else "envelope",
+        drops=stress_drops(eps, sig, winner),
         gaps=gaps,
         jamming_gap=gaps.jamming_gap(direction),
         a_x0=a_x0,

@@ -144,12 +144,67 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
-# For stresses that are finite differences of the energy (knitsweep's sweeps), the
-# tangent modulus is a numerical second derivative: smooth it over 11 steps and ask
-# for a softened regime spanning at least 1 % strain. Measured on the phase_small
-# job: sigma0 then exists for every sweep and falls smoothly to zero at the
-# transition (paper Fig. 2f); unsmoothed, a third of the sweeps had none.
+# For the stresses of knitsweep's sweeps the tangent modulus is a numerical
+# derivative (of a finite difference of the energy, or of the envelope stress): smooth
+# it over 11 steps and ask for a softened regime spanning at least 1 % strain.
+# Measured on the phase_small job: sigma0 then exists for every sweep and falls
+# smoothly to zero at the transition (paper Fig. 2f); unsmoothed, a third of the
+# sweeps had none.
 FD_STRESS_SMOOTHING = {"halfwidth": 5, "min_span": 0.01}
+
+
+@dataclass(frozen=True)
+class StressDrops(PlainDict):
+    """Where a finite-difference stress falls along a tension sweep, and whether the
+    falls come from switches of the winning start (docs/model.md §8–9).
+
+    Each step's state is the lowest-energy of several chains; where the winner
+    changes, the energies differenced for σ come from different chains, and σ can
+    drop although every chain's own stress rises: the curve is discontinuous there.
+
+    Attributes:
+        n_switches: steps whose winning start differs from the previous step's.
+        n_drops: steps j with σ_j < σ_{j-1}.
+        n_switching_drops: drops within the stencil of a switch (the winner changes
+            somewhere in steps j-2 .. j+1, whose energies σ_{j-1} and σ_j use).
+        first_drop_strain: strain of the first switching drop, None without one.
+        discontinuous: True when there is a switching drop.
+    """
+
+    n_switches: int
+    n_drops: int
+    n_switching_drops: int
+    first_drop_strain: float | None
+    discontinuous: bool
+
+
+def stress_drops(
+    strain: np.ndarray, stress: np.ndarray, winner: np.ndarray | None = None
+) -> StressDrops:
+    """:class:`StressDrops` of one sweep.
+
+    Args:
+        strain: shape (n,), strictly increasing.
+        stress: shape (n,), N/mm, the finite-difference stress.
+        winner: shape (n,), the winning start of each step (None: no switches known).
+    """
+    eps, sig = check_strain_stress(strain, stress)
+    drops = np.flatnonzero(np.diff(sig) < 0.0) + 1
+    if winner is None:
+        changed = np.zeros(eps.size, dtype=bool)
+    else:
+        w = np.asarray(winner)
+        if w.shape != eps.shape:
+            raise ValueError(f"winner: shape {w.shape}, strain has {eps.shape}")
+        changed = np.r_[False, w[1:] != w[:-1]]
+    switching = [j for j in drops if changed[max(j - 1, 0) : j + 2].any()]
+    return StressDrops(
+        n_switches=int(np.count_nonzero(changed)),
+        n_drops=int(drops.size),
+        n_switching_drops=len(switching),
+        first_drop_strain=float(eps[switching[0]]) if switching else None,
+        discontinuous=bool(switching),
+    )
 
 
 def offset_stress(

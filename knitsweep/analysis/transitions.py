@@ -1,11 +1,18 @@
 """The jamming rule: onset of unjamming (L/r)_trans, its bracket, the threshold
-crossing, the transition width ΔL/r, and regimes (docs/model.md §9; paper "Energy
-Markers for Jamming", Fig. 4, SI "Tolerance and Error").
+crossing, the jammed-regime line fit and the transition width ΔL/r, and regimes
+(docs/model.md §9; paper "Energy Markers for Jamming", Fig. 4a-b, SI "Tolerance and
+Error", Table S4).
 
 This module is the one definition of the rule; the post-processor, the adaptive
 search of a job and the accuracy study all call it. A point is jammed while its gap
 is at or above :data:`GAP_THRESHOLD`; (L/r)_trans is the first L/r of a series below
 it, and the bracket is (the jammed L/r before it, (L/r)_trans].
+
+The jammed-regime fit (:func:`linear_jammed_run`) is a straight line through the
+*linear* part of the jammed regime only: the run of jammed points from the dense end
+(smallest L/r) that a line fits within the gap error, :data:`GAP_THRESHOLD`. The
+curved transition region just before (L/r)_trans is left out, as in the paper, whose
+ΔL/r is the distance from that line's zero to (L/r)_trans (Fig. 4a).
 
 A *series* is one energy gap against L/r, sorted ascending, at fixed k, B, r_core, r,
 p and one pulling direction. The gap that marks jamming is ΔE_c for 'x' and ΔE_b for
@@ -65,12 +72,14 @@ class Transition(PlainDict):
         threshold: the gap threshold used, N·mm.
         source: 'grid' (:func:`transition`) or 'bracket' (:func:`transition_from_bracket`).
         n_points: number of points of the series.
-        n_jammed: points before the transition (all with gap ≥ threshold), the points
-            of the fit.
+        n_jammed: points before the transition (all with gap ≥ threshold).
         n_jammed_after: points after the transition whose gap is again ≥ threshold
             (0 for a monotone series; > 0 deserves a look).
-        fit: least-squares line of gap against L/r over the jammed points (≥ 2
-            needed), else None.
+        fit: least-squares line of gap against L/r over the linear jammed run of
+            :func:`linear_jammed_run` (≥ 2 points needed), else None. Its
+            ``n_points`` are the fitted points, its residuals the Table S4 columns.
+        fit_lower, fit_upper: the smallest and largest L/r fitted (None without a fit).
+        fit_tolerance: N·mm, the largest |residual| the linear run allows.
         L_over_r_intercept: where that line reaches zero gap, −intercept/slope; None
             without a fit or when the slope is ≥ 0 (a gap that does not decrease has
             no meaningful end of jamming).
@@ -88,6 +97,9 @@ class Transition(PlainDict):
     n_jammed: int
     n_jammed_after: int
     fit: LinearFit | None
+    fit_lower: float | None
+    fit_upper: float | None
+    fit_tolerance: float
     L_over_r_intercept: float | None
     delta_L_over_r: float | None
 
@@ -125,13 +137,57 @@ def _series(L_over_r: Any, gap: Any) -> tuple[np.ndarray, np.ndarray]:
     return x, g
 
 
-def _jammed_line(x: np.ndarray, g: np.ndarray) -> tuple[LinearFit | None, float | None]:
-    finite = np.isfinite(g)
-    x, g = x[finite], g[finite]
-    if x.size < 2:
-        return None, None
-    fit = fit_line(x, g)
-    return fit, (fit.x_intercept if fit.slope < 0.0 else None)
+def linear_jammed_run(L_over_r: Any, gap: Any, tolerance: float = GAP_THRESHOLD) -> slice:
+    """Which jammed points the Table S4 line is fitted to: the linear jammed regime.
+
+    The rule, deterministic and on the gaps alone: start at the dense end, the
+    smallest L/r with a finite gap (points that cannot be knitted, gap +inf, are
+    skipped there and end the run anywhere else), take the first two points, and
+    add the next point while the least-squares line through all points taken so far
+    leaves every residual within ``tolerance`` (the gap error, paper SI "Tolerance and
+    Error"). The first point that bends the data out of that band, and every point
+    after it, belong to the curved transition region and are left out (paper Fig. 4a,
+    where the fitted line misses the last jammed points).
+
+    Args:
+        L_over_r: shape (n,), strictly increasing (the jammed points of a series).
+        gap: shape (n,), N·mm, ≥ 0 (+inf allowed).
+        tolerance: N·mm, > 0.
+
+    Returns:
+        The slice of the fitted points; empty when fewer than 2 finite points lead
+        the series.
+    """
+    tolerance = check_scalar("tolerance", tolerance, positive=True)
+    x, g = _series(L_over_r, gap)
+    finite = np.flatnonzero(np.isfinite(g))
+    if finite.size < 2:
+        return slice(0, 0)
+    start = int(finite[0])
+    end = start
+    while end < x.size and np.isfinite(g[end]):
+        end += 1
+    stop = start + 2
+    if stop > end:
+        return slice(0, 0)
+    while (
+        stop < end
+        and fit_line(x[start : stop + 1], g[start : stop + 1]).max_abs_residual <= tolerance
+    ):
+        stop += 1
+    return slice(start, stop)
+
+
+def _jammed_line(
+    x: np.ndarray, g: np.ndarray, tolerance: float
+) -> tuple[LinearFit | None, float | None, float | None, float | None]:
+    """(fit, its L/r-intercept, first and last fitted L/r) of the jammed points."""
+    run = linear_jammed_run(x, g, tolerance) if x.size else slice(0, 0)
+    if run.stop - run.start < 2:
+        return None, None, None, None
+    fit = fit_line(x[run], g[run])
+    x0 = fit.x_intercept if fit.slope < 0.0 else None
+    return fit, x0, float(x[run.start]), float(x[run.stop - 1])
 
 
 def _result(
@@ -144,7 +200,7 @@ def _result(
     threshold: float,
     source: Literal["grid", "bracket"],
 ) -> Transition:
-    fit, x0 = _jammed_line(x[:n_jammed], g[:n_jammed])
+    fit, x0, lo, hi = _jammed_line(x[:n_jammed], g[:n_jammed], threshold)
     after = x > trans if trans is not None else np.zeros(x.size, dtype=bool)
     return Transition(
         status=status,
@@ -157,6 +213,9 @@ def _result(
         n_jammed=n_jammed,
         n_jammed_after=int(np.count_nonzero(after & (g >= threshold))),
         fit=fit,
+        fit_lower=lo,
+        fit_upper=hi,
+        fit_tolerance=threshold,
         L_over_r_intercept=x0,
         delta_L_over_r=(trans - x0) if trans is not None and x0 is not None else None,
     )
@@ -169,8 +228,10 @@ def transition(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> Tra
     an energy gap below our error threshold"; its error is "+0, −one step" (SI
     "Tolerance and Error"), hence the bracket (previous grid point, (L/r)_trans).
     The jammed points are those before the transition (all with gap ≥ threshold);
-    a straight least-squares line through them gives the Table S4 columns, its
-    L/r-intercept, and ΔL/r = (L/r)_trans − intercept (paper Fig. 4a).
+    a straight least-squares line through their linear run
+    (:func:`linear_jammed_run`, tolerance = the threshold, the gap error) gives the
+    Table S4 columns, its L/r-intercept, and ΔL/r = (L/r)_trans − intercept (paper
+    Fig. 4a).
 
     Args:
         L_over_r: shape (n,), n ≥ 1, distinct; sorted here if unsorted (the gap
@@ -226,7 +287,8 @@ def transition_from_bracket(
     sampled series (every L/r evaluated, grid and bisection points, any order) is
     given, the jammed points are those with L/r < hi; they must all have gap ≥
     threshold (otherwise ``hi`` is not the first unjammed L/r), and they give the
-    fit, its L/r-intercept and ΔL/r exactly as in :func:`transition`.
+    fit (over their linear run), its L/r-intercept and ΔL/r exactly as in
+    :func:`transition`.
 
     Args:
         lo, hi: the bracket, lo < hi (L/r, dimensionless).

@@ -1,9 +1,16 @@
 """Contact forces and energies by contact class (docs/model.md §9; paper SI "Contact
-Forces"), on the contact kernel's own pair potential and pair list.
+Forces", Table S3), on the contact kernel's own pair potential and pair list.
 
 A contact's class is set by the image offset (m, n) of its pair: self (0, 0), same
 row (n = 0, m != 0), nearest and next-nearest same column (m = 0, |n| = 1, 2) and
 other (diagonal or farther images); the order is ``knitsweep.state.CONTACT_CLASSES``.
+
+Two kinds of force per class:
+
+* ``contact_forces_by_class``: generalised forces on the cell periods, -dE_c(class)/da
+  at fixed shape (what the envelope stress is made of);
+* ``contact_pair_forces_by_class``: the pair forces f = -dV/dR between sampled yarn
+  points, projected on x, y, z (the paper's Table S3 and Fig. 6h quantity).
 """
 
 from __future__ import annotations
@@ -97,3 +104,60 @@ def contact_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, mode, forces, ene
             dE = 2.0 * dt2 * (dv * dR * si * sj + v * (dspeed[i, col] * sj + si * dspeed[j, col]))
             forces[cls, col] -= dE
         forces[cls, 2] -= 2.0 * dt2 * dv * sep[q, 2] ** 2 / dist * si * sj / dz
+
+
+@njit(cache=True, inline="always")
+def _side(c):
+    """Sign of a coordinate relative to the stitch's mid-plane through the origin."""
+    if c > 0.0:
+        return 1.0
+    if c < 0.0:
+        return -1.0
+    return 0.0
+
+
+@njit(cache=True)
+def contact_pair_forces_by_class(cp, tab, ax, ay, r, rc, k, p, mode, weighted, forces):
+    """Each class's pair forces between sampled yarn points, projected on x, y, z
+    (docs/model.md §9; paper SI "Contact Forces", Fig. S11, Table S3, Fig. 6h).
+
+    cp (8, 6, 3): control points (mm); tab (2, N, 6): contact sample tables; periods,
+    radii, k and p as in ``contact.contact_energy``; ``weighted``: multiply each pair
+    force by ds ds' = v_i v_j dt^2 (mm^2) as in E_c, else the bare pair force (the
+    paper's Table S3 magnitudes; then the sums grow with N^2). Writes ``forces``
+    (5, 3), N (N mm^2 when weighted).
+
+    Every counted contact (i, j, m, n) pushes sample i with F = f d/R, f = -dV/dR >= 0,
+    d = p_i - p_j - m t_c - n t_w, and the partner sample with -F. Both samples count
+    (each contact twice, as in E_c). Component a of a sample's force counts positive
+    when it extends the fabric along a:
+
+    * along an axis on which the partner stitch is offset (x with m != 0, y with
+      n != 0), when it pushes the two stitches apart: 2 f (-d_a/R) sign(offset_a);
+    * otherwise (self contacts, x of column contacts, y of same-row contacts, and
+      every z), when it pushes the sample away from its own stitch's mid-plane
+      a = 0 (x = 0 is the plane between the two crossovers, y = 0 and z = 0 the
+      plane of their centres): F_a (sign(a_i) - sign(a_j)), coordinates in each
+      sample's own cell, so that only pairs across the mid-plane count.
+    """
+    n = tab.shape[1]
+    dt2 = 1.0 / (n * n)
+    pts, _, speed, idx, sep = find_contacts(cp, tab, ax, ay, r, mode)
+    forces[:] = 0.0
+    for q in range(idx.shape[0]):
+        i, j, m, nn = idx[q, 0], idx[q, 1], idx[q, 2], idx[q, 3]
+        dist = sep[q, 3]
+        _, dv = pair_potential(dist, r, rc, k, p)
+        f = -dv / dist
+        if weighted:
+            f *= speed[i] * speed[j] * dt2
+        cls = contact_class(m, nn)
+        for a in range(3):
+            fa = f * sep[q, a]  # force on sample i along a
+            offset = m if a == 0 else (nn if a == 1 else 0)
+            if offset > 0:
+                forces[cls, a] -= 2.0 * fa
+            elif offset < 0:
+                forces[cls, a] += 2.0 * fa
+            else:
+                forces[cls, a] += fa * (_side(pts[i, a]) - _side(pts[j, a]))

@@ -1,5 +1,6 @@
-"""Energy-gap figures: the gaps against L/r (paper Fig. 3, Fig. S15), the width of
-the transition ΔL/r against k (Fig. 4b), and the regimes over k, B, r_core … (Fig. 4c).
+"""Energy-gap figures: the gaps against L/r (paper Fig. 3, Fig. S15), the jammed-regime
+fit and ΔL/r of each series (Fig. 4a, Table S4), the width of the transition ΔL/r
+against k (Fig. 4b), and the regimes over k, B, r_core … (Fig. 4c).
 
 Each function takes a :class:`~.reduce.Reduction` and a list for notes, and returns a
 matplotlib Figure or raises :class:`~.plotting.SkipFigure` saying what is missing.
@@ -12,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.paper import TABLE_S4, at_table_1
 from ..analysis.transitions import Transition
 from .plotting import (
     BENDING_COLOUR,
@@ -66,11 +68,8 @@ def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, 
             ax.plot(x[low], y[low], ls="none", marker=marker, mfc="white", mec=colour, zorder=4)
     ax.axhline(red.threshold, color=THRESHOLD_COLOUR, ls=":", lw=1.2,
                label=f"threshold {red.threshold:g} mJ")  # fmt: skip
-    if not log and t is not None and t.fit is not None and t.L_over_r_intercept is not None:
-        xs = np.array([x[0], t.L_over_r_intercept])
-        colour = CONTACT_COLOUR if d == "x" else BENDING_COLOUR
-        ax.plot(xs, t.fit.intercept + t.fit.slope * xs, color=colour, ls=(0, (1, 1.5)), lw=1.3,
-                label="jammed-regime line fit", zorder=2)  # fmt: skip
+    if not log and t is not None and t.fit is not None:
+        _fit_line(ax, t, CONTACT_COLOUR if d == "x" else BENDING_COLOUR, float(x[0]), red.threshold)
     if t is not None and t.status != "transition":
         text = ("jammed at every L" if t.status == "jammed_throughout"
                 else "unjammed from the first L")  # fmt: skip
@@ -88,6 +87,31 @@ def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, 
         ax.ticklabel_format(axis="y", style="sci", scilimits=(0, 0), useMathText=True)
     ax.set_xlabel(L_OVER_R)
     ax.set_ylabel("energy gap (mJ)")
+
+
+def _fit_line(ax: Any, t: Transition, colour: str, x_first: float, threshold: float) -> None:
+    """The Table S4 line: solid over the fitted (linear) run, dotted from the densest
+    point to its zero; the zero marked (x), and ΔL/r as an arrow from it to
+    (L/r)_trans, drawn at three times the threshold."""
+    f = t.fit
+    run = np.array([t.fit_lower, t.fit_upper])
+    ax.plot(run, f.intercept + f.slope * run, color=colour, lw=2.4, alpha=0.45, zorder=2,
+            solid_capstyle="butt", label="jammed-regime fit (linear run)")  # fmt: skip
+    x0 = t.L_over_r_intercept
+    if x0 is None:
+        return
+    xs = np.array([min(x_first, t.fit_lower), x0])
+    ax.plot(xs, f.intercept + f.slope * xs, color=colour, ls=(0, (1, 1.5)), lw=1.3, zorder=2,
+            label="fit extended to zero gap")  # fmt: skip
+    ax.plot([x0], [0.0], ls="none", marker="x", color=colour, ms=8, mew=1.8, zorder=5)
+    if t.delta_L_over_r is not None and t.L_over_r_trans is not None:
+        y = 3.0 * threshold
+        ax.annotate("", xy=(t.L_over_r_trans, y), xytext=(x0, y),
+                    arrowprops={"arrowstyle": "<->", "color": "0.2", "lw": 1.2,
+                                "shrinkA": 0, "shrinkB": 0}, zorder=6)  # fmt: skip
+        ax.text(max(x0, t.L_over_r_trans), y, f"  ΔL/r = {t.delta_L_over_r:.3f}", ha="left",
+                va="center", fontsize="medium", color="0.2",
+                bbox={"fc": "white", "ec": "none", "alpha": 0.8, "pad": 1.0})  # fmt: skip
 
 
 def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any:
@@ -125,6 +149,67 @@ def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any
     return fig
 
 
+def _paper_line(key: tuple, d: str) -> Any:
+    """Paper Table S4's row for an x series at Table 1's B, r_core, r, p, else None."""
+    params = dict(zip(SERIES_PARAMS, key, strict=True))
+    return TABLE_S4.get(params["k_mN_per_mm2"]) if d == "x" and at_table_1(params) else None
+
+
+def fig4a_gap_fit(red: Reduction, notes: list[str]) -> Any:
+    """The jamming gap of each series with its Table S4 line (paper Fig. 4a): fitted
+    points filled, the curved transition region hollow, the line's zero, (L/r)_trans
+    and ΔL/r; the paper's Table S4 line where it has one (x, Table 1 values)."""
+    panels = [(key, d) for (key, d), t in sorted(red.transition_of.items()) if t.fit is not None]
+    if not panels:
+        raise SkipFigure("needs a series with ≥ 2 jammed points (a jammed-regime fit)")
+    panels = limit_panels(panels, "fig4a", notes)
+    ncols = min(len(panels), 2)
+    fig = new_figure(6.4 * ncols + 0.4, 4.2 * -(-len(panels) // ncols) + 1.4)
+    handles: dict[str, Any] = {}
+    for ax, (key, d) in zip(grid_of_panels(fig, len(panels), ncols), panels, strict=True):
+        t = red.transition_of[(key, d)]
+        rows = sorted((r for r in red.sweeps if r["direction"] == d
+                       and tuple(r[p] for p in SERIES_PARAMS) == key),
+                      key=lambda r: r["L_over_r"])  # fmt: skip
+        x = np.array([r["L_over_r"] for r in rows])
+        g = np.array([r["jamming_gap"] for r in rows])
+        colour = CONTACT_COLOUR if d == "x" else BENDING_COLOUR
+        fitted = (x >= t.fit_lower - 1e-12) & (x <= t.fit_upper + 1e-12)
+        ax.plot(x[fitted], g[fitted], ls="none", marker="o", color=colour, zorder=4,
+                label="fitted: the linear jammed run")  # fmt: skip
+        ax.plot(x[~fitted], g[~fitted], ls="none", marker="o", mfc="white", mec=colour, zorder=4,
+                label="not fitted (transition region, unjammed)")  # fmt: skip
+        _fit_line(ax, t, colour, float(x[0]), red.threshold)
+        p = _paper_line(key, d)
+        if p is not None:
+            r = dict(zip(SERIES_PARAMS, key, strict=True))["r_mm"]
+            xs = np.array([x[0], p.zero_L_mm / r])
+            ax.plot(xs, p.intercept_mJ + p.slope_mJ_per_mm * r * xs, color="0.45", ls="--",
+                    lw=1.1, zorder=1, label="paper Table S4 line")  # fmt: skip
+        if t.status == "transition":
+            ax.axvline(t.L_over_r_trans, color="0.25", ls="--", lw=1.2,
+                       label=r"$(L/r)_{\rm trans}$")  # fmt: skip
+        ax.axhline(red.threshold, color=THRESHOLD_COLOUR, ls=":", lw=1.2,
+                   label=f"threshold {red.threshold:g} mJ")  # fmt: skip
+        ax.set_ylim(bottom=-0.04 * float(np.max(g[np.isfinite(g)], initial=red.threshold)))
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(0, 0), useMathText=True)
+        ax.set_xlabel(L_OVER_R)
+        ax.set_ylabel(f"{GAP_LABEL[d]} (mJ)")
+        lab = label_of(red, key)
+        r_mm = dict(zip(SERIES_PARAMS, key, strict=True))["r_mm"]
+        ax.set_title(f"pulled in {d}" + (f", {lab}" if lab else "") + f"; fit of {t.fit.n_points} "
+                     f"points: slope {t.fit.slope / r_mm:.3e} mJ/mm,\nintercept "
+                     f"{t.fit.intercept:.4f} mJ, max |res| {t.fit.max_abs_residual:.1e} mJ"
+                     + (f", ΔL/r = {t.delta_L_over_r:.3f}" if t.delta_L_over_r is not None else ""),
+                     fontsize="medium")  # fmt: skip
+        for h, name in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(name, h)
+    fig.legend(handles.values(), handles.keys(), loc="outside lower center",
+               ncols=min(len(handles), 4), frameon=False)  # fmt: skip
+    title(fig, red, "Jammed-regime line fit and transition width ΔL/r (paper Fig. 4a, Table S4)")
+    return fig
+
+
 def fig4b_deltaL_vs_k(red: Reduction, notes: list[str]) -> Any:
     """ΔL/r against k per direction and per other parameters (paper Fig. 4b); error
     bars are the paper's "+0, −one step" of (L/r)_trans."""
@@ -158,7 +243,8 @@ def fig4b_deltaL_vs_k(red: Reduction, notes: list[str]) -> Any:
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_xlabel(r"compression constant $k$ (mN/mm$^2$)")
     ax.set_ylabel(r"transition width $\Delta L/r$")
-    ax.text(0.99, 0.02, "error bars: +0, −one step of $L/r$; series offset slightly in $k$",
+    ax.text(0.99, 0.02, "ΔL/r = (L/r)_trans − zero of the line through the linear jammed run;\n"
+            "error bars: +0, −one step of $L/r$; series offset slightly in $k$",
             transform=ax.transAxes, ha="right", va="bottom", fontsize="medium", color="0.35")  # fmt: skip
     ax.legend(frameon=False)
     title(fig, red, r"Width of the jamming transition $\Delta L/r$ against $k$")

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.paper import TABLE_S3, at_table_1
 from ..state import CONTACT_CLASSES
 from .plotting import (
     DIRECTION_COLOUR,
@@ -247,12 +248,38 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
     return fig
 
 
+def _table_s3_series(key: tuple) -> bool:
+    """Whether a series is Table S3's: k = 0.1 mN/mm² at Table 1's B, r_core, r, p."""
+    return at_table_1(dict(zip(SERIES_PARAMS, key, strict=True)), k_mN_per_mm2=0.1)
+
+
+def _vs_table_s3(pts: list[dict]) -> str:
+    """The range of |F_x| and |F_y| relative to Table S3 over the L values both have,
+    marked "not reproduced" beyond ±10 %."""
+    dev = {"x": [], "y": []}
+    for r in pts:
+        paper = TABLE_S3.get(round(r["L_mm"], 6))
+        if paper is not None:
+            dev["x"].append(abs(r["pair_F_x_self_row_N"]) / paper[0] - 1.0)
+            dev["y"].append(abs(r["pair_F_y_column_N"]) / paper[1] - 1.0)
+    if not dev["x"]:
+        return ""
+    # within 10 % everywhere: reproduced; otherwise say so on the figure
+    rng = {a: f"{100 * min(v):+.0f} … {100 * max(v):+.0f} %"
+              + ("" if max(map(abs, v)) <= 0.1 else " (not reproduced)")
+           for a, v in dev.items()}  # fmt: skip
+    return (f"against Table S3 ({len(dev['x'])} L values): |F_x| {rng['x']}, "
+            f"|F_y| {rng['y']}")  # fmt: skip
+
+
 def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
-    """(h) Contact-force ratio at zero strain against L/r (paper Fig. 6h): the x force
-    of the self and same-row contacts over the y force of the NN and NNN same-column
-    contacts (``reduce._force_columns``); dashed line: equal forces. Right: each
-    class's generalised force on a_x and a_y (N; positive widens the cell) for the
-    first series."""
+    """(h) Contact-force ratio at zero strain against L/r (paper Fig. 6h, Table S3):
+    the x force of the self and same-row contacts over the y force of the NN and NNN
+    same-column contacts, from the unweighted pair forces between sampled yarn points
+    (``force_columns.pair_force_columns``), with Table S3's ratio beside it and the
+    ratio of the generalised forces −∂E_c/∂a (not the paper's quantity) thin; dashed
+    line: equal forces. Right: each class's pair force in x and y (N; positive
+    extends the fabric) for the first series, with Table S3's |F_x| and |F_y|."""
     rows = [r for r in red.points if r.get("force_ratio_xy") is not None]
     if not rows:
         raise SkipFigure("the results file stores no contact forces "
@@ -260,13 +287,25 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
     from matplotlib.lines import Line2D
 
     keys = sorted({_key(r) for r in rows})
-    fig = new_figure(12.0, 4.9)
+    fig = new_figure(12.0, 5.3, wide=True)  # two dense panels: page width at least
     ax, ax_c = fig.subplots(1, 2, width_ratios=(1.15, 1.0))
+    paper_L = np.array(sorted(TABLE_S3))
+    paper = np.array([TABLE_S3[L] for L in paper_L])
+    shown_paper = False
     for i, key in enumerate(keys):
         pts = sorted((r for r in rows if _key(r) == key), key=lambda r: r["L_over_r"])
         colour = f"C{i % 10}" if len(keys) > 1 else "0.15"
-        ax.plot([r["L_over_r"] for r in pts], [r["force_ratio_xy"] for r in pts], color=colour,
+        x = [r["L_over_r"] for r in pts]
+        ax.plot(x, [r["force_ratio_xy"] for r in pts], color=colour,
                 marker=MARKERS[i % len(MARKERS)], label=label_of(red, key) or "simulation")  # fmt: skip
+        if all(r.get("generalised_force_ratio_xy") is not None for r in pts):
+            ax.plot(x, [r["generalised_force_ratio_xy"] for r in pts], color=colour, lw=0.9,
+                    ls=(0, (4, 2)), alpha=0.6)  # fmt: skip
+        if _table_s3_series(key):
+            r_mm = dict(zip(SERIES_PARAMS, key, strict=True))["r_mm"]
+            ax.plot(paper_L / r_mm, paper[:, 0] / paper[:, 1], ls="none", marker="s", ms=8,
+                    mfc="none", mec="0.45", mew=1.4, zorder=5)  # fmt: skip
+            shown_paper = True
         t = red.transition_of.get((key, "y"))
         if t is not None and t.status == "transition":
             ax.axvline(t.L_over_r_trans, color=colour if len(keys) > 1 else TRANSITION_LINE["y"],
@@ -276,10 +315,17 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
     ax.set_ylim(bottom=0.0)
     ax.set_xlabel(L_OVER_R)
     ax.set_ylabel(r"$|F_x^{\rm self+row}| \,/\, |F_y^{\rm NN+NNN\ column}|$")
-    ax.set_title("(h) widening x force against same-column y force, zero strain")
-    ax.legend(handles=[Line2D([], [], color="0.4", ls="--", label=r"$|F_x| = |F_y|$"),
-                       Line2D([], [], color="0.4", ls=":", label=r"$(L/r)_{\rm trans}$ in y")],
-              loc="upper right", frameon=True, framealpha=0.9)  # fmt: skip
+    ax.set_title("(h) x force of self + same-row contacts over\n"
+                 "y force of NN + NNN same-column contacts, zero strain")  # fmt: skip
+    legend = [Line2D([], [], color="0.3", marker="o", label="pair forces (the paper's definition)"),
+              Line2D([], [], color="0.3", lw=0.9, ls=(0, (4, 2)), alpha=0.6,
+                     label=r"generalised forces $-\partial E_c/\partial a$ (not the paper's)"),
+              Line2D([], [], color="0.4", ls="--", label=r"$|F_x| = |F_y|$"),
+              Line2D([], [], color="0.4", ls=":", label=r"$(L/r)_{\rm trans}$ in y")]  # fmt: skip
+    if shown_paper:
+        legend.append(Line2D([], [], ls="none", marker="s", mfc="none", mec="0.45", mew=1.4,
+                             label="paper Table S3"))  # fmt: skip
+    ax.legend(handles=legend, loc="upper right", frameon=True, framealpha=0.9)
     if len(keys) > 1:
         fig.legend(*series_handles, loc="outside lower center",
                    ncols=legend_columns(min(len(keys), 4)),
@@ -289,18 +335,34 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
     x = [r["L_over_r"] for r in pts]
     # hollow markers of falling size, so that classes with equal forces (self and same
     # row coincide in x for the stockinette cell) stay visible on top of each other
-    sizes = {c: 11 - 1.5 * j for j, c in enumerate(CONTACT_CLASSES)}
+    sizes = {c: 9 - 1.2 * j for j, c in enumerate(CONTACT_CLASSES)}
     for j, cls in enumerate(CONTACT_CLASSES):
         for a, ls in (("x", "-"), ("y", "--")):
-            ax_c.plot(x, [r[f"F_{cls}_{a}_N"] for r in pts], color=CLASS_COLOUR[cls], ls=ls,
-                      marker=MARKERS[j], ms=sizes[cls], mfc="none")  # fmt: skip
+            ax_c.plot(x, [r[f"pair_F_{cls}_{a}_N"] for r in pts], color=CLASS_COLOUR[cls], ls=ls,
+                      lw=1.0, marker=MARKERS[j], ms=sizes[cls], mfc="none", alpha=0.8)  # fmt: skip
+    ax_c.plot(x, [abs(r["pair_F_x_self_row_N"]) for r in pts], color="0.1", lw=2.2)
+    ax_c.plot(x, [abs(r["pair_F_y_column_N"]) for r in pts], color="0.1", lw=2.2, ls="--")
     handles = [Line2D([], [], color=CLASS_COLOUR[c], marker=MARKERS[j], mfc="none",
                       label=CLASS_LABEL[c]) for j, c in enumerate(CONTACT_CLASSES)]  # fmt: skip
     handles += [Line2D([], [], color="0.3", ls="-", label=r"$F_x$"),
-                Line2D([], [], color="0.3", ls="--", label=r"$F_y$")]  # fmt: skip
+                Line2D([], [], color="0.3", ls="--", label=r"$F_y$"),
+                Line2D([], [], color="0.1", lw=2.2, label=r"$|F_x|$ self + same row"),
+                Line2D([], [], color="0.1", lw=2.2, ls="--", label=r"$|F_y|$ NN + NNN")]  # fmt: skip
+    if _table_s3_series(keys[0]):
+        r_mm = dict(zip(SERIES_PARAMS, keys[0], strict=True))["r_mm"]
+        ax_c.plot(paper_L / r_mm, paper[:, 0], ls="none", marker="s", mfc="0.3", mec="0.3", ms=5)
+        ax_c.plot(paper_L / r_mm, paper[:, 1], ls="none", marker="D", mfc="white", mec="0.3", ms=5)
+        handles += [Line2D([], [], ls="none", marker="s", mfc="0.3", mec="0.3",
+                           label=r"Table S3 $|F_x|$"),
+                    Line2D([], [], ls="none", marker="D", mfc="white", mec="0.3",
+                           label=r"Table S3 $|F_y|$")]  # fmt: skip
+        text = _vs_table_s3(pts)
+        if text:
+            ax_c.text(0.02, 0.02, text, transform=ax_c.transAxes, fontsize="medium", color="0.25",
+                      va="bottom")  # fmt: skip
     ax_c.legend(handles=handles, loc="upper right", frameon=True, framealpha=0.9, ncols=2)
     ax_c.set_xlabel(L_OVER_R)
-    ax_c.set_ylabel(r"force on the cell period, $-\partial E_c/\partial a$ (N)")
+    ax_c.set_ylabel("pair force between sampled points (N), + extends")
     lab = label_of(red, keys[0])
     ax_c.set_title("by contact class" + (f" ({lab})" if lab else ""))
     ax_c.axhline(0.0, color="0.6", lw=0.8)

@@ -11,7 +11,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from .fig_energy import fig3_energy_gaps, fig4b_deltaL_vs_k, fig4c_phase_diagram
+from .fig_energy import fig3_energy_gaps, fig4a_gap_fit, fig4b_deltaL_vs_k, fig4c_phase_diagram
 from .fig_mechanics import (
     SMALL_STRAIN,
     fig1b_stress_strain,
@@ -31,6 +31,7 @@ FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
     "fig2ef_Ysec_sigma0.png": fig2ef_secant_offset,
     "fig3_energy_gaps.png": fig3_energy_gaps,
     "fig3_energy_gaps_log.png": partial(fig3_energy_gaps, log=True),
+    "fig4a_gap_fit.png": fig4a_gap_fit,
     "fig4b_deltaL_vs_k.png": fig4b_deltaL_vs_k,
     "fig4c_phase_diagram.png": fig4c_phase_diagram,
     "fig5a_aspect_ratio.png": fig5a_aspect_ratio,

@@ -160,17 +160,18 @@ def style(options: FigureOptions | None = None) -> Iterator[None]:
         _OPTIONS.reset(token)
 
 
-def new_figure(width: float, height: float) -> Any:
+def new_figure(width: float, height: float, wide: bool = False) -> Any:
     """A matplotlib Figure on an Agg canvas (constrained layout). ``width`` and
     ``height`` (inches) are the figure's own size; at a journal width it is scaled
-    to that width, its aspect ratio kept (within 0.45–1.4 of the width)."""
+    to that width (a ``wide`` figure, too dense for one column, to the page width
+    even when one column is asked for)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     options = current_options()
     if options.width != "auto":
         # fonts do not shrink with the figure: the height shrinks less than the width
-        target = WIDTHS[options.width]
+        target = WIDTHS["page" if wide else options.width]
         height = min(max(height * (target / width) ** 0.35, 0.5 * target), 2.2 * target)
         width = target
     fig = Figure(figsize=(width, height), layout="constrained")

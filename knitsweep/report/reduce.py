@@ -5,13 +5,17 @@ read through :func:`knitsweep.service.results_file.iter_entries`, so that result
 running job's journal count too. Out come plain rows (dicts of str, float, int, bool
 or None), ready for CSV, printing and the figures of :mod:`.figures`:
 
-* one row per sweep: Y_sec at ε = 0.02 (N/mm), σ0 (N/mm) and whether a linear regime
-  exists, the gaps ΔE_b and ΔE_c (mJ = N·mm, the paper's "J"), the zero-force
+* one row per sweep: Y_sec at ε = 0.02 (N/mm), σ0 (N/mm, fitted to the envelope
+  stress) or why there is none, whether the stress curve drops where the winning start
+  switches, the gaps ΔE_b and ΔE_c (mJ = N·mm, the paper's "J"), the zero-force
   aspect ratio a_y0/a_x0, extremes of the area and thickness strains, and the contact
   forces by class at zero strain (N) when the file stores them;
 * one row per series (fixed k, B, r_core, r, p and direction): (L/r)_trans, its
-  bracket, the Table S4 line fit of the jamming gap and ΔL/r (paper Fig. 4a);
-* one row per point: the zero-force state and its regime (paper Fig. 4c, 5a);
+  bracket, the Table S4 line fit of the linear jammed regime, its zero and ΔL/r
+  (paper Fig. 4a);
+* one row per point: the zero-force state, its regime (paper Fig. 4c, 5a) and, when
+  the job stored contact forces, the paper's pair forces by class and their Fig. 6h
+  ratio (computed here from the zero-force state);
 * one row per task that failed or was not knittable (listed, never fatal).
 
 Units throughout: L in mm, L/r dimensionless, k in mN/mm², B in mN·mm², r and
@@ -32,9 +36,10 @@ from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickn
 from ..analysis.metrics import JAMMING_GAP
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition, series_transitions
-from ..config import InputError
+from ..config import Fidelity, InputError
 from ..service.results_file import POINTS, SWEEPS, Entry, iter_entries, read_root
-from ..state import CONTACT_CLASSES, IDX_AX, IDX_AY
+from ..state import IDX_AX, IDX_AY
+from .force_columns import PAIR_KEYS, force_columns, job_fidelity, pair_force_columns
 
 SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regularization_mN_mm4",
                  "twist_bound")  # fmt: skip
@@ -50,9 +55,6 @@ PARAM_SYMBOLS = {
     "regularization_mN_mm4": ("reg", "mN·mm⁴"),
     "twist_bound": ("c_tw", ""),
 }
-
-CONTACT_COLUMNS = tuple(f"F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
-"""Columns of a stored ``contact_forces`` (5, 3) array: rows ``CONTACT_CLASSES``."""
 
 _SWEEP_ARRAYS = ("strain", "stress", "bending_energy", "contact_energy", "a_x", "a_y", "thickness")
 _REQUIRED_META = ("status", "L_mm", "L_over_r", *SERIES_PARAMS)
@@ -162,37 +164,14 @@ def _base_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
     return row
 
 
-def _force_columns(forces: Any) -> dict[str, Any]:
-    """Contact forces (5, 3) at zero strain → flat columns, totals and the paper's
-    Fig. 6h ratio.
-
-    ``force_ratio_xy`` = |F_x(self) + F_x(same row)| / |F_y(NN column) + F_y(NNN column)|:
-    the x push of the contacts that widen the stitch against the y push of the
-    same-column contacts (paper, "Reducing or Inducing Jamming": "the sum of the self
-    contacts and same-row contacts ... become larger than the NNN same-column and NN
-    same-column contacts in the y-direction, shown in Fig. 6h"). None if the
-    denominator vanishes.
-    """
-    keys = (*CONTACT_COLUMNS, "F_x_N", "F_y_N", "F_z_N", "force_ratio_xy")
-    if forces is None:
-        return dict.fromkeys(keys)
-    f = np.asarray(forces, dtype=float).reshape(len(CONTACT_CLASSES), 3)
-    out: dict[str, Any] = dict(zip(CONTACT_COLUMNS, map(float, f.ravel()), strict=True))
-    fx, fy, fz = (float(v) for v in f.sum(axis=0))
-    out |= {"F_x_N": fx, "F_y_N": fy, "F_z_N": fz}
-    row = dict(zip(CONTACT_CLASSES, f, strict=True))
-    widen_x = abs(float(row["self"][0] + row["same_row"][0]))
-    column_y = abs(float(row["nn_column"][1] + row["nnn_column"][1]))
-    out["force_ratio_xy"] = widen_x / column_y if column_y > 0.0 else None
-    return out
-
-
-def _point_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
-    """Zero-force state of one point: periods (mm), aspect ratio, energies (mJ)."""
+def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dict[str, Any]:
+    """Zero-force state of one point: periods (mm), aspect ratio, energies (mJ),
+    stored generalised and computed pair contact forces (N)."""
     row = _base_row(entry, meta)
     rec = entry.record
     x = rec.get("x")
     winner = int(meta.get("winner", rec.get("winner", 0)) or 0)
+    best = None
     if x is not None and np.ndim(x) == 2 and row["status"] == "done":
         best = np.asarray(x[winner], dtype=float)
         a_x0, a_y0 = float(best[IDX_AX]), float(best[IDX_AY])
@@ -204,21 +183,30 @@ def _point_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
             "E_c_rest_mJ": float(rec["contact_energy"][winner]),
             "thickness0_mm": _plain(meta.get("thickness")),
         }
-    row |= _force_columns(rec.get("contact_forces"))
+    stored = rec.get("contact_forces")
+    row |= force_columns(stored)
+    row |= pair_force_columns(best if stored is not None else None, meta, fidelity)
     return row
 
 
 def _analyse_sweep(
     entry: Entry, meta: Mapping[str, Any], point_forces: Any, threshold: float
 ) -> tuple[dict[str, Any], SweepCurves]:
-    """Metrics row and curves of one done sweep; ValueError if its arrays are unusable."""
+    """Metrics row and curves of one done sweep; ValueError if its arrays are unusable.
+
+    σ0 is fitted to the envelope stress where the sweep stores one (schema 1 files
+    may not), so that the stress drops of start switches do not hide it."""
     rec = entry.record
     missing = [k for k in _SWEEP_ARRAYS if k not in rec]
     if missing:
         raise ValueError(f"no array(s) {', '.join(missing)}")
     arrays = {k: np.asarray(rec[k], dtype=float) for k in _SWEEP_ARRAYS}
+    envelope = rec.get("stress_envelope")
+    if envelope is not None and not np.all(np.isfinite(envelope)):
+        envelope = None
     direction = str(meta["direction"])
-    m = sweep_metrics(direction, **arrays, **FD_STRESS_SMOOTHING)
+    m = sweep_metrics(direction, **arrays, stress_envelope=envelope, winner=rec.get("winner"),
+                      **FD_STRESS_SMOOTHING)  # fmt: skip
     row = _base_row(entry, meta)
     row |= {
         "sweep_status": str(meta.get("sweep_status", "")),
@@ -230,6 +218,13 @@ def _analyse_sweep(
         "sigma0_N_per_mm": m.offset.sigma0,
         "softened_slope_N_per_mm": m.offset.slope,
         "has_linear_regime": m.offset.has_linear_regime,
+        "sigma0_source": m.sigma0_source,
+        "sigma0_window_lo": m.offset.window[0] if m.offset.window else None,
+        "sigma0_window_hi": m.offset.window[1] if m.offset.window else None,
+        "sigma0_reason": m.offset.reason,
+        "stress_discontinuous": m.drops.discontinuous,
+        "n_switching_drops": m.drops.n_switching_drops,
+        "first_switching_drop_strain": m.drops.first_drop_strain,
         "delta_E_b": m.gaps.delta_E_b,
         "delta_E_c": m.gaps.delta_E_c,
         "jamming_gap": m.jamming_gap,
@@ -249,7 +244,7 @@ def _analyse_sweep(
     }
     stored = rec.get("contact_forces")
     zero_forces = np.asarray(stored)[0] if stored is not None and len(stored) else point_forces
-    row |= _force_columns(zero_forces)
+    row |= force_columns(zero_forces)
     curves = SweepCurves(
         task_id=entry.task_id,
         direction=direction,
@@ -282,15 +277,22 @@ def _problem(kind: str, row: Mapping[str, Any], meta: Mapping[str, Any], why: st
 def transition_row(
     values: tuple[float, ...], direction: str, t: Transition, n_missing: int
 ) -> dict[str, Any]:
-    """One row of transitions.csv: the series, (L/r)_trans, bracket, Table S4 fit, ΔL/r.
+    """One row of transitions.csv: the series, (L/r)_trans, bracket, the Table S4 fit of
+    the linear jammed regime, its zero and ΔL/r.
 
-    ``fit_slope_per_mm`` is the slope against L in mm (slope per unit L/r divided by
-    r), the form of paper Table S4; the intercept is the same in both.
-    """
+    The fit is against L in mm, the form of paper Table S4 (``fit_slope_mJ_per_mm``
+    is the slope per unit L/r divided by r; the intercept, at L = 0, is the same in
+    both); ``fit_L_lo_mm`` … ``fit_L_hi_mm`` are the points fitted, the linear run of
+    :func:`~knitsweep.analysis.transitions.linear_jammed_run`."""
     params = dict(zip(SERIES_PARAMS, values, strict=True))
     r = params["r_mm"]
     trans = t.L_over_r_trans
     fit = t.fit
+    zero = t.L_over_r_intercept
+
+    def mm(v: float | None) -> float | None:
+        return v * r if v is not None else None
+
     return {
         "direction": direction,
         **params,
@@ -299,20 +301,24 @@ def transition_row(
         "L_over_r_trans": trans,
         "bracket_lower": t.bracket_lower,
         "bracket_upper": t.bracket_upper,
-        "L_trans_mm": trans * r if trans is not None else None,
+        "L_trans_mm": mm(trans),
         "n_points": t.n_points,
         "n_jammed": t.n_jammed,
         "n_jammed_after": t.n_jammed_after,
         "n_missing": n_missing,
-        "fit_slope_per_L_over_r": fit.slope if fit else None,
-        "fit_slope_per_mm": fit.slope / r if fit else None,
-        "fit_intercept": fit.intercept if fit else None,
         "fit_n_points": fit.n_points if fit else None,
-        "fit_max_abs_residual": fit.max_abs_residual if fit else None,
-        "fit_mean_abs_residual": fit.mean_abs_residual if fit else None,
-        "fit_mse": fit.mse if fit else None,
-        "L_over_r_intercept": t.L_over_r_intercept,
+        "fit_L_lo_mm": mm(t.fit_lower),
+        "fit_L_hi_mm": mm(t.fit_upper),
+        "fit_slope_mJ_per_mm": fit.slope / r if fit else None,
+        "fit_intercept_mJ": fit.intercept if fit else None,
+        "fit_max_abs_residual_mJ": fit.max_abs_residual if fit else None,
+        "fit_mean_abs_residual_mJ": fit.mean_abs_residual if fit else None,
+        "fit_mse_mJ2": fit.mse if fit else None,
+        "fit_tolerance_mJ": t.fit_tolerance,
+        "fit_zero_L_over_r": zero,
+        "fit_zero_L_mm": mm(zero),
         "delta_L_over_r": t.delta_L_over_r,
+        "delta_L_mm": mm(t.delta_L_over_r),
         "threshold": t.threshold,
     }
 
@@ -434,10 +440,13 @@ def reduce_results(
         if e.kind in tasks:  # other kinds (an adaptive job's /series) are read below
             tasks[e.kind].append((e, _check_meta(Path(e.meta["file"]), e)))
     point_of = {e.task_id: e for e, _ in tasks[POINTS]}
+    fidelity_of = {r["file"]: job_fidelity(r) for r in roots}  # each file's own job
     points, sweeps, problems, curves = [], [], [], []
+    pair_of: dict[str, dict[str, Any]] = {}
     for e, meta in sorted(tasks[POINTS], key=lambda em: (_series_key(em[1]), em[1]["L_mm"])):
-        row = _point_row(e, meta)
+        row = _point_row(e, meta, fidelity_of[meta["file"]])
         points.append(row)
+        pair_of[e.task_id] = {k: row[k] for k in PAIR_KEYS}
         if row["status"] != "done":
             problems.append(_problem("point", row, meta, str(meta.get("message", ""))))
     for e, meta in sorted(
@@ -454,7 +463,7 @@ def reduce_results(
         except ValueError as err:
             problems.append(_problem("sweep", base, meta, f"not analysable: {err}"))
             continue
-        sweeps.append(row)
+        sweeps.append(row | pair_of.get(base["point_id"], dict.fromkeys(PAIR_KEYS)))
         curves.append(c)
 
     transition_of, transitions = _transitions(sweeps, problems, threshold)

@@ -96,8 +96,8 @@ def transitions_text(red: Reduction) -> str:
     if red.constants:
         lines.append("fixed: " + series_label(red.constants, red.constants))
     head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying), "status", "(L/r)_trans",
-            "bracket", "L_trans/mm", "ΔL/r", "fit slope/mm", "fit intercept", "n_jam",
-            "missing"]  # fmt: skip
+            "bracket", "L_trans/mm", "ΔL/r", "fit slope/mm", "fit intercept", "fit L/mm",
+            "n_jam", "missing"]  # fmt: skip
     body = []
     for t in red.transitions:
         lo, hi = t["bracket_lower"], t["bracket_upper"]
@@ -109,8 +109,9 @@ def transitions_text(red: Reduction) -> str:
             f"[{_fmt(lo, '.3f')}, {_fmt(hi, '.3f')}]",
             _fmt(t["L_trans_mm"], ".3f"),
             _fmt(t["delta_L_over_r"], ".3f"),
-            _fmt(t["fit_slope_per_mm"], ".3e"),
-            _fmt(t["fit_intercept"], ".3e"),
+            _fmt(t["fit_slope_mJ_per_mm"], ".3e"),
+            _fmt(t["fit_intercept_mJ"], ".3e"),
+            f"{_fmt(t['fit_L_lo_mm'], '.2f')}–{_fmt(t['fit_L_hi_mm'], '.2f')}",
             str(t["n_jammed"]),
             str(t["n_missing"]),
         ])  # fmt: skip
@@ -119,7 +120,8 @@ def transitions_text(red: Reduction) -> str:
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
     lines.append(
         f"gap: ΔE_c (mJ) for x, ΔE_b (mJ) for y; threshold {red.threshold:g} mJ; "
-        "bracket = (last jammed, first unjammed L/r); fit = jamming gap against L (Table S4)"
+        "bracket = (last jammed, first unjammed L/r); fit = jamming gap against L over its "
+        "linear jammed run (Table S4)"
     )
     return "\n".join(lines)
 

@@ -90,15 +90,21 @@ def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress):
 
 
 def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
-    """Counts of a results file (done, failed, not_knittable, running, pending),
-    live from the running master's progress file when there is one; its elapsed
-    time and ETA while it runs, its wall time once finished. ``by``: a parameter
-    (``L_mm``, ``k_mN_per_mm2``, …, ``direction``) to count the tasks per value of."""
+    """Counts of a results file (done, failed, not_knittable, running, pending, total),
+    its elapsed time and ETA while a run writes it, its wall time once finished.
+
+    While a master is writing the file, every count comes from its progress file, so
+    that done + failed + not_knittable + running + pending = total as in its progress
+    line; an adaptive job's total grows there as refinements are added. Otherwise the
+    counts are the file's own, and the total is the planned task count (updated to the
+    tasks it holds when a run closes the file), never less than what it holds.
+    ``by``: a parameter (``L_mm``, ``k_mN_per_mm2``, …, ``direction``) to count the
+    file's tasks per value of.
+    """
     path = Path(path)
     root = read_root(path)
     counts = {DONE: 0, FAILED: 0, "not_knittable": 0}
     failures = []
-    n_points = 0
     series = []
     groups: dict[Any, dict[str, int]] = {}
     for e in iter_entries(path):
@@ -107,22 +113,26 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
             continue
         s = str(e.meta.get("status", FAILED))
         counts[s] = counts.get(s, 0) + 1
-        n_points += e.kind == POINTS
         if by is not None:
             value = e.meta.get(by, "-") if by != "direction" or e.kind != POINTS else "-"
             group = groups.setdefault(value.item() if hasattr(value, "item") else value, {})
             group[s] = group.get(s, 0) + 1
         if s == FAILED:
             failures.append(f"{e.kind[:-1]} {e.task_id}: {e.meta.get('message', '')}")
-    total = int(root.get("n_points", 0)) + int(root.get("n_sweeps", 0))
     live = read_progress(path)
     fresh = (
         live is not None
         and time.time() - float(live.get("updated", 0)) < 60
         and writer_alive(lock_path(path))
     )
-    running = int(live["running"]) if fresh else 0
-    finished = sum(counts.values())
+    if fresh:
+        counts = {k: int(live[k]) for k in (DONE, FAILED, "not_knittable")}
+        running, pending, total = (int(live[k]) for k in ("running", "pending", "total"))
+    else:
+        finished = sum(counts.values())
+        planned = int(root.get("n_points", 0)) + int(root.get("n_sweeps", 0))
+        running, total = 0, max(planned, finished)
+        pending = total - finished
     return {
         "file": str(path),
         "job": root.get("job_name", ""),
@@ -133,7 +143,7 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
         "failed": counts[FAILED],
         "not_knittable": counts["not_knittable"],
         "running": running,
-        "pending": max(total - finished - running, 0),
+        "pending": pending,
         "total": total,
         "rate_per_s": float(live.get("rate_per_s", 0.0)) if fresh else 0.0,
         "started_at": root.get("started_at", ""),

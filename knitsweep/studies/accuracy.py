@@ -110,8 +110,8 @@ def run_setting(point: StitchParams, s: Setting, series: list[float], threshold:
         relaxations.append(sw.relaxations)
         gaps = energy_gaps(sw.bending_energy, sw.contact_energy)
         out.values[f"Y_sec_{d}"] = secant_modulus(sw.strain, sw.stress).Y_sec
-        out.values[f"sigma0_{d}"] = offset_stress(
-            sw.strain, sw.stress, **FD_STRESS_SMOOTHING
+        out.values[f"sigma0_{d}"] = offset_stress(  # on the envelope stress, as the reports
+            sw.strain, sw.stress_envelope, **FD_STRESS_SMOOTHING
         ).sigma0
         out.values[f"dEc_{d}" if d == "x" else f"dEb_{d}"] = (
             gaps.delta_E_c if d == "x" else gaps.delta_E_b

@@ -1,0 +1,86 @@
+"""Contact-force columns of the post-processor's tables (docs/model.md §9; paper SI
+"Contact Forces", Table 2, Table S3, Fig. 6h).
+
+Two kinds, both in N, rows :data:`~knitsweep.state.CONTACT_CLASSES`:
+
+* ``F_<class>_<axis>_N``: the generalised forces on the cell periods that a job stores
+  with ``[store] contact_forces = true`` (``CellModel.contact_forces_by_class``);
+* ``pair_F_<class>_<axis>_N``: the paper's contact forces, unweighted pair forces
+  between sampled yarn points (``CellModel.contact_pair_forces_by_class``), computed
+  here from the stored zero-force state. Their ratio ``force_ratio_xy`` is Fig. 6h's.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ..config import Fidelity, StitchParams
+from ..model import CellModel
+from ..state import CONTACT_CLASSES
+
+CONTACT_COLUMNS = tuple(f"F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
+"""Columns of a stored ``contact_forces`` (5, 3) array (generalised forces on the
+periods, ``CellModel.contact_forces_by_class``): rows ``CONTACT_CLASSES``."""
+
+PAIR_COLUMNS = tuple(f"pair_F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
+"""Columns of the pair forces by class (``CellModel.contact_pair_forces_by_class``,
+unweighted: the paper's Table S3 quantity), rows ``CONTACT_CLASSES``."""
+
+_PARAM_FIELDS = tuple(StitchParams.model_fields)
+
+
+def _fig6h_ratio(f: np.ndarray) -> tuple[float, float, float | None]:
+    """(x force of self + same row, y force of NN + NNN column, |x|/|y| or None)."""
+    row = dict(zip(CONTACT_CLASSES, f, strict=True))
+    widen_x = float(row["self"][0] + row["same_row"][0])
+    column_y = float(row["nn_column"][1] + row["nnn_column"][1])
+    return widen_x, column_y, abs(widen_x) / abs(column_y) if column_y != 0.0 else None
+
+
+def force_columns(forces: Any) -> dict[str, Any]:
+    """Stored generalised contact forces (5, 3) at zero strain → flat columns, totals
+    over the classes and their version of the Fig. 6h ratio,
+    ``generalised_force_ratio_xy`` = |F_x(self) + F_x(same row)| / |F_y(NN) + F_y(NNN)|
+    (not the paper's quantity: see :func:`pair_force_columns`)."""
+    keys = (*CONTACT_COLUMNS, "F_x_N", "F_y_N", "F_z_N", "generalised_force_ratio_xy")
+    if forces is None:
+        return dict.fromkeys(keys)
+    f = np.asarray(forces, dtype=float).reshape(len(CONTACT_CLASSES), 3)
+    out: dict[str, Any] = dict(zip(CONTACT_COLUMNS, map(float, f.ravel()), strict=True))
+    fx, fy, fz = (float(v) for v in f.sum(axis=0))
+    out |= {"F_x_N": fx, "F_y_N": fy, "F_z_N": fz}
+    out["generalised_force_ratio_xy"] = _fig6h_ratio(f)[2]
+    return out
+
+
+PAIR_KEYS = (*PAIR_COLUMNS, "pair_F_x_self_row_N", "pair_F_y_column_N", "force_ratio_xy")
+
+
+def pair_force_columns(state: np.ndarray | None, meta: Mapping[str, Any],
+                        fidelity: Fidelity) -> dict[str, Any]:  # fmt: skip
+    """The paper's contact forces at zero strain (SI "Contact Forces", Table S3, Fig.
+    6h): unweighted pair forces by class of the zero-force state (N; positive extends
+    the fabric), and ``force_ratio_xy`` = |x force of self + same-row contacts| /
+    |y force of NN + NNN same-column contacts| (paper: "the sum of the self contacts
+    and same-row contacts ... become larger than the NNN same-column and NN
+    same-column contacts in the y-direction, shown in Fig. 6h")."""
+    if state is None:
+        return dict.fromkeys(PAIR_KEYS)
+    params = StitchParams(**{k: float(meta[k]) for k in _PARAM_FIELDS})
+    f = CellModel(params, fidelity).contact_pair_forces_by_class(state)
+    out: dict[str, Any] = dict(zip(PAIR_COLUMNS, map(float, f.ravel()), strict=True))
+    fx, fy, ratio = _fig6h_ratio(f)
+    return out | {"pair_F_x_self_row_N": fx, "pair_F_y_column_N": fy, "force_ratio_xy": ratio}
+
+
+def job_fidelity(root: Mapping[str, Any]) -> Fidelity:
+    """The job's fidelity (its contact sampling sets the pair forces), default if the
+    file does not say."""
+    try:
+        return Fidelity(**json.loads(str(root.get("job_json", "{}")))["fidelity"])
+    except (KeyError, TypeError, ValueError, json.JSONDecodeError):
+        return Fidelity()
