@@ -56,7 +56,7 @@ def test_range_is_inclusive_and_decimal():
         (MINIMAL.replace("schema_version = 1", "schema_version = 2"), "schema_version = 2"),
         (
             MINIMAL + "k_mN_per_mm2 = [0.1, -1.0]\n",
-            "k_mN_per_mm2 = -1.0: must be a finite number > 0",
+            "k_mN_per_mm2 = -1.0: must be a finite number in [1e-06, 10000] mN/mm^2",
         ),
         (
             MINIMAL + "r_core_mm = [0.3, 0.8]\n",

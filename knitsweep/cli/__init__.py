@@ -1,9 +1,30 @@
 """The ``knitsweep`` command line. It holds no logic: every command builds
 validated models and calls one library function, the same one the tests call.
-Bad input prints one line ``error: …`` naming the field and exits with code 2.
+Bad input prints one line ``error: …`` naming the field and exits with code 2;
+SIGINT/SIGTERM at any moment exits with code 3 (``service.signals``).
+
+Importing this package is cheap: ``main`` handles the signals first and only then
+imports typer and the commands, so a Ctrl-C during start-up is no traceback.
 """
 
-from . import analysis_commands, model_commands, run_commands  # noqa: F401 - registers commands
-from .common import app, main
+from __future__ import annotations
 
 __all__ = ["app", "main"]
+
+
+def main() -> None:
+    """Console-script entry point."""
+    from ..service import signals
+
+    signals.install(interruptible=True)
+    from .common import main as run_cli
+
+    run_cli()
+
+
+def __getattr__(name: str):
+    if name == "app":
+        from .common import build_app
+
+        return build_app()
+    raise AttributeError(name)

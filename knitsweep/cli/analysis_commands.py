@@ -41,10 +41,13 @@ def phase_diagram(
     """Jamming transitions (L/r)_trans, ΔL/r and regimes of a results file, as a printed
     table, CSV files and the paper's figures; also on a file a run is still writing."""
     from ..analysis.transitions import GAP_THRESHOLD
+    from ..formats import check_output_dir
     from ..report import phase_diagram as make_phase_diagram
 
     with user_errors():
         threshold = GAP_THRESHOLD if threshold is None else threshold
+        if out is not None:
+            check_output_dir(out, "--out")
         report = make_phase_diagram(results, out, threshold, figures=not no_figures)
     if as_json:
         red = report.reduction

@@ -1,0 +1,119 @@
+"""SIGINT and SIGTERM in every knitsweep process, from its first moment.
+
+A signal is always *recorded* (``received()``); whether it also *raises*
+``Interrupted`` depends on where the process is:
+
+* ``interruptible()`` sections raise at once: start-up (imports, reading the
+  job, compiling the kernels) and a task this process computes itself; whatever
+  they were doing is redone on resume;
+* everywhere else (the default once ``install`` ran, and ``deferred()``
+  sections) the signal is only recorded, and the loops that own the process look
+  at it: the master between replies, an idle MPI worker while it waits. So a
+  journal entry, a checkpoint or an MPI message is never cut in half.
+
+``knitsweep``'s entry point calls ``install(interruptible=True)`` before it
+imports anything heavy, so a signal during start-up (MPI_Init included: it runs
+``deferred``) ends the process with one line and exit code 3 instead of a
+traceback. The state is per process (signals are), hence module-level.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+EXIT_INTERRUPTED = 3
+"""Exit code of an interrupted knitsweep command (a run keeps what it wrote)."""
+
+
+class Interrupted(BaseException):
+    """SIGINT/SIGTERM reached an interruptible section. A BaseException, so the task
+    isolation (``worker.execute`` catches Exception) lets it through."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+_state = {"signum": None, "count": 0, "raise": False}
+
+
+def _handler(signum, frame) -> None:
+    _state["count"] += 1
+    if _state["signum"] is None:
+        _state["signum"] = signum
+    if _state["raise"]:
+        _state["raise"] = False  # raise once: the clean-up after it runs undisturbed
+        raise Interrupted(signum)
+
+
+def install(interruptible: bool = False) -> dict | None:
+    """Handle SIGINT/SIGTERM in this process (main thread only); returns the handlers
+    it replaced (for ``restore``), or None when ours were already installed. A fresh
+    install forgets any earlier signal."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    if signal.getsignal(signal.SIGINT) is _handler:
+        return None
+    old = {s: signal.signal(s, _handler) for s in SIGNALS}
+    _state.update({"signum": None, "count": 0, "raise": interruptible})
+    return old
+
+
+def restore(old: dict | None) -> None:
+    """Put back the handlers ``install`` replaced."""
+    if old:
+        for s, h in old.items():
+            signal.signal(s, h)
+        _state["raise"] = False
+
+
+def received() -> int | None:
+    """The first signal received since ``install``, or None."""
+    return _state["signum"]
+
+
+def count() -> int:
+    """How many signals arrived since ``install`` (a second Ctrl-C hurries the stop)."""
+    return _state["count"]
+
+
+def request(signum: int = signal.SIGTERM) -> None:
+    """Act as if ``signum`` had arrived (an MPI worker left on a signal of its own)."""
+    if _state["signum"] is None:
+        _state["signum"] = signum
+
+
+def check() -> None:
+    """Raise ``Interrupted`` if a signal arrived."""
+    if _state["signum"] is not None:
+        raise Interrupted(_state["signum"])
+
+
+@contextlib.contextmanager
+def interruptible():
+    """A section that a signal cuts short with ``Interrupted`` (raised at once if a
+    signal came before it)."""
+    check()
+    old = _state["raise"]
+    _state["raise"] = True
+    try:
+        yield
+    finally:
+        _state["raise"] = old
+
+
+@contextlib.contextmanager
+def deferred():
+    """A section that a signal must not cut: it is recorded, and raised when the
+    section ends inside an interruptible one (or by the next ``check``)."""
+    old = _state["raise"]
+    _state["raise"] = False
+    try:
+        yield
+    finally:
+        _state["raise"] = old
+    if old:
+        check()
