@@ -13,13 +13,21 @@ __all__ = ["app", "main"]
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point: signals first, then the commands; exits."""
+    import sys
+
     from ..service import signals
 
     signals.install(interruptible=True)
-    from .common import main as run_cli
+    try:
+        from .common import main as run_cli
 
-    run_cli()
+        rc = run_cli()
+    except signals.Interrupted as e:  # during start-up, before typer took over
+        print(f"interrupted by {e}", file=sys.stderr, flush=True)
+        rc = signals.EXIT_INTERRUPTED
+    signals.quiet_exit()
+    sys.exit(rc)
 
 
 def __getattr__(name: str):

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -129,9 +128,9 @@ def build_app() -> typer.Typer:
     return app
 
 
-def main() -> None:
-    """Console-script entry point: usage errors become one line and exit code 2, a
-    signal one line and exit code 3 (``knitsweep.cli.main`` handles signals first)."""
+def main() -> int:
+    """The commands' exit code: usage errors become one line and exit code 2, a signal
+    one line and exit code 3 (``knitsweep.cli.main`` handles signals first)."""
     from ..service.signals import EXIT_INTERRUPTED, Interrupted
 
     try:
@@ -154,4 +153,4 @@ def main() -> None:
             where = f"{ctx.command_path}: " if ctx is not None else ""
             typer.echo(f"error: {where}{e.format_message()}", err=True)
             rc = e.exit_code
-    sys.exit(rc if isinstance(rc, int) else 0)
+    return rc if isinstance(rc, int) else 0

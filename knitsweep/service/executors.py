@@ -31,27 +31,22 @@ from __future__ import annotations
 
 import collections
 import multiprocessing
-import os
 import queue
 import signal
 import socket
 import time
 
 from . import signals
-from .signals import Interrupted
+from .signals import Interrupted, launched_by_mpi
+
+__all__ = ["MPIExecutor", "ProcessExecutor", "SerialExecutor", "launched_by_mpi",
+           "mpi_worker_loop", "release_workers"]  # fmt: skip
 from .worker import Reply, execute, prepare
 
 TASK, REPLY, STOP, STOPPED, ABANDONED, JOB, LEFT = 1, 2, 3, 4, 5, 6, 7
 PREFETCH = 2  # tasks held by each MPI worker: the one it computes and the next
 LEAVE_WAIT_S = 10.0  # a worker that left on a signal waits this long for the master's STOP
 HURRY_S = 2.0  # a second signal while the workers stop: wait at most this much longer
-MPI_ENV_HINTS = ("PMI_RANK", "PMI_SIZE", "PMI_FD", "PMIX_RANK", "OMPI_COMM_WORLD_SIZE",
-                 "MPI_LOCALNRANKS", "HYDRA_CONTROL_FD")  # fmt: skip
-
-
-def launched_by_mpi() -> bool:
-    """True when this process was started by mpirun/mpiexec/srun --mpi."""
-    return any(k in os.environ for k in MPI_ENV_HINTS)
 
 
 class Backoff:

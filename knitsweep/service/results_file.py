@@ -419,7 +419,7 @@ def _open(path: Path):
         raise InputError(f"{path}: no such results file") from None
     except Exception as e:  # h5py raises OSError, sometimes others, for foreign files
         why = str(e).split("(")[0].strip() or type(e).__name__
-        raise InputError(f"{path}: not an HDF5 file ({why})") from None
+        raise InputError(f"{path}: not a readable HDF5 file ({why})") from None
     try:
         yield f
     finally:
@@ -506,9 +506,9 @@ def read_root(path: str | Path) -> dict[str, Any]:
     with _open(path) as f:
         attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
     version = attrs.get("schema_version")
-    if version is None or "job_json" not in attrs:
+    if version is None:
         raise InputError(f"{path}: an HDF5 file, but not a knitsweep results file (no "
-                         "schema_version and job_json attributes)")  # fmt: skip
+                         "schema_version attribute)")  # fmt: skip
     if not isinstance(version, int) or isinstance(version, bool):
         raise InputError(f"{path}: schema_version {version!r} is not an integer: not a results "
                          "file written by knitsweep")  # fmt: skip
@@ -517,9 +517,10 @@ def read_root(path: str | Path) -> dict[str, Any]:
             f"{path}: results schema_version {version}; this knitsweep reads "
             f"{' and '.join(map(str, READABLE_SCHEMAS))}: use the knitsweep version that wrote it"
         )
-    if version >= 2 and "job_hash" not in attrs:
-        raise InputError(f"{path}: schema_version {version} but no job_hash attribute: not a "
-                         "complete knitsweep results file")  # fmt: skip
+    missing = [k for k in ("job_json", "job_hash") if k not in attrs] if version >= 2 else []
+    if missing:
+        raise InputError(f"{path}: schema_version {version} but no {' or '.join(missing)} "
+                         "attribute: not a complete knitsweep results file")  # fmt: skip
     return attrs
 
 

@@ -73,7 +73,8 @@ def run(
 
 
 def _mpi_world():
-    """MPI_COMM_WORLD; MPI_Init runs deferred (a signal during it is raised after)."""
+    """MPI_COMM_WORLD; MPI_Init runs deferred: a signal during it is recorded, and
+    rank 0 raises it only after it can release the workers (``_run_mpi``)."""
     with signals.deferred():
         try:
             from mpi4py import MPI
@@ -81,7 +82,6 @@ def _mpi_world():
             if signals.received() is not None:
                 raise signals.Interrupted(signals.received()) from None
             raise InputError(f"MPI could not start: {e}") from None
-    signals.check()
     return MPI.COMM_WORLD
 
 
@@ -135,7 +135,7 @@ def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress, max_tasks)
         mpi_worker_loop(comm)
         return None
     try:
-        with signals.interruptible():
+        with signals.interruptible():  # raises at once for a signal during MPI_Init
             job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks)
             ex = MPIExecutor(job, comm)  # compiles, then hands the job to the workers
     except BaseException:

@@ -20,12 +20,20 @@ traceback. The state is per process (signals are), hence module-level.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import threading
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 EXIT_INTERRUPTED = 3
 """Exit code of an interrupted knitsweep command (a run keeps what it wrote)."""
+MPI_ENV_HINTS = ("PMI_RANK", "PMI_SIZE", "PMI_FD", "PMIX_RANK", "OMPI_COMM_WORLD_SIZE",
+                 "MPI_LOCALNRANKS", "HYDRA_CONTROL_FD")  # fmt: skip
+
+
+def launched_by_mpi() -> bool:
+    """True when this process was started by mpirun/mpiexec/srun --mpi."""
+    return any(k in os.environ for k in MPI_ENV_HINTS)
 
 
 class Interrupted(BaseException):
@@ -107,13 +115,36 @@ def interruptible():
 
 @contextlib.contextmanager
 def deferred():
-    """A section that a signal must not cut: it is recorded, and raised when the
-    section ends inside an interruptible one (or by the next ``check``)."""
+    """A section that a signal must not cut: it is only recorded (the section's own
+    loops look at ``received()``, or the next ``check`` raises it)."""
     old = _state["raise"]
     _state["raise"] = False
     try:
         yield
     finally:
         _state["raise"] = old
-    if old:
-        check()
+
+
+def quiet_exit() -> None:
+    """The command is done: finish MPI (a signal then is only recorded), then ignore
+    SIGINT/SIGTERM for the rest of the interpreter's teardown, where Python would
+    put the default handlers back and a late signal would turn a finished run's
+    exit code into a kill.
+
+    Under mpirun a rank that a signal stopped before it started MPI still starts
+    and finishes it: MPI_Init waits for every rank, and ranks already inside it
+    would otherwise wait for this one for ever."""
+    import sys
+
+    _state["raise"] = False
+    mpi = sys.modules.get("mpi4py.MPI")
+    if mpi is None and launched_by_mpi():
+        try:
+            from mpi4py import MPI as mpi
+        except ImportError:
+            mpi = None  # MPI itself could not start: nothing to finish
+    if mpi is not None and mpi.Is_initialized() and not mpi.Is_finalized():
+        mpi.Finalize()
+    if threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
