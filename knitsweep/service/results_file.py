@@ -280,7 +280,7 @@ class ResultWriter:
                     f.create_group(kind)
             _fsync_file(tmp)
             os.replace(tmp, self.path)
-        except OSError as e:
+        except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
             tmp.unlink(missing_ok=True)
             raise storage_error(self.path, e) from None
         fsync_dir(self.path.parent)
@@ -319,7 +319,7 @@ class ResultWriter:
             except OSError:
                 spare = None  # no hard links here: the next checkpoint copies
             os.replace(self._shadow, self.path)
-        except OSError as e:
+        except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
             for p in (self._shadow, self._spare):
                 p.unlink(missing_ok=True)
             raise storage_error(self.path, e) from None
