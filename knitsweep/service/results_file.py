@@ -160,6 +160,15 @@ def _put(f, entry: Entry) -> None:
     _write_group(f.create_group(group_path), entry.record, entry.meta)
 
 
+def _copy_group(src, dst, entry: Entry) -> None:
+    """Copy one task's group from an open file to another (HDF5 copies the stored,
+    compressed chunks as they are)."""
+    group_path = f"{entry.kind}/{entry.task_id}"
+    if group_path in dst:
+        del dst[group_path]
+    src.copy(src[group_path], dst.require_group(entry.kind), name=entry.task_id)
+
+
 def _unused(path: Path) -> bool:
     """Whether no HDF5 reader holds ``path`` open (HDF5 readers hold a shared
     flock for as long as the file is open)."""
@@ -308,7 +317,11 @@ class ResultWriter:
                 self._lag, self._lag_attrs = [], {}
             self._shadow_ready = False  # until it is published whole
             with _h5().File(self._shadow, "a") as f:
-                for e in [*self._lag, *entries]:
+                if self._lag:  # last checkpoint's groups, copied as stored (no recompression)
+                    with _h5().File(self.path, "r") as published:
+                        for e in self._lag:
+                            _copy_group(published, f, e)
+                for e in entries:
                     _put(f, e)
                 for k, v in {**self._lag_attrs, **(attrs or {})}.items():
                     f.attrs[k] = v
