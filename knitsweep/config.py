@@ -13,8 +13,8 @@ All are frozen, strict pydantic models: they refuse unknown fields (with a "did
 you mean"), values of the wrong type (no string-to-number or bool-to-number
 coercion: ``"0.005"`` and ``true`` are not numbers) and out-of-range values at
 construction, with a message naming the field, the value and the allowed range.
-Every number has a physical upper bound too (``BOUNDS``), so a mistyped 1e300
-is refused instead of sending the continuation or a sweep on an endless road.
+Every number has a physical upper bound too (stated in its field), so a mistyped
+1e300 is refused instead of sending the continuation or a sweep on an endless road.
 The status words shared by every layer are defined here too.
 """
 

@@ -19,6 +19,7 @@ from .common import (
     RegOpt,
     ROpt,
     app,
+    check_range,
     stitch_inputs,
     user_errors,
 )
@@ -46,6 +47,7 @@ def phase_diagram(
 
     with user_errors():
         threshold = GAP_THRESHOLD if threshold is None else threshold
+        check_range("threshold", threshold, 1e-12, 1.0, "mJ")
         if out is not None:
             check_output_dir(out, "--out")
         report = make_phase_diagram(results, out, threshold, figures=not no_figures)
@@ -98,6 +100,11 @@ def render(
     from ..report import render as rendering
 
     with user_errors():
+        check_range("cells", cells, 1, 12)
+        check_range("width", width, 100, 8000)
+        check_range("elevation", elevation, 0.0, 90.0)
+        if radius is not None:
+            check_range("radius", radius, 1e-3, 10.0, "mm")
         params = None
         flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core}
         if state is not None:
@@ -131,7 +138,7 @@ def accuracy(
 ) -> None:  # fmt: skip
     """Measure the speed/accuracy trade: one point at rising fidelity, with time per
     relaxation and per sweep and the error of each observable against the finest."""
-    from ..config import InputError
+    from ..config import InputError, StitchParams
     from ..studies.accuracy import accuracy_study, table, write_report
 
     with user_errors():
@@ -145,6 +152,9 @@ def accuracy(
             Ls = None if series is None else [float(v) for v in series.split(",")]
         except ValueError:
             raise InputError(f"series = {series!r}: comma-separated numbers (mm)") from None
+        for value in Ls or []:  # each L of the series is a valid stitch
+            StitchParams(**{**params.model_dump(), "L_mm": value})
+        check_range("workers", workers, 1, 256)
         from ..studies.accuracy import setting
 
         for spec in specs:

@@ -73,6 +73,19 @@ def user_errors():
         raise typer.Exit(2) from None
 
 
+def check_range(name: str, value, lo, hi, unit: str = "") -> None:
+    """InputError unless ``lo <= value <= hi`` (a finite number): for the options that
+    no settings model covers (picture sizes, thresholds, worker counts)."""
+    import math
+
+    from ..config import InputError
+
+    if not (math.isfinite(value) and lo <= value <= hi):
+        raise InputError(
+            f"{name} = {value!r}: must be in [{lo:g}, {hi:g}]{' ' + unit if unit else ''}"
+        )
+
+
 def stitch_inputs(config, **flags):
     """(StitchParams, Fidelity) from defaults < an authors' config < explicit flags."""
     from ..config import Fidelity, StitchParams

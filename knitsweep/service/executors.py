@@ -70,7 +70,6 @@ class SerialExecutor:
     """Runs each task in this process when the runner asks for the next reply."""
 
     capacity = 1
-    runs_in_master = True
 
     def __init__(self, job) -> None:
         self.job = job
@@ -112,8 +111,6 @@ def _process_execute(job, task, zero, rank):
 
 class ProcessExecutor:
     """Local worker processes (``--workers N``), started with 'spawn'."""
-
-    runs_in_master = False
 
     def __init__(self, job, workers: int) -> None:
         self.job = job
@@ -181,8 +178,6 @@ def release_workers(comm) -> None:
 class MPIExecutor:
     """Rank 0's side of the MPI protocol; ranks 1..N-1 run ``mpi_worker_loop``.
     Creating it compiles the kernels (interruptible) and hands the job out."""
-
-    runs_in_master = False
 
     def __init__(self, job, comm) -> None:
         self.job = job

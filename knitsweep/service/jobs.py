@@ -48,8 +48,8 @@ JOB_SCHEMA_VERSION = 1
 """The job-file format this knitsweep reads (``schema_version`` in a job file)."""
 _STRICT = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, strict=True)
 MAX_POINTS = 1_000_000
-MAX_JOB_FILE_BYTES = 1_000_000
-"""A job file is a few hundred bytes; anything past this is not one."""
+MAX_JOB_FILE_BYTES = 16_000_000
+"""A job file is a few hundred bytes (a list of 10^5 values ~1 MB); past this it is not one."""
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+=,@-]*$")
 
 

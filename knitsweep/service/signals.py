@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import sys
 import threading
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -48,12 +49,19 @@ class Interrupted(BaseException):
 _state = {"signum": None, "count": 0, "raise": False}
 
 
+def _quiet(unraisable) -> None:
+    """After an interrupt: objects whose construction the signal cut short (numba's
+    compiler, llvmlite) may fail in ``__del__``; that is no news to the user."""
+
+
 def _handler(signum, frame) -> None:
     _state["count"] += 1
     if _state["signum"] is None:
         _state["signum"] = signum
     if _state["raise"]:
         _state["raise"] = False  # raise once: the clean-up after it runs undisturbed
+        _state["unraisablehook"] = _state.get("unraisablehook") or sys.unraisablehook
+        sys.unraisablehook = _quiet
         raise Interrupted(signum)
 
 
@@ -71,11 +79,14 @@ def install(interruptible: bool = False) -> dict | None:
 
 
 def restore(old: dict | None) -> None:
-    """Put back the handlers ``install`` replaced."""
+    """Put back the handlers ``install`` replaced; the signals they saw are handled
+    (a later run in this process starts afresh)."""
     if old:
         for s, h in old.items():
             signal.signal(s, h)
-        _state["raise"] = False
+        if _state.get("unraisablehook") is not None:
+            sys.unraisablehook = _state.pop("unraisablehook")
+        _state.update({"signum": None, "count": 0, "raise": False})
 
 
 def received() -> int | None:
