@@ -100,11 +100,8 @@ def render(
     from ..report import render as rendering
 
     with user_errors():
-        check_range("cells", cells, 1, 12)
-        check_range("width", width, 100, 8000)
-        check_range("elevation", elevation, 0.0, 90.0)
-        if radius is not None:
-            check_range("radius", radius, 1e-3, 10.0, "mm")
+        if radius is not None and radius > 10.0:  # render checks the rest of the picture
+            raise InputError(f"radius = {radius}: must be <= 10 (mm)")
         params = None
         flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core}
         if state is not None:
