@@ -276,3 +276,41 @@ def test_binary_and_utf16_state_files(tmp_path):
         path = tmp_path / name
         path.write_bytes(content)
         one_error_line(knitsweep("energy", "--state", path), "not UTF-8 text")
+
+
+# ---- checkpoints -------------------------------------------------------------------
+
+
+def test_checkpoints_append_in_place_and_never_touch_a_file_a_reader_holds(tmp_path):
+    """Each checkpoint publishes a whole file; the retired version becomes the next
+    shadow only if no reader still has it open (then the shadow is copied afresh)."""
+    from knitsweep.service.jobs import JobSpec
+    from knitsweep.service.results_file import ResultWriter
+
+    job = JobSpec(schema_version=1, name="c", grid={"L_mm": 11.6})
+    out = tmp_path / "c.h5"
+    writer = ResultWriter(out, job)
+    rng = np.random.default_rng(0)
+
+    def add(n0, n):
+        for i in range(n0, n0 + n):
+            writer.add("sweeps", f"s{i}", {"stress": rng.random(300)}, {"status": "done", "i": i})
+
+    add(0, 3)
+    assert writer.checkpoint() == 3
+    reader = h5py.File(out, "r")  # holds version 1 open
+    inode = os.stat(out).st_ino
+    add(3, 2)
+    assert writer.checkpoint() == 2  # version 2; version 1 (the reader's) is the spare shadow
+    assert os.stat(out).st_ino != inode
+    add(5, 2)
+    assert writer.checkpoint() == 2  # the reader still holds version 1: copied, not reused
+    assert sorted(reader["sweeps"]) == ["s0", "s1", "s2"]  # the reader's file never changed
+    reader.close()
+    add(7, 1)
+    writer.checkpoint()
+    writer.close("complete")
+    with h5py.File(out, "r") as f:
+        assert sorted(f["sweeps"], key=lambda t: int(t[1:])) == [f"s{i}" for i in range(8)]
+        assert [int(f["sweeps"][f"s{i}"].attrs["i"]) for i in range(8)] == list(range(8))
+    assert leftovers(tmp_path) == [] and not journal_dir(out).exists()

@@ -225,8 +225,8 @@ def scan(journal: Path, with_data: bool = False) -> tuple[list[Entry], list[tupl
     if not journal.is_dir():
         return entries, problems
     for path in sorted(journal.iterdir()):
-        if path.name.startswith("."):
-            continue  # an entry being written (temporary file)
+        if path.name.startswith(".") or not path.is_file():
+            continue  # an entry being written (temporary file), or not ours to judge
         if path.suffix == ".pkl":
             problems.append((path, "an old pickle entry, not read (pickle could run code)"))
             continue

@@ -160,13 +160,13 @@ def _put(f, entry: Entry) -> None:
     _write_group(f.create_group(group_path), entry.record, entry.meta)
 
 
-def _copy_group(src, dst, entry: Entry) -> None:
+def _copy_group(src, dst, kind: str, task_id: str) -> None:
     """Copy one task's group from an open file to another (HDF5 copies the stored,
     compressed chunks as they are)."""
-    group_path = f"{entry.kind}/{entry.task_id}"
+    group_path = f"{kind}/{task_id}"
     if group_path in dst:
         del dst[group_path]
-    src.copy(src[group_path], dst.require_group(entry.kind), name=entry.task_id)
+    src.copy(src[group_path], dst.require_group(kind), name=task_id)
 
 
 def _unused(path: Path) -> bool:
@@ -197,7 +197,7 @@ class ResultWriter:
         self.journal = journal_dir(self.path)
         self._shadow, self._spare = _hidden(self.path, "shadow"), _hidden(self.path, "spare")
         self._pending: dict[tuple[str, str], Entry] = {}  # journalled, not yet in the file
-        self._lag: list[Entry] = []  # in the file, not yet in the shadow
+        self._lag: list[tuple[str, str]] = []  # groups in the file, not yet in the shadow
         self._lag_attrs: dict[str, Any] = {}
         self._shadow_ready = False
         self.malformed: list[tuple[Path, str]] = []
@@ -269,7 +269,8 @@ class ResultWriter:
             raise storage_error(self.journal, e) from None
         entries, self.malformed = scan(self.journal, with_data=True)
         for path, _ in self.malformed:
-            path.unlink(missing_ok=True)  # reported by the caller; the task is redone
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)  # reported by the caller; the task is redone
         self._pending = {(e.kind, e.task_id): e for e in entries}
         if self.path.exists():
             return
@@ -312,15 +313,17 @@ class ResultWriter:
         spare = None
         try:
             if not (self._shadow_ready and _unused(self._shadow)):
-                # once per launch (or after a reader held the retired file open)
+                # once per launch (or after a reader held the retired file open: unlink
+                # that name first, copying onto it would rewrite the reader's file)
+                self._shadow.unlink(missing_ok=True)
                 shutil.copyfile(self.path, self._shadow)
                 self._lag, self._lag_attrs = [], {}
             self._shadow_ready = False  # until it is published whole
             with _h5().File(self._shadow, "a") as f:
                 if self._lag:  # last checkpoint's groups, copied as stored (no recompression)
                     with _h5().File(self.path, "r") as published:
-                        for e in self._lag:
-                            _copy_group(published, f, e)
+                        for kind, task_id in self._lag:
+                            _copy_group(published, f, kind, task_id)
                 for e in entries:
                     _put(f, e)
                 for k, v in {**self._lag_attrs, **(attrs or {})}.items():
@@ -345,7 +348,8 @@ class ResultWriter:
             with contextlib.suppress(OSError):
                 os.replace(spare, self._shadow)
                 self._shadow_ready = True
-                self._lag, self._lag_attrs = entries, dict(attrs or {})
+                self._lag = [(e.kind, e.task_id) for e in entries]
+                self._lag_attrs = dict(attrs or {})
         return len(entries)
 
     def close(self, run_status: str, attrs: dict[str, Any] | None = None) -> None:
