@@ -201,16 +201,26 @@ def test_read_only_directory(tmpfs, tmp_path):
     assert not list(ro.iterdir())
 
 
-@pytest.mark.slow
-def test_full_disk_mid_run_stops_cleanly_and_resumes(tmpfs, tmp_path):
-    """The disk fills during the run: one line, exit 3, no temporary file, the file
-    still opens; moved to a roomy disk the run resumes to the uninterrupted result."""
-    job = tmp_path / "six.toml"
+@pytest.fixture(scope="module")
+def six_stored(tmp_path_factory):
+    """A 6-point job storing states and geometry, and its uninterrupted result."""
+    d = tmp_path_factory.mktemp("six_stored")
+    job = d / "six.toml"
     text = TINY.read_text().replace("[11.4, 12.0]", "[11.2, 11.4, 11.6, 11.8, 12.0, 12.2]")
     job.write_text(text + "\n[store]\nstates = true\ngeometry = true\n")
-    reference = tmp_path / "reference.h5"
+    reference = d / "reference.h5"
     assert knitsweep("run", job, "--out", reference, "--quiet").returncode == 0
-    full = tmpfs("400k")
+    return job, reference
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("size", ["300k", "400k", "600k"])
+def test_full_disk_mid_run_stops_cleanly_and_resumes(tmpfs, tmp_path, six_stored, size):
+    """The disk fills during the run (at different moments for different sizes): one
+    line, exit 3, no temporary file, the file still opens; moved to a roomy disk the
+    run resumes to the uninterrupted result."""
+    job, reference = six_stored
+    full = tmpfs(size)
     out = full / "r.h5"
     proc = knitsweep("run", job, "--out", out, "--quiet")
     assert proc.returncode == 3, proc.stderr

@@ -27,6 +27,13 @@ def main() -> None:
         print(f"interrupted by {e}", file=sys.stderr, flush=True)
         rc = signals.EXIT_INTERRUPTED
     signals.quiet_exit()
+    results_file = sys.modules.get("knitsweep.service.results_file")
+    if results_file is not None and results_file.hdf5_write_failed():
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(rc)  # the file and journal are safe; HDF5's exit clean-up is not
     sys.exit(rc)
 
 

@@ -47,10 +47,12 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import gc
 import json
 import os
 import shutil
 import socket
+import sys
 from collections.abc import Iterator
 from datetime import datetime, timezone
 from pathlib import Path
@@ -74,6 +76,17 @@ from .provenance import environment_metadata
 
 __all__ = ["Entry", "ResultWriter", "StorageError", "atomic_write_bytes", "iter_entries",
            "journal_problems", "read_entry", "read_root"]  # fmt: skip
+
+SPACE_MARGIN_BYTES = 256 * 1024
+"""Free space a checkpoint leaves at least, for HDF5's own metadata."""
+_HDF5_WRITE_FAILED = False
+
+
+def hdf5_write_failed() -> bool:
+    """Whether an HDF5 write failed in this process: the library may then fail again
+    when it closes its files at exit, so the CLI leaves without that clean-up."""
+    return _HDF5_WRITE_FAILED
+
 
 RESULTS_SCHEMA_VERSION = 2
 """The results-file format this knitsweep writes."""
@@ -276,7 +289,7 @@ class ResultWriter:
             return
         tmp = _hidden(self.path, f"{os.getpid()}.tmp")
         try:
-            with h5py.File(tmp, "w") as f:
+            with _quiet_failed_writes(), h5py.File(tmp, "w") as f:
                 f.attrs["schema_version"] = RESULTS_SCHEMA_VERSION
                 f.attrs["job_json"] = self.job.model_dump_json()
                 f.attrs["job_hash"] = self.job.job_hash
@@ -311,34 +324,19 @@ class ResultWriter:
         if not entries and not attrs:
             return 0
         spare = None
-        try:
-            if not (self._shadow_ready and _unused(self._shadow)):
-                # once per launch (or after a reader held the retired file open: unlink
-                # that name first, copying onto it would rewrite the reader's file)
-                self._shadow.unlink(missing_ok=True)
-                shutil.copyfile(self.path, self._shadow)
-                self._lag, self._lag_attrs = [], {}
-            self._shadow_ready = False  # until it is published whole
-            with _h5().File(self._shadow, "a") as f:
-                if self._lag:  # last checkpoint's groups, copied as stored (no recompression)
-                    with _h5().File(self.path, "r") as published:
-                        for kind, task_id in self._lag:
-                            _copy_group(published, f, kind, task_id)
-                for e in entries:
-                    _put(f, e)
-                for k, v in {**self._lag_attrs, **(attrs or {})}.items():
-                    f.attrs[k] = v
-            _fsync_file(self._shadow)
-            try:  # keep the version being replaced: it becomes the next shadow
-                os.link(self.path, self._spare)
-                spare = self._spare
-            except OSError:
-                spare = None  # no hard links here: the next checkpoint copies
-            os.replace(self._shadow, self.path)
-        except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
-            for p in (self._shadow, self._spare):
-                p.unlink(missing_ok=True)
-            raise storage_error(self.path, e) from None
+        failure = None
+        self._check_space(entries)
+        with _quiet_failed_writes():
+            try:
+                spare = self._fold(entries, attrs)
+            except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
+                global _HDF5_WRITE_FAILED
+                _HDF5_WRITE_FAILED = True
+                for p in (self._shadow, self._spare):
+                    p.unlink(missing_ok=True)
+                failure = storage_error(self.path, e)
+        if failure is not None:
+            raise failure
         fsync_dir(self.path.parent)
         for e in entries:
             with contextlib.suppress(OSError):
@@ -352,6 +350,50 @@ class ResultWriter:
                 self._lag_attrs = dict(attrs or {})
         return len(entries)
 
+    def _check_space(self, entries: list[Entry]) -> None:
+        """StorageError before HDF5 writes a byte if the disk cannot hold this
+        checkpoint (HDF5 copes badly with a disk that fills under it)."""
+        new = sum(v.nbytes for e in entries for v in e.record.values() if hasattr(v, "nbytes"))
+        need = 2 * new + SPACE_MARGIN_BYTES  # written twice (this and the next shadow)
+        if not (self._shadow_ready and self._shadow.exists()):
+            need += self.path.stat().st_size  # the shadow is made first
+        try:
+            st = os.statvfs(self.path.parent)
+        except OSError:
+            return
+        if st.f_bavail * st.f_frsize < need:
+            raise StorageError(28, f"cannot write {self.path}: the disk is full (a checkpoint "
+                               f"needs ~{need // 1024} KiB, {st.f_bavail * st.f_frsize // 1024} "
+                               "KiB are free)")  # fmt: skip
+
+    def _fold(self, entries: list[Entry], attrs: dict[str, Any] | None) -> Path | None:
+        """Append to the shadow, fsync it and rename it over the file; returns the
+        spare name of the version replaced (None: no hard links here)."""
+        if not (self._shadow_ready and _unused(self._shadow)):
+            # once per launch (or after a reader held the retired file open: unlink
+            # that name first, copying onto it would rewrite the reader's file)
+            self._shadow.unlink(missing_ok=True)
+            shutil.copyfile(self.path, self._shadow)
+            self._lag, self._lag_attrs = [], {}
+        self._shadow_ready = False  # until it is published whole
+        with _h5().File(self._shadow, "a") as f:
+            if self._lag:  # last checkpoint's groups, copied as stored (no recompression)
+                with _h5().File(self.path, "r") as published:
+                    for kind, task_id in self._lag:
+                        _copy_group(published, f, kind, task_id)
+            for e in entries:
+                _put(f, e)
+            for k, v in {**self._lag_attrs, **(attrs or {})}.items():
+                f.attrs[k] = v
+        _fsync_file(self._shadow)
+        try:  # keep the version being replaced: it becomes the next shadow
+            os.link(self.path, self._spare)
+            spare = self._spare
+        except OSError:
+            spare = None  # no hard links here: the next checkpoint copies
+        os.replace(self._shadow, self.path)
+        return spare
+
     def close(self, run_status: str, attrs: dict[str, Any] | None = None) -> None:
         """The last checkpoint with the run's status; the shadow and lock are removed
         even when it fails (the journal then keeps what arrived)."""
@@ -364,6 +406,26 @@ class ResultWriter:
                 with contextlib.suppress(OSError):
                     p.unlink(missing_ok=True)
             self._release_lock()
+
+
+@contextlib.contextmanager
+def _quiet_failed_writes():
+    """While a write may fail: h5py objects freed after a failed flush report it again
+    from ``__dealloc__`` ("Exception ignored"); the failure itself is raised once."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        if not (
+            isinstance(unraisable.exc_value, RuntimeError) and "h5py" in repr(unraisable.object)
+        ):
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        gc.collect()
+        sys.unraisablehook = previous
 
 
 def _fsync_file(path: Path) -> None:
