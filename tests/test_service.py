@@ -349,6 +349,9 @@ def test_signal_during_mpi_start_up_ends_every_rank(six, tmp_path, signum, to_gr
                         "after 60 s")  # fmt: skip
         seconds = time.monotonic() - t0
         where = f"{signal.Signals(signum).name} {delay} s after the start"
+        if proc.returncode == 0 and delay >= 3.0:  # on a quiet machine the run was done
+            assert service.status(out)["done"] == 18, f"{where}: exit 0 but unfinished: {err}"
+            continue
         assert proc.returncode == 3, f"{where}: exit {proc.returncode}: {err}"
         assert "Traceback" not in err and "ImportError" not in err, f"{where}: {err}"
         assert len(err.strip().splitlines()) <= 3, f"{where}: {err}"
