@@ -9,13 +9,18 @@
 * ``PRESETS`` and ``Numerics.from_preset``: the speed/accuracy trade in one word,
   with explicit overrides field by field.
 
-All are frozen pydantic models that refuse unknown fields and out-of-range values
-at construction, with a message naming the field, the value and the allowed range.
+All are frozen, strict pydantic models: they refuse unknown fields (with a "did
+you mean"), values of the wrong type (no string-to-number or bool-to-number
+coercion: ``"0.005"`` and ``true`` are not numbers) and out-of-range values at
+construction, with a message naming the field, the value and the allowed range.
+Every number has a physical upper bound too (stated in its field), so a mistyped
+1e300 is refused instead of sending the continuation or a sweep on an endless road.
 The status words shared by every layer are defined here too.
 """
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Mapping
 from typing import Annotated, Any, Literal, NamedTuple
@@ -30,7 +35,9 @@ from pydantic import (
     field_validator,
 )
 
-_CONFIG = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, validate_default=True)
+_CONFIG = ConfigDict(
+    frozen=True, extra="forbid", allow_inf_nan=False, validate_default=True, strict=True
+)
 
 
 def _positive(v: float) -> float:
@@ -47,6 +54,19 @@ def _non_negative(v: float) -> float:
 
 Positive = Annotated[float, AfterValidator(_positive)]
 NonNegative = Annotated[float, AfterValidator(_non_negative)]
+
+
+def within(lo: float, hi: float, *, open_lo: bool = False, unit: str = ""):
+    """A float field in [lo, hi] (or (lo, hi] with ``open_lo``) whose message states the
+    whole allowed range: ``must be a finite number in (0, 100] mm``."""
+    where = f"{'(' if open_lo else '['}{lo:g}, {hi:g}]{' ' + unit if unit else ''}"
+
+    def check(v: float) -> float:
+        if not (math.isfinite(v) and (v > lo if open_lo else v >= lo) and v <= hi):
+            raise ValueError(f"must be a finite number in {where}")
+        return v
+
+    return Annotated[float, AfterValidator(check)]
 
 
 # ---- statuses -------------------------------------------------------------------
@@ -75,14 +95,25 @@ class StitchParams(BaseModel):
 
     model_config = _CONFIG
 
-    L_mm: Positive = Field(11.6, description="yarn length per stitch L (mm)")
-    B_mN_mm2: Positive = Field(90.0, description="bending modulus B (mN mm^2)")
-    k_mN_per_mm2: Positive = Field(0.6, description="compression constant k (mN/mm^2)")
+    # bounds: far beyond any knitted yarn (paper Table 1: L ~ 11 mm, r 0.74 mm, k 0.1-1.7,
+    # B 45-360), and near enough that the continuation from the shipped starts (steps of
+    # 0.1 mm in L, 0.02 mm in r, factors of 2 in k and B) stays finite
+    L_mm: within(0.0, 100.0, open_lo=True, unit="mm") = Field(
+        11.6, description="yarn length per stitch L (mm), <= 100"
+    )
+    B_mN_mm2: within(1e-3, 1e6, unit="mN mm^2") = Field(
+        90.0, description="bending modulus B (mN mm^2), 1e-3 to 1e6"
+    )
+    k_mN_per_mm2: within(1e-6, 1e4, unit="mN/mm^2") = Field(
+        0.6, description="compression constant k (mN/mm^2), 1e-6 to 1e4"
+    )
     p: float = Field(2.4, description="contact exponent p, 1 < p <= 20")
-    r_mm: Positive = Field(0.74, description="yarn radius r (mm)")
-    r_core_mm: Positive = Field(0.325, description="incompressible core radius r_core (mm)")
-    regularization_mN_mm4: NonNegative = Field(
-        2.0, description="curvature-derivative regularisation (mN mm^4); 2 = reference 0.002 N mm^4"
+    r_mm: within(0.01, 10.0, unit="mm") = Field(0.74, description="yarn radius r (mm), 0.01 to 10")
+    r_core_mm: Positive = Field(0.325, description="incompressible core radius r_core (mm), < r")
+    regularization_mN_mm4: within(0.0, 1e4, unit="mN mm^4") = Field(
+        2.0,
+        description="curvature-derivative regularisation (mN mm^4), <= 1e4; 2 = reference "
+        "0.002 N mm^4",
     )
     twist_bound: float = Field(
         0.9, description="bound c_tw on the crossover twist: cos(tw) >= c_tw"
@@ -179,25 +210,27 @@ class SolverSettings(BaseModel):
 
     ftol: float = Field(
         1e-10,
-        gt=0.0,
+        ge=1e-16,
         le=1e-2,
         description="SLSQP precision goal on the energy (mJ); the authors' effective value "
         "was SciPy's default 1e-6, the paper quotes 1e-5",
     )
     maxiter: int = Field(2000, ge=1, le=1_000_000, description="SLSQP iteration limit")
     length_tol_mm: Positive = Field(
-        1e-6, description="largest |length - L| (mm) that counts as meeting the constraint"
+        1e-6, le=0.1, description="largest |length - L| (mm) that counts as meeting the constraint"
     )
     continuation_dL_mm: Positive = Field(
-        0.1, description="largest change of L (mm) per continuation stage"
+        0.1, ge=1e-4, le=10.0, description="largest change of L (mm) per continuation stage"
     )
     continuation_factor: float = Field(
-        2.0, gt=1.0, description="largest factor of k or B per continuation stage"
+        2.0, gt=1.0, le=100.0, description="largest factor of k or B per continuation stage"
     )
     continuation_dr_mm: Positive = Field(
-        0.02, description="largest change of r or r_core (mm) per continuation stage"
+        0.02, ge=1e-4, le=1.0, description="largest change of r or r_core (mm) per stage"
     )
-    continuation_dp: Positive = Field(0.1, description="largest change of p per stage")
+    continuation_dp: Positive = Field(
+        0.1, ge=1e-4, le=10.0, description="largest change of p per stage"
+    )
 
 
 Direction = Literal["x", "y"]
@@ -210,11 +243,13 @@ class SweepProtocol(BaseModel):
 
     step_mm: float = Field(0.001, gt=0.0, le=1.0, description="small step h of the period (mm)")
     switch_strain: float = Field(
-        0.05, ge=0.0, description="|strain| from which the large step applies"
+        0.05, ge=0.0, le=10.0, description="|strain| from which the large step applies"
     )
     large_step_x_mm: float = Field(0.1, gt=0.0, le=5.0, description="large step for x pulls (mm)")
     large_step_y_mm: float = Field(0.05, gt=0.0, le=5.0, description="large step for y pulls (mm)")
-    stop_stress_N_per_mm: float = Field(0.4, gt=0.0, description="stop once |stress| exceeds this")
+    stop_stress_N_per_mm: float = Field(
+        0.4, gt=0.0, le=1000.0, description="stop once |stress| exceeds this"
+    )
     max_strain: float = Field(1.0, gt=0.0, le=10.0, description="stop once |strain| exceeds this")
     max_steps: int = Field(5000, ge=2, le=1_000_000, description="hard limit on steps")
     mode: Literal["tension", "compression"] = Field(
@@ -333,8 +368,51 @@ class InputError(ValueError):
     """Bad user input, reported as one line naming the field and the allowed range."""
 
 
-def describe_validation_error(err: ValidationError | InputError) -> str:
-    """One line per problem: ``field = value: what is allowed``."""
+MAX_SEED = 2**63
+"""Seeds are integers in [0, 2**63)."""
+
+
+def check_seed(seed: Any) -> int:
+    """``seed`` if it is an integer in [0, 2**63); InputError otherwise."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < MAX_SEED:
+        raise InputError(f"seed = {seed!r}: must be an integer in [0, 2**63)")
+    return seed
+
+
+def did_you_mean(word: str, choices) -> str:
+    """' (did you mean 'x'?)' for the closest of ``choices``, else the list of them."""
+    choices = sorted(choices)
+    close = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
+    if close:
+        return f" (did you mean {close[0]!r}?)"
+    return f" (known: {', '.join(choices)})" if choices else ""
+
+
+def _fields_at(model: type[BaseModel] | None, loc: tuple) -> list[str]:
+    """The field names of the model that holds ``loc[-1]``, following ``loc`` down
+    from ``model`` through nested models (empty if it cannot be followed)."""
+    for part in loc[:-1]:
+        field = model.model_fields.get(part) if model is not None else None
+        annotation = field.annotation if field is not None else None
+        model = (
+            annotation
+            if isinstance(annotation, type) and issubclass(annotation, BaseModel)
+            else None
+        )
+    return list(model.model_fields) if model is not None else []
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    """repr(value), cut to ``limit`` characters (a 10^5-value list is not a message)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 4] + " ..."
+
+
+def describe_validation_error(
+    err: ValidationError | InputError, model: type[BaseModel] | None = None
+) -> str:
+    """One line per problem: ``field = value: what is allowed``; an unknown field gets
+    the closest known name of ``model`` (the validated model) as a suggestion."""
     if isinstance(err, InputError):
         return str(err)
     parts = []
@@ -344,9 +422,11 @@ def describe_validation_error(err: ValidationError | InputError) -> str:
         if not loc:  # a model-level check: its message names the fields itself
             parts.append(msg)
         elif e["type"] == "extra_forbidden":
-            parts.append(f"{loc}: unknown field")
+            known = _fields_at(model, e["loc"])
+            hint = did_you_mean(str(e["loc"][-1]), known) if known else ""
+            parts.append(f"{loc}: unknown field{hint}")
         elif "input" in e and e["type"] != "missing":
-            parts.append(f"{loc} = {e['input']!r}: {msg}")
+            parts.append(f"{loc} = {_short(e['input'])}: {msg}")
         else:
             parts.append(f"{loc}: {msg}")
     return "; ".join(parts)

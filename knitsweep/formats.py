@@ -16,19 +16,40 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
-from .config import InputError, StitchParams, describe_validation_error
+from .config import InputError, StitchParams, describe_validation_error, did_you_mean
 from .state import IDX_AX, IDX_AY, N_STATE
 
 SHIPPED_STATES = tuple(f"Init_{i}.dat" for i in range(1, 8))
+MAX_TEXT_BYTES = 1_000_000
+"""State and config files are a few hundred bytes; anything past this is not one."""
+MAX_STATE_VALUE = 1e4
+"""|entry| of a state (mm or rad) beyond which a file is not a stitch's state."""
+
+
+def read_text(path: str | Path, what: str) -> str:
+    """The UTF-8 text of a small input file; InputError naming the file for a missing,
+    unreadable, binary, non-UTF-8 (e.g. UTF-16) or oversized one."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(MAX_TEXT_BYTES + 1)
+    except OSError as e:
+        raise InputError(f"{what} {path}: {e.strerror or e}") from None
+    if len(raw) > MAX_TEXT_BYTES:
+        raise InputError(f"{what} {path}: larger than {MAX_TEXT_BYTES} bytes, not a {what}")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise InputError(f"{what} {path}: not UTF-8 text (byte {e.start})") from None
+    if "\x00" in text:
+        raise InputError(f"{what} {path}: a binary file, not a {what}")
+    return text
 
 
 def read_state(path: str | Path) -> np.ndarray:
     """Read a 30-line state file; errors name the file and the line."""
     path = Path(path)
-    try:
-        lines = path.read_text().splitlines()
-    except OSError as e:
-        raise InputError(f"state file {path}: {e.strerror or e}") from None
+    lines = read_text(path, "state file").splitlines()
     values = []
     for no, line in enumerate(lines, 1):
         text = line.strip()
@@ -40,6 +61,9 @@ def read_state(path: str | Path) -> np.ndarray:
             raise InputError(f"state file {path} line {no}: {text!r} is not a number") from None
         if not math.isfinite(v):
             raise InputError(f"state file {path} line {no}: {text!r} is not finite")
+        if abs(v) > MAX_STATE_VALUE:
+            raise InputError(f"state file {path} line {no}: {text!r}: |value| must be <= "
+                             f"{MAX_STATE_VALUE:g} (mm or rad)")  # fmt: skip
         values.append(v)
     if len(values) != N_STATE:
         raise InputError(f"state file {path}: expected {N_STATE} numbers, found {len(values)}")
@@ -100,10 +124,7 @@ KNOWN_KEYS = tuple(sorted(set(_PARAM_KEYS) | _FLOAT_KEYS | _OTHER_KEYS))
 def read_authors_config(path: str | Path) -> AuthorsConfig:
     """Parse an authors' ``*key value [unit]`` config file; unknown keys are errors."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise InputError(f"config file {path}: {e.strerror or e}") from None
+    text = read_text(path, "config file")
     raw: dict[str, tuple[str, int]] = {}
     for no, line in enumerate(text.splitlines(), 1):
         words = line.split()
@@ -112,8 +133,7 @@ def read_authors_config(path: str | Path) -> AuthorsConfig:
         key = words[0][1:]
         if key not in KNOWN_KEYS:
             raise InputError(
-                f"config file {path} line {no}: unknown key '*{key}' "
-                f"(known keys: {', '.join(KNOWN_KEYS)})"
+                f"config file {path} line {no}: unknown key '*{key}'{did_you_mean(key, KNOWN_KEYS)}"
             )
         if len(words) < 2:
             raise InputError(f"config file {path} line {no}: '*{key}' has no value")
@@ -140,7 +160,7 @@ def read_authors_config(path: str | Path) -> AuthorsConfig:
     except ValidationError as e:
         raise InputError(f"config file {path}: {describe_validation_error(e)}") from None
     samples = number("interactions_per_segment")
-    if samples is not None and samples != int(samples):
+    if samples is not None and not (math.isfinite(samples) and samples == int(samples)):
         raise InputError(f"config file {path}: *interactions_per_segment must be an integer")
     direction = raw.get("sweep_direction", (None, 0))[0]
     if direction is not None:
@@ -156,3 +176,46 @@ def read_authors_config(path: str | Path) -> AuthorsConfig:
         init_file=raw.get("init_file", (None, 0))[0],
         output_prefix=raw.get("output_prefix", (None, 0))[0],
     )
+
+
+def check_writable(path: str | Path, what: str, *, overwrite: bool) -> Path:
+    """Refuse, before any compute, an output ``path`` that cannot be written: a missing
+    or read-only directory, a directory in its place, or (``overwrite`` False) an
+    existing file. Probes the directory by creating and removing a hidden file."""
+    import os
+    import tempfile
+
+    path = Path(path)
+    parent = path.parent
+    if not parent.is_dir():
+        raise InputError(f"{what} {path}: directory {parent} does not exist")
+    if path.is_dir():
+        raise InputError(f"{what} {path}: is a directory")
+    if path.exists() and not overwrite:
+        raise InputError(f"{what} {path}: already exists; remove it or choose another name")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".knitsweep-probe-", dir=parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise InputError(f"{what} {path}: directory {parent} is not writable "
+                         f"({e.strerror or e})") from None  # fmt: skip
+    return path
+
+
+def check_output_dir(path: str | Path, what: str) -> Path:
+    """Refuse an output directory whose place holds a file, or that cannot be
+    created or written (checked before any compute)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{what} {path}: exists and is not a directory")
+    if path.is_dir():
+        check_writable(path / "probe", what, overwrite=True)
+        return path
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InputError(f"{what} {path}: {parent} is not a directory")
+    check_writable(parent / "probe", what, overwrite=True)
+    return path

@@ -37,7 +37,7 @@ def test_energy_with_authors_config(data_dir):
 @pytest.mark.parametrize(
     ("args", "fragment"),
     [
-        (["--k", "-1"], "k_mN_per_mm2 = -1.0: must be a finite number > 0"),
+        (["--k", "-1"], "k_mN_per_mm2 = -1.0: must be a finite number in [1e-06, 10000]"),
         (["--r-core", "0.8"], "r_core_mm = 0.8"),
         (["--p", "0.5"], "p = 0.5: must satisfy 1 < p <= 20"),
         (["--samples", "1"], "samples_per_segment = 1"),

@@ -56,7 +56,7 @@ def test_range_is_inclusive_and_decimal():
         (MINIMAL.replace("schema_version = 1", "schema_version = 2"), "schema_version = 2"),
         (
             MINIMAL + "k_mN_per_mm2 = [0.1, -1.0]\n",
-            "k_mN_per_mm2 = -1.0: must be a finite number > 0",
+            "k_mN_per_mm2 = -1.0: must be a finite number in [1e-06, 10000] mN/mm^2",
         ),
         (
             MINIMAL + "r_core_mm = [0.3, 0.8]\n",
@@ -106,3 +106,64 @@ def test_task_ids_hash_parameters_not_names_or_order():
     assert len(ids(a) & ids(c)) == 1
     assert all(len(i) == 16 and "." not in i for i in ids(a))
     assert a.job_hash != c.job_hash
+
+
+def test_grids_beyond_the_threshold_need_confirmation(tmp_path):
+    from knitsweep.service.runs import LARGE_GRID_TASKS, check_grid_size
+
+    values = ", ".join(f"{10 + i * 1e-4:.4f}" for i in range(100_000))
+    job = load_job(_job(tmp_path, MINIMAL.replace("[11.6]", f"[{values}]")))
+    with pytest.raises(InputError, match=r"300000 tasks \(100000 grid points\), more than 20000"):
+        check_grid_size(job, None)
+    check_grid_size(job, 300_000)  # confirmed
+    assert LARGE_GRID_TASKS == 20_000
+    proc = subprocess.run([sys.executable, "-m", "knitsweep", "run", str(tmp_path / "job.toml"),
+                           "--out", str(tmp_path / "o.h5")], capture_output=True, text=True,
+                          timeout=300)  # fmt: skip
+    assert proc.returncode == 2 and "--max-tasks 300000" in proc.stderr
+    assert not (tmp_path / "o.h5").exists()
+
+
+@pytest.mark.parametrize("name", ["../../escape", "a/b", "/abs", ".hidden", "a\\b", "", "x" * 201])
+def test_job_names_cannot_leave_the_directory(tmp_path, name):
+    with pytest.raises(InputError, match="name = "):
+        load_job(_job(tmp_path, MINIMAL.replace('name = "t"', f"name = {name!r}")))
+
+
+@pytest.mark.parametrize(
+    ("line", "fragment"),
+    [
+        (
+            "[protocol]\nstep_mm = '0.005'\n",
+            "protocol.step_mm = '0.005': Input should be a valid number",
+        ),
+        ("[protocol]\nstep_mm = true\n", "protocol.step_mm = True: Input should be a valid number"),
+        ("[store]\nstates = 'yes'\n", "store.states = 'yes': Input should be a valid boolean"),
+        ("[starts]\ncount = true\n", "starts.count = True: Input should be a valid integer"),
+        ("[solver]\nftol = '1e-8'\n", "solver.ftol = '1e-8'"),
+        ("[run]\ncheckpoint_s = '10'\n", "run.checkpoint_s = '10'"),
+        ("[run]\ntask_timeout_s = 1e300\n", "run.task_timeout_s = 1e+300"),
+        ("[protocol]\nstep = 0.1\n", "protocol.step: unknown field (did you mean 'step_mm'?)"),
+    ],
+)
+def test_no_coercion_and_suggestions(tmp_path, line, fragment):
+    with pytest.raises(InputError) as e:
+        load_job(_job(tmp_path, MINIMAL + line))
+    assert fragment in str(e.value)
+
+
+@pytest.mark.parametrize(
+    ("text", "fragment"),
+    [
+        (MINIMAL.replace("schema_version = 1", "schema_version = '1'"), "schema_version = '1'"),
+        (MINIMAL.replace("schema_version = 1", "schema_version = true"), "schema_version = True"),
+        (MINIMAL.replace("[grid]", "seed = true\n[grid]"), "seed = True"),
+        (MINIMAL.replace("[11.6]", "{start = '11', stop = 12, step = 0.1}"), "start = '11'"),
+        (MINIMAL.replace("[11.6]", "1e300"), "L_mm = 1e+300: must be a finite number in (0, 100]"),
+        (MINIMAL + "twist_bound = '0.9'\n", "grid.twist_bound = '0.9'"),
+    ],
+)
+def test_top_level_and_grid_types(tmp_path, text, fragment):
+    with pytest.raises(InputError) as e:
+        load_job(_job(tmp_path, text))
+    assert fragment in str(e.value)

@@ -30,13 +30,35 @@ def test_defaults_are_the_papers_table_1():
     [
         ({"p": 1.0}, "p = 1.0: must satisfy 1 < p <= 20"),
         ({"r_core_mm": 0.74}, "r_core_mm = 0.74: must satisfy 0 < r_core_mm < r_mm = 0.74"),
-        ({"k_mN_per_mm2": -0.1}, "k_mN_per_mm2 = -0.1: must be a finite number > 0"),
-        ({"B_mN_mm2": 0.0}, "B_mN_mm2 = 0.0: must be a finite number > 0"),
+        (
+            {"k_mN_per_mm2": -0.1},
+            "k_mN_per_mm2 = -0.1: must be a finite number in [1e-06, 10000] mN/mm^2",
+        ),
+        ({"B_mN_mm2": 0.0}, "B_mN_mm2 = 0.0: must be a finite number in [0.001, 1e+06] mN mm^2"),
+        ({"L_mm": 1e300}, "L_mm = 1e+300: must be a finite number in (0, 100] mm"),
+        ({"L_mm": 1e308}, "L_mm = 1e+308: must be a finite number in (0, 100] mm"),
+        (
+            {"k_mN_per_mm2": 1e300},
+            "k_mN_per_mm2 = 1e+300: must be a finite number in [1e-06, 10000] mN/mm^2",
+        ),
+        (
+            {"B_mN_mm2": 1e300},
+            "B_mN_mm2 = 1e+300: must be a finite number in [0.001, 1e+06] mN mm^2",
+        ),
+        ({"r_mm": 1e300}, "r_mm = 1e+300: must be a finite number in [0.01, 10] mm"),
+        (
+            {"regularization_mN_mm4": 1e300},
+            "regularization_mN_mm4 = 1e+300: must be a finite number in [0, 10000] mN mm^4",
+        ),
+        ({"p": 1e300}, "p = 1e+300: must satisfy 1 < p <= 20"),
+        ({"L_mm": "11.6"}, "L_mm = '11.6': Input should be a valid number"),
+        ({"k_mN_per_mm2": True}, "k_mN_per_mm2 = True: Input should be a valid number"),
+        ({"L_mm_": 11.6}, "L_mm_: unknown field"),
         ({"L_mm": math.inf}, "L_mm = inf: Input should be a finite number"),
         ({"r_mm": math.nan}, "r_mm = nan: Input should be a finite number"),
         (
             {"regularization_mN_mm4": -1.0},
-            "regularization_mN_mm4 = -1.0: must be a finite number >= 0",
+            "regularization_mN_mm4 = -1.0: must be a finite number in [0, 10000] mN mm^4",
         ),
         ({"twist_bound": 1.0}, "twist_bound = 1.0: must be in [-1, 1)"),
         ({"stitch": 1.0}, "stitch: unknown field"),
@@ -44,6 +66,15 @@ def test_defaults_are_the_papers_table_1():
 )
 def test_validation_names_field_value_and_range(kw, expected):
     assert _message(**kw) == expected
+
+
+def test_unknown_fields_get_a_suggestion():
+    with pytest.raises(ValidationError) as e:
+        StitchParams(L_mn=11.6)
+    assert (
+        describe_validation_error(e.value, StitchParams)
+        == "L_mn: unknown field (did you mean 'L_mm'?)"
+    )
 
 
 def test_fidelity_validation():

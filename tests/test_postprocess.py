@@ -2,7 +2,6 @@
 transitions and per-point regimes; tables; partial files; bad input."""
 
 import csv
-import pickle
 import subprocess
 import sys
 
@@ -14,6 +13,7 @@ from results_factory import write_results
 from knitsweep.config import InputError
 from knitsweep.report import phase_diagram, reduce_results
 from knitsweep.report.reduce import SERIES_PARAMS
+from knitsweep.service.journal import write_entry
 from knitsweep.service.results_file import Entry, journal_dir
 from knitsweep.state import CONTACT_CLASSES
 
@@ -212,7 +212,7 @@ def test_missing_tasks_and_journal_entries(tmp_path):
     journal = journal_dir(path)
     journal.mkdir()
     entry = Entry("sweeps", "s0.1_24_y", record, meta)  # a result not yet checkpointed
-    (journal / "sweeps-s0.1_24_y.pkl").write_bytes(pickle.dumps(entry))
+    write_entry(journal, entry)
     red = reduce_results(path)
     assert red.partial and "15 of 17 tasks present" in red.partial_reason
     assert any(r["task_id"] == "s0.1_24_y" for r in red.sweeps)

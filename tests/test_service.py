@@ -245,40 +245,148 @@ def test_local_processes_match_serial(tiny_reference, tmp_path):
     assert_same_results(tiny_reference, out)
 
 
+def _tagged(tag: str) -> dict[int, dict[str, str]]:
+    """Live processes whose environment holds RUN_TAG=tag: pid -> environment (hydra
+    starts each rank in a session of its own, so process groups do not find them)."""
+    found = {}
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            raw = (proc / "environ").read_bytes()
+            if f"RUN_TAG={tag}".encode() not in raw:
+                continue
+            state = (proc / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if state != "Z":
+            env = raw.decode(errors="replace").split("\0")
+            found[int(proc.name)] = dict(v.split("=", 1) for v in env if "=" in v)
+    return found
+
+
+def _launch(cmd, tag, **kw):
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "RUN_TAG": tag}
+    return subprocess.Popen(cmd, start_new_session=True, env=env, **kw)
+
+
+def _all_gone(tag: str, timeout: float = 30.0) -> bool:
+    t0 = time.monotonic()
+    while _tagged(tag):
+        if time.monotonic() - t0 > timeout:
+            return False
+        time.sleep(0.05)
+    return True
+
+
 @pytest.mark.slow
 @pytest.mark.mpi
-def test_kill_9_at_random_moments_then_resume(six, tmp_path):
-    """kill -9 the whole run (master and workers) at random moments, several
-    times, then rerun: every task exactly once, results as uninterrupted."""
+def test_kill_9_campaign_loses_and_duplicates_nothing(six, tmp_path):
+    """kill -9 the whole run, mpirun alone, the master alone, a worker alone, and the
+    master in the middle of checkpoints (every 20 ms), at random moments; the file
+    on disk opens after each kill, and the resumed run holds every task exactly
+    once, bit-identical to an uninterrupted run."""
     if MPIRUN is None:
         pytest.fail("mpirun not found: install the mpich wheel")
     job, reference = six
+    busy = tmp_path / "busy.toml"  # [run] settings do not change the job (or its file)
+    busy.write_text(job.read_text().replace("checkpoint_s = 0.5", "checkpoint_s = 0.02"))
+    assert "checkpoint_s = 0.02" in busy.read_text()
     out = tmp_path / "k9.h5"
     rng = random.Random(20261122)
-    cmd = [MPIRUN, "-n", "3", sys.executable, "-m", "knitsweep", "run", str(job), "--out",
-           str(out), "--quiet"]  # fmt: skip
-    kills = 0
-    while kills < 4:
+    targets = ["session", "mpirun", "master", "worker", "checkpoint", "master", "worker",
+               "checkpoint"]  # fmt: skip
+    for i, target in enumerate(targets):
+        job_file = busy if target == "checkpoint" else job
+        cmd = [MPIRUN, "-n", "3", sys.executable, "-m", "knitsweep", "run", str(job_file),
+               "--out", str(out), "--quiet"]  # fmt: skip
         since = time.time()
-        log = tmp_path / f"launch{kills}.log"
+        log = tmp_path / f"launch{i}.log"
+        tag = f"k9-{os.getpid()}-{i}"
         with open(log, "w") as fh:
-            proc = subprocess.Popen(cmd, stdout=fh, stderr=fh, start_new_session=True,
-                                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})  # fmt: skip
+            proc = _launch(cmd, tag, stdout=fh, stderr=fh)
         _wait_for_fresh_progress(out, proc, since)
         time.sleep(rng.uniform(0.0, 0.4))
         if proc.poll() is not None:
             pytest.fail(f"the run ended by itself (code {proc.returncode}): {log.read_text()}")
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-        kills += 1
+        ranks = {env.get("PMI_RANK", "mpirun"): pid for pid, env in _tagged(tag).items()}
+        if target == "session":
+            for pid in ranks.values():
+                os.kill(pid, signal.SIGKILL)
+        elif target == "mpirun":
+            proc.kill()
+        else:
+            victim = ranks["1" if target == "worker" else "0"]
+            if target == "checkpoint":  # right as a checkpoint writes the shadow copy
+                shadow = out.with_name(f".{out.name}.shadow")
+                seen = shadow.stat().st_mtime_ns if shadow.exists() else 0
+                t0 = time.monotonic()
+                while time.monotonic() - t0 < 5 and (
+                    not shadow.exists() or shadow.stat().st_mtime_ns == seen
+                ):
+                    pass
+            os.kill(victim, signal.SIGKILL)
+        try:
+            proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"kill -9 of the {target} left the run hanging: {log.read_text()}")
+        if not _all_gone(tag, 15):
+            pytest.fail(f"kill -9 of the {target}: ranks left running")
         with h5py.File(out) as f:  # the file on disk always opens
             assert f.attrs["schema_version"] == RESULTS_SCHEMA_VERSION
-    assert kills == 4
-    assert knitsweep("run", str(job), "--out", str(out), "--quiet", mpi=3).returncode == 0
+            assert set(f) >= {"points", "sweeps"}
+    final = knitsweep("run", str(job), "--out", str(out), "--quiet", mpi=3)
+    assert final.returncode == 0, final.stderr
     with h5py.File(out) as f:
         assert len(f["points"]) == 6 and len(f["sweeps"]) == 12  # each task exactly once
     assert not journal_dir(out).exists()
+    assert not list(tmp_path.glob(".k9.h5*")), "shadow or temporary files left"
     assert_same_results(reference, out)
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+@pytest.mark.parametrize(("signum", "to_group"), [(signal.SIGINT, True), (signal.SIGTERM, False)])
+def test_signal_during_mpi_start_up_ends_every_rank(six, tmp_path, signum, to_group):
+    """SIGINT to the whole session (a terminal's Ctrl-C) or SIGTERM to mpirun (what
+    scancel and a batch system do) in the first seconds of ``mpirun -n 3``: while
+    Python imports, during MPI_Init, while rank 0 compiles or hands out the job,
+    and as the first tasks run. Every rank ends within seconds, with exit code 3,
+    one line per rank and no traceback; a results file, if one was made, opens."""
+    if MPIRUN is None:
+        pytest.fail("mpirun not found: install the mpich wheel")
+    job, _ = six
+    for delay in (0.3, 0.6, 1.0, 1.5, 2.0, 3.0, 4.5):
+        out = tmp_path / f"start{delay}.h5"
+        cmd = [MPIRUN, "-n", "3", sys.executable, "-m", "knitsweep", "run", str(job), "--out",
+               str(out), "--quiet"]  # fmt: skip
+        tag = f"start-{os.getpid()}-{signum}-{delay}"
+        proc = _launch(cmd, tag, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        if to_group:
+            os.killpg(proc.pid, signum)
+        else:
+            proc.send_signal(signum)
+        t0 = time.monotonic()
+        try:
+            _, err = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            pytest.fail(f"{signal.Signals(signum).name} {delay} s after the start: still running "
+                        "after 60 s")  # fmt: skip
+        seconds = time.monotonic() - t0
+        where = f"{signal.Signals(signum).name} {delay} s after the start"
+        if proc.returncode == 0 and delay >= 3.0:  # on a quiet machine the run was done
+            assert service.status(out)["done"] == 18, f"{where}: exit 0 but unfinished: {err}"
+            continue
+        assert proc.returncode == 3, f"{where}: exit {proc.returncode}: {err}"
+        assert "Traceback" not in err and "ImportError" not in err, f"{where}: {err}"
+        assert len(err.strip().splitlines()) <= 3, f"{where}: {err}"
+        assert seconds < 30, f"{where}: took {seconds:.1f} s to end"
+        assert _all_gone(tag, 5), f"{where}: processes left behind"
+        if out.exists():
+            with h5py.File(out) as f:
+                assert f.attrs["run_status"] == "interrupted"
 
 
 def test_signal_exceptions_are_unwrapped_from_numba_system_errors():

@@ -1,9 +1,45 @@
 """The ``knitsweep`` command line. It holds no logic: every command builds
 validated models and calls one library function, the same one the tests call.
-Bad input prints one line ``error: …`` naming the field and exits with code 2.
+Bad input prints one line ``error: …`` naming the field and exits with code 2;
+SIGINT/SIGTERM at any moment exits with code 3 (``service.signals``).
+
+Importing this package is cheap: ``main`` handles the signals first and only then
+imports typer and the commands, so a Ctrl-C during start-up is no traceback.
 """
 
-from . import analysis_commands, model_commands, run_commands  # noqa: F401 - registers commands
-from .common import app, main
+from __future__ import annotations
 
 __all__ = ["app", "main"]
+
+
+def main() -> None:
+    """Console-script entry point: signals first, then the commands; exits."""
+    import sys
+
+    from ..service import signals
+
+    signals.install(interruptible=True)
+    try:
+        from .common import main as run_cli
+
+        rc = run_cli()
+    except signals.Interrupted as e:  # during start-up, before typer took over
+        print(f"interrupted by {e}", file=sys.stderr, flush=True)
+        rc = signals.EXIT_INTERRUPTED
+    signals.quiet_exit()
+    results_file = sys.modules.get("knitsweep.service.results_file")
+    if results_file is not None and results_file.hdf5_write_failed():
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(rc)  # the file and journal are safe; HDF5's exit clean-up is not
+    sys.exit(rc)
+
+
+def __getattr__(name: str):
+    if name == "app":
+        from .common import build_app
+
+        return build_app()
+    raise AttributeError(name)

@@ -19,6 +19,7 @@ from .common import (
     RegOpt,
     ROpt,
     app,
+    check_range,
     compile_notice,
     stitch_inputs,
     user_errors,
@@ -60,11 +61,15 @@ def phase_diagram(
     as a printed table, CSV files and the paper's figures; also on a file a run is
     still writing."""
     from ..analysis.transitions import GAP_THRESHOLD
+    from ..formats import check_output_dir
     from ..report import phase_diagram as make_phase_diagram
     from ..report.plotting import FigureOptions
 
     with user_errors():
         threshold = GAP_THRESHOLD if threshold is None else threshold
+        check_range("threshold", threshold, 1e-12, 1.0, "mJ")
+        if out is not None:
+            check_output_dir(out, "--out")
         options = FigureOptions(tuple(f.strip() for f in formats.split(",") if f.strip()), width,
                                 not no_title, style)  # fmt: skip
         report = make_phase_diagram(results, out, threshold, figures=not no_figures,
@@ -143,6 +148,8 @@ def render(
     from ..report import render as rendering
 
     with user_errors():
+        if radius is not None and radius > 10.0:  # render checks the rest of the picture
+            raise InputError(f"radius = {radius}: must be <= 10 (mm)")
         params = None
         flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core}
         if state is not None:
@@ -177,7 +184,7 @@ def accuracy(
 ) -> None:  # fmt: skip
     """Measure the speed/accuracy trade: one point at rising fidelity, with time per
     relaxation and per sweep and the error of each observable against the finest."""
-    from ..config import InputError
+    from ..config import InputError, StitchParams
     from ..studies.accuracy import accuracy_study, table, write_report
 
     with user_errors():
@@ -191,6 +198,9 @@ def accuracy(
             Ls = None if series is None else [float(v) for v in series.split(",")]
         except ValueError:
             raise InputError(f"series = {series!r}: comma-separated numbers (mm)") from None
+        for value in Ls or []:  # each L of the series is a valid stitch
+            StitchParams(**{**params.model_dump(), "L_mm": value})
+        check_range("workers", workers, 1, 256)
         from ..studies.accuracy import setting
 
         for spec in specs:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -56,14 +55,35 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
 
 @contextlib.contextmanager
 def user_errors():
-    """Turn bad input into one line on stderr and exit code 2, never a traceback."""
+    """Turn bad input, and outputs that cannot be written, into one line on stderr and
+    exit code 2, never a traceback."""
     from ..config import InputError, describe_validation_error
+    from ..service.journal import StorageError
 
     try:
         yield
     except (InputError, ValidationError) as e:
         typer.echo(f"error: {describe_validation_error(e)}", err=True)
         raise typer.Exit(2) from None
+    except StorageError as e:
+        typer.echo(f"error: {e.strerror or e}", err=True)
+        raise typer.Exit(2) from None
+    except (OverflowError, RecursionError) as e:  # a value past every bound slipped through
+        typer.echo(f"error: a value is out of range ({type(e).__name__}: {e})", err=True)
+        raise typer.Exit(2) from None
+
+
+def check_range(name: str, value, lo, hi, unit: str = "") -> None:
+    """InputError unless ``lo <= value <= hi`` (a finite number): for the options that
+    no settings model covers (picture sizes, thresholds, worker counts)."""
+    import math
+
+    from ..config import InputError
+
+    if not (math.isfinite(value) and lo <= value <= hi):
+        raise InputError(
+            f"{name} = {value!r}: must be in [{lo:g}, {hi:g}]{' ' + unit if unit else ''}"
+        )
 
 
 def compile_notice(energy_only: bool = False) -> None:
@@ -123,10 +143,23 @@ ENERGY_UNITS = {
 }
 
 
-def main() -> None:
-    """Console-script entry point: usage errors become one line and exit code 2."""
+def build_app() -> typer.Typer:
+    """The app with every command registered."""
+    from . import analysis_commands, model_commands, run_commands  # noqa: F401 - registers
+
+    return app
+
+
+def main() -> int:
+    """The commands' exit code: usage errors become one line and exit code 2, a signal
+    one line and exit code 3 (``knitsweep.cli.main`` handles signals first)."""
+    from ..service.signals import EXIT_INTERRUPTED, Interrupted
+
     try:
-        rc = app(prog_name="knitsweep", standalone_mode=False)
+        rc = build_app()(prog_name="knitsweep", standalone_mode=False)
+    except Interrupted as e:
+        typer.echo(f"interrupted by {e}", err=True)
+        rc = EXIT_INTERRUPTED
     except typer.Exit as e:
         rc = e.exit_code
     except typer.Abort:
@@ -142,4 +175,4 @@ def main() -> None:
             where = f"{ctx.command_path}: " if ctx is not None else ""
             typer.echo(f"error: {where}{e.format_message()}", err=True)
             rc = e.exit_code
-    sys.exit(rc if isinstance(rc, int) else 0)
+    return rc if isinstance(rc, int) else 0

@@ -77,11 +77,12 @@ def relax(
     """Relax the zero-force state at fixed yarn length (both periods free)."""
     import time
 
-    from ..config import Numerics, StartSettings
+    from ..config import Numerics, StartSettings, check_seed
     from ..formats import read_state
     from ..zero_force import zero_force
 
     with user_errors():
+        check_seed(seed)
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
                                   regularization=regularization)  # fmt: skip
         n = Numerics.from_preset(preset, ftol=ftol, samples_per_segment=samples,
@@ -118,16 +119,20 @@ def sweep(
     out: Annotated[Path | None, typer.Option("--out", help="write the table: .csv or .h5")] = None,
 ) -> None:  # fmt: skip
     """One point's strain sweep, with a progress bar; prints the stress–strain table."""
-    from ..config import InputError, Numerics, StartSettings
+    from ..config import InputError, Numerics, StartSettings, check_seed
+    from ..formats import check_writable
     from ..report.sweep_table import sweep_table, write_sweep
     from ..service.progress import SweepProgress
     from ..strain_sweep import NoRestState, strain_sweep_from_rest
 
     with user_errors():
+        check_seed(seed)
         if direction not in ("x", "y"):
             raise InputError(f"direction = {direction!r}: must be 'x' or 'y'")
         if out is not None and out.suffix not in (".csv", ".h5"):
             raise InputError(f"out = '{out}': must end in .csv or .h5")
+        if out is not None:
+            check_writable(out, "--out", overwrite=True)  # before the sweep, not after
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
                                   regularization=regularization)  # fmt: skip
         n = Numerics.from_preset(
@@ -150,4 +155,8 @@ def sweep(
     typer.echo(f"# {result.status}: {result.stop_reason}; {len(result.strain)} steps, "
                f"{result.relaxations} relaxations, {result.wall_seconds:.1f} s", err=True)  # fmt: skip
     if out is not None:
-        write_sweep(out, result, params)
+        with user_errors():
+            try:
+                write_sweep(out, result, params)
+            except OSError as e:  # the disk filled or the directory went away meanwhile
+                raise InputError(f"--out {out}: cannot write it ({e.strerror or e})") from None

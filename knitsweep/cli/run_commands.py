@@ -26,6 +26,8 @@ def run(
     shard: Annotated[str | None, typer.Option("--shard", help="run shard i/N of the grid")] = None,
     retry_failed: Annotated[bool, typer.Option("--retry-failed", help="rerun failed tasks")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", help="no progress bar")] = False,
+    max_tasks: Annotated[int | None, typer.Option("--max-tasks", help="confirm a job of more "
+                         "than 20000 tasks (points + sweeps): run up to this many")] = None,
 ) -> None:  # fmt: skip
     """Run a job: every grid point's zero-force state and its x/y strain sweeps, into
     one HDF5 file. Under mpirun -n N, rank 0 schedules and N-1 ranks work."""
@@ -36,9 +38,12 @@ def run(
         if executor not in ("auto", "serial", "processes", "mpi"):
             raise InputError(f"executor = {executor!r}: must be auto, serial, processes or mpi")
         summary = service.run(job, out, executor=executor, workers=workers, shard=shard,
-                              retry_failed=retry_failed, show_progress=not quiet)  # fmt: skip
+                              retry_failed=retry_failed, show_progress=not quiet,
+                              max_tasks=max_tasks)  # fmt: skip
     if summary is None:  # an MPI worker rank
         return
+    if summary.storage_error:  # the one line is printed; the run stopped as interrupted
+        raise typer.Exit(summary.exit_code)
     c = summary.counts
     typer.echo(f"{summary.out}: {c['done']} done, {c['failed']} failed, {c['not_knittable']} not "
                f"knittable of {summary.total} tasks ({summary.skipped} already finished) in "
@@ -89,6 +94,8 @@ def status(
             typer.echo(f"  {name} = {value}: {listing}")
     for line in s["failures"][:20]:
         typer.echo(f"  failed {line}")
+    for line in s["journal_problems"]:
+        typer.echo(f"  malformed journal entry {line}: its task is recomputed on resume")
 
 
 @app.command()

@@ -1,6 +1,15 @@
 """The service layer: job specs, the worker side, executors, the master, the results
-file and the entry points behind ``knitsweep run``, ``status`` and ``merge``."""
+file and the entry points behind ``knitsweep run``, ``status`` and ``merge``.
 
-from .runs import merge, run, status
+``run``, ``status`` and ``merge`` load on first use, so that importing
+``knitsweep.service.signals`` (the CLI's first act) stays cheap."""
 
 __all__ = ["merge", "run", "status"]
+
+
+def __getattr__(name: str):
+    if name in __all__:
+        from . import runs
+
+        return getattr(runs, name)
+    raise AttributeError(name)

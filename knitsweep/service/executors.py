@@ -5,19 +5,23 @@ All three share one small interface (after mpi4py.futures' pool abstraction):
 ``in_flight`` and ``shutdown(abort)``. The runner does not know which it has,
 so most sweep tests need no ``mpiexec``.
 
-MPI protocol (rank 0 is the master, ranks 1..N-1 work): the master broadcasts
-the job once, then sends ``(task, zero)`` values tagged TASK and receives
-``Reply`` values tagged REPLY; ``None`` tagged STOP ends a worker, which answers
-STOPPED before it leaves; a task a worker dropped on a signal comes back as
-ABANDONED (the master queues it again unless it is stopping). Each worker holds
-up to PREFETCH tasks, so it starts the next one without a round trip. Both sides
-wait with ``Iprobe`` and a short sleep (one ``Backoff``) instead of a blocking
-receive, because MPICH's blocking receive spins a core: with ``mpirun -n 3`` on 2
-cores the master must leave both cores to the workers.
+MPI protocol (rank 0 is the master, ranks 1..N-1 work), point to point only (no
+collective that a signalled rank could leave the others stuck in): the master
+compiles the kernels, then sends the job tagged JOB to every worker (``None``: no
+job, leave); then ``(task, zero)`` values tagged TASK go out and ``Reply`` values
+tagged REPLY come back; ``None`` tagged STOP ends a worker, which answers STOPPED
+before it leaves; a task a worker dropped on a signal comes back as ABANDONED.
+Each worker holds up to PREFETCH tasks, so it starts the next one without a round
+trip. Both sides wait with ``Iprobe`` and a short sleep (one ``Backoff``) instead
+of a blocking receive, because MPICH's blocking receive spins a core: with
+``mpirun -n 3`` on 2 cores the master must leave both cores to the workers.
 
-Interrupts: a worker that gets SIGTERM/SIGINT while computing abandons the task
-(srun and mpirun deliver the signal to every rank); the master then stops every
-worker and waits for them, so the run ends through MPI_Finalize with the
+Interrupts (``signals``): srun and mpirun deliver SIGTERM/SIGINT to every rank. A
+worker that gets one abandons the task it computes, or, idle (also while it
+waits for the job), tells the master it is LEFT, answers the tasks still coming
+with ABANDONED and leaves at STOP (or after LEAVE_WAIT_S without one); a LEFT
+worker stops the whole run as if the master had the signal. The master stops
+every worker and waits for them, so the run ends through MPI_Finalize with the
 master's exit code. ``MPI_Abort`` is the last resort, for a worker that does not
 answer within the grace period (an aborted MPICH run loses its exit code under
 srun and leaves shared-memory segments behind).
@@ -27,24 +31,22 @@ from __future__ import annotations
 
 import collections
 import multiprocessing
-import os
 import queue
 import signal
 import socket
 import time
 
+from . import signals
+from .signals import Interrupted, launched_by_mpi
+
+__all__ = ["MPIExecutor", "ProcessExecutor", "SerialExecutor", "launched_by_mpi",
+           "mpi_worker_loop", "release_workers"]  # fmt: skip
 from .worker import Reply, execute, prepare, stderr_notice
 
-TASK, REPLY, STOP, STOPPED, ABANDONED = 1, 2, 3, 4, 5
+TASK, REPLY, STOP, STOPPED, ABANDONED, JOB, LEFT = 1, 2, 3, 4, 5, 6, 7
 PREFETCH = 2  # tasks held by each MPI worker: the one it computes and the next
-ABANDON_WAIT_S = 2.0  # after dropping a task on a signal, wait this long for STOP
-MPI_ENV_HINTS = ("PMI_RANK", "PMI_SIZE", "PMI_FD", "PMIX_RANK", "OMPI_COMM_WORLD_SIZE",
-                 "MPI_LOCALNRANKS", "HYDRA_CONTROL_FD")  # fmt: skip
-
-
-def launched_by_mpi() -> bool:
-    """True when this process was started by mpirun/mpiexec/srun --mpi."""
-    return any(k in os.environ for k in MPI_ENV_HINTS)
+LEAVE_WAIT_S = 10.0  # a worker that left on a signal waits this long for the master's STOP
+HURRY_S = 2.0  # a second signal while the workers stop: wait at most this much longer
 
 
 class Backoff:
@@ -68,12 +70,12 @@ class SerialExecutor:
     """Runs each task in this process when the runner asks for the next reply."""
 
     capacity = 1
-    runs_in_master = True
 
     def __init__(self, job) -> None:
         self.job = job
         self._queue: collections.deque = collections.deque()
-        prepare(job, stderr_notice)
+        with signals.interruptible():
+            prepare(job, stderr_notice)
 
     @property
     def in_flight(self) -> int:
@@ -87,7 +89,8 @@ class SerialExecutor:
             time.sleep(min(timeout, 0.05))
             return None
         task, zero = self._queue.popleft()
-        return execute(self.job, task, zero, rank=0)
+        with signals.interruptible():  # a signal abandons the task; it is redone on resume
+            return execute(self.job, task, zero, rank=0)
 
     def interrupt(self, grace: float, on_reply) -> bool:
         self._queue.clear()  # the task being computed was abandoned by the signal
@@ -110,8 +113,6 @@ def _process_execute(job, task, zero, rank):
 
 class ProcessExecutor:
     """Local worker processes (``--workers N``), started with 'spawn'."""
-
-    runs_in_master = False
 
     def __init__(self, job, workers: int) -> None:
         self.job = job
@@ -168,34 +169,50 @@ def _lost(task, exc: BaseException) -> Reply:
     return Reply(task.task_id, None, error, -1, socket.gethostname(), 0.0)
 
 
-class MPIExecutor:
-    """Rank 0's side of the MPI protocol; ranks 1..N-1 run ``mpi_worker_loop``."""
+def release_workers(comm) -> None:
+    """Tell every MPI worker that there is no job (rank 0 refused it, or was
+    interrupted before handing it out)."""
+    with signals.deferred():
+        for rank in range(1, comm.Get_size()):
+            comm.send(None, dest=rank, tag=JOB)
 
-    runs_in_master = False
+
+class MPIExecutor:
+    """Rank 0's side of the MPI protocol; ranks 1..N-1 run ``mpi_worker_loop``.
+    Creating it compiles the kernels (interruptible) and hands the job out."""
 
     def __init__(self, job, comm) -> None:
         self.job = job
         self.comm = comm
-        workers = range(1, comm.Get_size())
+        self._outstanding: dict[int, int] = dict.fromkeys(range(1, comm.Get_size()), 0)
+        self._left: set[int] = set()
+        self._sends: list = []  # requests of tasks not yet received by their worker
+        self._stopped = False
+        with signals.interruptible():
+            prepare(
+                job, stderr_notice
+            )  # compile once, into numba's cache, before the workers load it
+        with signals.deferred():
+            for rank in self._outstanding:
+                comm.send(job.model_dump_json(), dest=rank, tag=JOB)
+
+    @property
+    def capacity(self) -> int:
         # each worker holds its running task and one queued behind it, so that it
         # starts the next one the moment it replies (no round trip to the master)
-        self.capacity = PREFETCH * len(workers)
-        self._outstanding: dict[int, int] = dict.fromkeys(workers, 0)
-        comm.bcast(job.model_dump_json(), root=0)
-        prepare(job, stderr_notice)  # compile once, into numba's cache, before the workers load it
-        comm.Barrier()
+        return PREFETCH * (len(self._outstanding) - len(self._left))
 
     @property
     def in_flight(self) -> int:
         return sum(self._outstanding.values())
 
     def submit(self, task, zero: dict | None) -> None:
-        rank = min(self._outstanding, key=self._outstanding.__getitem__)
-        self.comm.send((task, zero), dest=rank, tag=TASK)
+        live = [r for r in self._outstanding if r not in self._left]
+        rank = min(live, key=self._outstanding.__getitem__)
+        # isend: a large task must not block the master until its worker is free
+        self._sends = [r for r in self._sends if not r.Test()]
+        self._sends.append(self.comm.isend((task, zero), dest=rank, tag=TASK))
         self._outstanding[rank] += 1
-
-    def _received(self, source: int) -> None:
-        self._outstanding[source] = max(0, self._outstanding[source] - 1)
 
     def next_reply(self, timeout: float) -> Reply | None:
         from mpi4py import MPI
@@ -203,21 +220,24 @@ class MPIExecutor:
         status = MPI.Status()
         deadline = time.monotonic() + timeout
         backoff = Backoff()
-        while not (
-            self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=REPLY, status=status)
-            or self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=ABANDONED, status=status)
-        ):
+        while True:
+            if self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=MPI.ANY_TAG, status=status):
+                source, tag = status.Get_source(), status.Get_tag()
+                if tag != LEFT:
+                    return self._take(source, tag)
+                signum = self.comm.recv(source=source, tag=LEFT)
+                self._left.add(source)  # it waits for STOP; the run stops as on a signal
+                signals.request(signum)
+                return None
             if time.monotonic() >= deadline:
                 return None
             backoff.sleep()
-        source = status.Get_source()
-        return self._take(source, status.Get_tag())
 
     def _take(self, source: int, tag: int) -> Reply:
         """Receive a REPLY or ABANDONED message; an abandoned task becomes a Reply
         with error kind 'abandoned', which the runner queues again."""
         message = self.comm.recv(source=source, tag=tag)
-        self._received(source)
+        self._outstanding[source] = max(0, self._outstanding[source] - 1)
         if tag == ABANDONED:
             error = {"kind": "abandoned", "message": "a signal stopped it", "traceback": ""}
             return Reply(message, None, error, source, socket.gethostname(), 0.0)
@@ -225,28 +245,39 @@ class MPIExecutor:
 
     def _stop_all(self, grace: float, on_reply=None) -> bool:
         """STOP to every worker, then take replies (to ``on_reply``) and the
-        workers' STOPPED answers for up to ``grace`` seconds; True if all answered."""
+        workers' STOPPED answers for up to ``grace`` seconds (a further signal
+        shortens the wait); True if all answered."""
         from mpi4py import MPI
 
-        waiting = set(range(1, self.comm.Get_size()))
-        for rank in waiting:
-            self.comm.send(None, dest=rank, tag=STOP)
+        waiting = set(self._outstanding)
+        with signals.deferred():
+            for rank in waiting:
+                self._sends.append(self.comm.isend(None, dest=rank, tag=STOP))
         status = MPI.Status()
         deadline = time.monotonic() + grace
+        seen = signals.count()
         backoff = Backoff()
         while waiting and time.monotonic() < deadline:
+            if signals.count() > seen:  # a second Ctrl-C: do not wait the whole grace
+                seen = signals.count()
+                deadline = min(deadline, time.monotonic() + HURRY_S)
             if not self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=MPI.ANY_TAG, status=status):
                 backoff.sleep()
                 continue
             backoff.reset()
             source, tag = status.Get_source(), status.Get_tag()
-            if tag == STOPPED:
+            if tag in (STOPPED, LEFT):
                 self.comm.recv(source=source, tag=tag)
-                waiting.discard(source)
+                if tag == STOPPED:
+                    waiting.discard(source)
             else:
                 reply = self._take(source, tag)
                 if on_reply is not None:
                     on_reply(reply)
+        if not waiting:  # every worker received all it was sent, STOP last
+            for request in self._sends:
+                request.Wait()
+            self._sends = []
         return not waiting
 
     def interrupt(self, grace: float, on_reply) -> bool:
@@ -256,64 +287,94 @@ class MPIExecutor:
         return self._stopped
 
     def shutdown(self, abort: bool = False) -> None:
+        if not abort and not self._stopped:
+            self._stopped = self._stop_all(grace=60.0)
+            abort = not self._stopped
         if abort:
             self.comm.Abort(3)  # the last resort: a worker that would not stop
-        if not getattr(self, "_stopped", False):
-            self._stop_all(grace=60.0)
-
-
-class _Abandon(BaseException):
-    """A signal reached a worker while it computed: drop the task."""
 
 
 def mpi_worker_loop(comm) -> None:
-    """A worker rank: take tasks until told to stop. On SIGTERM/SIGINT it abandons
-    the task it is computing (the master redoes it on resume) and waits for STOP."""
+    """A worker rank: wait for the job, then take tasks until told to stop. A
+    signal abandons the task being computed (the master redoes it on resume); a
+    signalled worker then leaves (``_leave``)."""
+    with signals.deferred():
+        _worker(comm)
+
+
+def _probe(comm, status, backoff: Backoff) -> bool:
+    """Wait for the master's next message; False if a signal came first."""
+    from mpi4py import MPI
+
+    backoff.reset()
+    while not comm.Iprobe(source=0, tag=MPI.ANY_TAG, status=status):
+        if signals.received() is not None:
+            return False
+        backoff.sleep()
+    return True
+
+
+def _worker(comm) -> None:
     from mpi4py import MPI
 
     from .jobs import JobSpec
 
-    busy = {"now": False}
-
-    def _on_signal(signum, frame):
-        if busy["now"]:
-            raise _Abandon
-
-    signal.signal(signal.SIGINT, _on_signal)
-    signal.signal(signal.SIGTERM, _on_signal)
-    job_json = comm.bcast(None, root=0)
-    if job_json is None:  # the master refused the job before any work
-        return
-    job = JobSpec.model_validate_json(job_json)
-    comm.Barrier()  # rank 0 has compiled the kernels into numba's cache
-    prepare(job)
-    rank = comm.Get_rank()
     status = MPI.Status()
     backoff = Backoff()
+    message = None
+    while True:  # the job first (a STOP cannot come before it)
+        if not _probe(comm, status, backoff):
+            return _leave(comm, status, backoff)
+        message = comm.recv(source=0, tag=status.Get_tag())
+        if status.Get_tag() == JOB:
+            break
+    if message is None:  # the master refused the job before any work
+        return None
+    job = JobSpec.model_validate_json(message)
+    try:
+        with signals.interruptible():
+            prepare(job)  # rank 0 has compiled the kernels into numba's cache
+    except Interrupted:
+        return _leave(comm, status, backoff)
+    rank = comm.Get_rank()
     while True:
-        backoff.reset()
-        while not comm.Iprobe(source=0, tag=MPI.ANY_TAG, status=status):
-            backoff.sleep()
+        if not _probe(comm, status, backoff):
+            return _leave(comm, status, backoff)
         message = comm.recv(source=0, tag=status.Get_tag())
         if status.Get_tag() == STOP:
             comm.send(None, dest=0, tag=STOPPED)
-            return
+            return None
         task, zero = message
         if comm.Iprobe(source=0, tag=STOP):
             comm.send(task.task_id, dest=0, tag=ABANDONED)  # stopping: not started
             continue
         try:
-            busy["now"] = True
-            reply = execute(job, task, zero, rank)
-            busy["now"] = False
-        except _Abandon:
-            busy["now"] = False
+            with signals.interruptible():
+                reply = execute(job, task, zero, rank)
+        except Interrupted:
             comm.send(task.task_id, dest=0, tag=ABANDONED)
-            # the whole run is probably stopping: give the master's STOP a moment
-            # to overtake the task queued behind this one
-            deadline = time.monotonic() + ABANDON_WAIT_S
-            backoff.reset()
-            while time.monotonic() < deadline and not comm.Iprobe(source=0, tag=STOP):
-                backoff.sleep()
-            continue
+            return _leave(comm, status, backoff)
         comm.send(reply, dest=0, tag=REPLY)
+
+
+def _leave(comm, status, backoff: Backoff) -> None:
+    """A signalled worker: tell the master (LEFT), answer the tasks it still sends
+    with ABANDONED and leave at its STOP, or after LEAVE_WAIT_S without one."""
+    from mpi4py import MPI
+
+    comm.send(int(signals.received() or signal.SIGTERM), dest=0, tag=LEFT)
+    deadline = time.monotonic() + LEAVE_WAIT_S
+    backoff.reset()
+    while time.monotonic() < deadline:
+        if not comm.Iprobe(source=0, tag=MPI.ANY_TAG, status=status):
+            backoff.sleep()
+            continue
+        tag = status.Get_tag()
+        message = comm.recv(source=0, tag=tag)
+        if tag == STOP:
+            comm.send(None, dest=0, tag=STOPPED)
+            return
+        if tag == TASK:
+            comm.send(message[0].task_id, dest=0, tag=ABANDONED)
+        elif tag == JOB and message is None:
+            return  # the master stopped before handing out the job

@@ -54,8 +54,11 @@ else:  # pragma: no cover
 
 JOB_SCHEMA_VERSION = 1
 """The job-file format this knitsweep reads (``schema_version`` in a job file)."""
-_STRICT = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+_STRICT = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, strict=True)
 MAX_POINTS = 1_000_000
+MAX_JOB_FILE_BYTES = 16_000_000
+"""A job file is a few hundred bytes (a list of 10^5 values ~1 MB); past this it is not one."""
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+=,@-]*$")
 
 
 class Range(BaseModel):
@@ -159,7 +162,7 @@ class Grid(BaseModel):
             try:
                 return Range(**v)
             except ValidationError as e:
-                raise ValueError(describe_validation_error(e)) from None
+                raise ValueError(describe_validation_error(e, Range)) from None
         if isinstance(v, list):
             if not v:
                 raise ValueError("empty list: give at least one value")
@@ -274,13 +277,22 @@ class RunSettings(BaseModel):
     model_config = _STRICT
 
     task_timeout_s: float = Field(
-        3600.0, gt=0.0, description="wall-time budget of one task; beyond it: failed: timeout"
+        3600.0,
+        gt=0.0,
+        le=1e6,
+        description="wall-time budget of one task (s, <= 1e6); beyond it: failed: timeout",
     )
     checkpoint_s: float = Field(
-        10.0, gt=0.0, description="seconds between consolidations of results into the HDF5 file"
+        10.0,
+        gt=0.0,
+        le=86400.0,
+        description="seconds between consolidations of results into the HDF5 file (<= 1 day)",
     )
     stop_grace_s: float = Field(
-        30.0, ge=0.0, description="on SIGTERM/SIGINT, how long to wait for the workers to stop"
+        30.0,
+        ge=0.0,
+        le=3600.0,
+        description="on SIGTERM/SIGINT, how long to wait for the workers to stop (s, <= 3600)",
     )
 
 
@@ -293,10 +305,16 @@ class AdaptiveSettings(BaseModel):
 
     tolerance_mm: float = Field(0.005, gt=0.0, le=1.0, description="final bracket width in L (mm)")
     threshold_mJ: float = Field(
-        GAP_THRESHOLD, gt=0.0, description="energy-gap threshold between jammed and unjammed (mJ)"
+        GAP_THRESHOLD,
+        gt=0.0,
+        le=1.0,
+        description="energy-gap threshold between jammed and unjammed (mJ, <= 1)",
     )
     secant_span_mm: float = Field(
-        0.05, gt=0.0, description="shortest L span of the secant that extrapolates the gap (mm)"
+        0.05,
+        gt=0.0,
+        le=10.0,
+        description="shortest L span of the secant that extrapolates the gap (mm, <= 10)",
     )
     max_refinements: int = Field(40, ge=1, le=1000, description="refinements per series, at most")
 
@@ -310,8 +328,12 @@ class JobSpec(BaseModel):
     schema_version: int = Field(
         description=f"job file format; this knitsweep reads {JOB_SCHEMA_VERSION}"
     )
-    name: str = Field(min_length=1, max_length=200)
-    description: str = ""
+    name: str = Field(
+        min_length=1,
+        max_length=200,
+        description="names the default output <name>.h5: letters, digits and ._+=,@- only",
+    )
+    description: str = Field("", max_length=10_000)
     seed: int = Field(0, ge=0, lt=2**63)
     directions: list[Literal["x", "y"]] = Field(default_factory=lambda: ["x", "y"], min_length=1)
     preset: str = DEFAULT_PRESET
@@ -344,6 +366,16 @@ class JobSpec(BaseModel):
             raise ValueError(
                 f"this knitsweep reads job files of schema_version {JOB_SCHEMA_VERSION}; "
                 f"convert the file or use the knitsweep version that wrote it"
+            )
+        return v
+
+    @field_validator("name")
+    @classmethod
+    def _file_name(cls, v: str) -> str:
+        if not _NAME.match(v):
+            raise ValueError(
+                "must start with a letter or digit and hold only letters, digits and ._+=,@- "
+                "(it names the output file: no path separators)"
             )
         return v
 
@@ -476,15 +508,30 @@ def plan(job: JobSpec) -> tuple[list[PointTask], list[SweepTask]]:
 
 
 def load_job(path: str | Path) -> JobSpec:
-    """Read and validate a TOML job file; errors are ``InputError`` naming the field."""
+    """Read and validate a TOML job file; every problem is one ``InputError`` naming
+    the file and the field (also for binary, non-UTF-8 and absurdly nested files)."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        with open(path, "rb") as f:
+            raw = f.read(MAX_JOB_FILE_BYTES + 1)
     except OSError as e:
         raise InputError(f"job file {path}: {e.strerror or e}") from None
+    if len(raw) > MAX_JOB_FILE_BYTES:
+        raise InputError(f"job file {path}: larger than {MAX_JOB_FILE_BYTES} bytes, not a job file")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise InputError(f"job file {path}: not UTF-8 text (byte {e.start}); save it as UTF-8 "
+                         "TOML") from None  # fmt: skip
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"job file {path}: not valid TOML: {e}") from None
+    except RecursionError:
+        raise InputError(f"job file {path}: not a job file (nested too deeply)") from None
     try:
         return JobSpec(**data)
     except ValidationError as e:
-        raise InputError(f"job file {path}: {describe_validation_error(e)}") from None
+        raise InputError(f"job file {path}: {describe_validation_error(e, JobSpec)}") from None
+    except RecursionError:
+        raise InputError(f"job file {path}: not a job file (nested too deeply)") from None

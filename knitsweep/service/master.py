@@ -7,12 +7,16 @@ Results go to the journal as they arrive and into the HDF5 file at
 checkpoints (``storage``). Running the same job again skips what is finished
 (done, not_knittable, and failed unless ``retry_failed``) and redoes the rest.
 
-On SIGTERM or SIGINT the master stops handing out work, writes what has
-arrived, closes the file and returns exit code 3 (the CLI prints how to resume).
+On SIGTERM or SIGINT (``signals``: recorded, never cutting a write in half) the
+master stops handing out work, writes what has arrived, closes the file and
+returns exit code 3 (the CLI prints how to resume). A write that the disk refuses
+mid-run (full, read-only) stops the run the same way, with one line naming the
+cause; nothing already written is lost.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -25,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import DONE, FAILED, InputError
+from . import signals
 from .adaptive import Refiner
 from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, sweep_task
 from .progress import RunProgress, task_line
@@ -33,20 +38,15 @@ from .results_file import (
     SERIES,
     SWEEPS,
     ResultWriter,
+    StorageError,
     atomic_write_bytes,
     iter_entries,
     progress_path,
     read_entry,
     split_record,
 )
+from .signals import EXIT_INTERRUPTED, Interrupted
 from .worker import Reply
-
-EXIT_INTERRUPTED = 3
-
-
-class Interrupted(BaseException):
-    """SIGTERM/SIGINT while this process computes a task itself (serial runs);
-    a BaseException, so the task isolation in ``tasks.execute`` lets it through."""
 
 
 @dataclass
@@ -58,6 +58,7 @@ class RunSummary:
     interrupted: bool = False
     seconds: float = 0.0
     failures: list[str] = field(default_factory=list)
+    storage_error: str = ""
 
     @property
     def exit_code(self) -> int:
@@ -208,10 +209,10 @@ class _Master:
         return meta
 
     # -- the loop
-    def run(self, stop: dict) -> str:
+    def run(self) -> str:
         last_checkpoint = time.monotonic()
         while self.ready_points or self.ready_sweeps or self.executor.in_flight:
-            if stop["signal"] is not None:
+            if signals.received() is not None:
                 return "interrupted"
             while self.executor.in_flight < self.executor.capacity:
                 # sweeps first: they complete points and free their zero-force records
@@ -284,7 +285,8 @@ class _Master:
                   "total": self.summary.total, "pid": os.getpid(),
                   "host": socket.gethostname(), "updated": time.time(),
                   **self.progress.counts()}  # fmt: skip
-        atomic_write_bytes(progress_path(self.writer.path), json.dumps(counts).encode())
+        with contextlib.suppress(StorageError):  # only a display; the results matter
+            atomic_write_bytes(progress_path(self.writer.path), json.dumps(counts).encode())
         self.progress.summary(counts, force=force)
 
 
@@ -305,8 +307,17 @@ def run_job(
     show_progress: bool = True,
 ) -> RunSummary:
     """Run every unfinished task of ``job`` (or of one shard) on ``executor``,
-    writing the results file ``out``."""
-    out = Path(out)
+    writing the results file ``out``. SIGINT/SIGTERM and a refused write end it
+    with ``summary.interrupted`` (exit code 3)."""
+    old = signals.install()
+    try:
+        with signals.deferred():
+            return _run_job(job, Path(out), executor, shard, retry_failed, show_progress)
+    finally:
+        signals.restore(old)
+
+
+def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSummary:
     t0 = time.monotonic()
     if shard is not None and job.mode == "adaptive":
         executor.shutdown(abort=False)
@@ -320,44 +331,58 @@ def run_job(
     except BaseException:
         executor.shutdown(abort=False)  # nothing was handed out; release the workers
         raise
+    for path, why in writer.malformed:
+        print(f"warning: journal entry {path.name} was malformed ({why}): its task is "
+              "recomputed", file=sys.stderr, flush=True)  # fmt: skip
     summary = RunSummary(out, 0)
-    stop: dict[str, Any] = {"signal": None}
-
-    def _on_signal(signum, frame):
-        stop["signal"] = signum
-        if executor.runs_in_master:
-            raise Interrupted  # abandon the task this process is computing
-
-    old = {s: signal.signal(s, _on_signal) for s in (signal.SIGTERM, signal.SIGINT)}
     status = "interrupted"
     master = None
     stopped_cleanly = True
+    failure: StorageError | None = None
+
+    def keep(reply: Reply) -> None:  # results that arrive while the workers stop
+        nonlocal failure
+        try:
+            master._handle(reply)
+        except StorageError as e:
+            failure = failure or e
+
     progress = RunProgress(varying_parameters(job), show=show_progress)
     try:
         with progress:
             master = _Master(job, points, writer, executor, summary, retry_failed, progress)
-            status = master.run(stop)
+            status = master.run()
     except Interrupted:
         pass
+    except StorageError as e:  # the disk refused a write: stop as on a signal
+        failure = e
     finally:
         try:
             summary.interrupted = status == "interrupted"
             if summary.interrupted and master is not None:
-                # results still arriving while the workers stop are kept
-                stopped_cleanly = executor.interrupt(job.run.stop_grace_s, master._handle)
+                stopped_cleanly = executor.interrupt(job.run.stop_grace_s, keep)
         finally:
-            for s, h in old.items():
-                signal.signal(s, h)
             sizes = {"run_seconds": writer.previous_run_seconds + time.monotonic() - t0}
             if master is not None:
                 sizes |= {"n_points": len(master.points), "n_sweeps": len(master.sweeps)}
-            writer.close(status, sizes)
-            progress_path(out).unlink(missing_ok=True)
+            try:
+                writer.close(status, sizes)
+            except StorageError as e:
+                failure = failure or e
+            with contextlib.suppress(OSError):
+                progress_path(out).unlink(missing_ok=True)
             summary.seconds = time.monotonic() - t0
-    if summary.interrupted:
-        written = sum(summary.counts.values())
-        print(f"\ninterrupted by {signal.Signals(stop['signal'] or signal.SIGINT).name}: "
-              f"{written} of {summary.total} tasks are in {out}; to resume, run the same "
-              "command again (finished tasks are skipped)", file=sys.stderr, flush=True)  # fmt: skip
+    written = sum(summary.counts.values())
+    if failure is not None:
+        summary.interrupted = True
+        summary.storage_error = str(failure)
+        print(f"error: {failure}; {written} of {summary.total} tasks are in {out} (with its "
+              "journal); make room and run the same command again to resume", file=sys.stderr,
+              flush=True)  # fmt: skip
+    elif summary.interrupted:
+        name = signal.Signals(signals.received() or signal.SIGINT).name
+        print(f"\ninterrupted by {name}: {written} of {summary.total} tasks are in {out}; to "
+              "resume, run the same command again (finished tasks are skipped)", file=sys.stderr,
+              flush=True)  # fmt: skip
     executor.shutdown(abort=not stopped_cleanly)
     return summary

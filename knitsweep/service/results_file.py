@@ -1,17 +1,26 @@
 """The results file: one HDF5 file per job, written only by the master.
 
-Crash safety without parallel HDF5 or SWMR:
+Crash safety without parallel HDF5 or SWMR, with checkpoints whose cost grows with
+the new results, not with the file:
 
-1. every result that arrives is first written to a journal entry,
-   ``<file>.journal/<task id>.pkl``, through a temporary file, fsync and an
-   atomic rename: after a kill -9 an entry is either whole or absent;
-2. every ``checkpoint_s`` seconds (and at the end) the master copies the HDF5
-   file, adds the journalled results to the copy and renames the copy over the
-   original (atomic), then deletes the merged entries.
+1. every result that arrives is first written to the journal (write-ahead log),
+   ``<file>.journal/<kind>-<task id>.entry``: one checksummed file per task that
+   cannot run code when read (``journal``), written through a temporary file,
+   fsync and an atomic rename, so after a kill -9 an entry is whole or absent;
+2. every ``checkpoint_s`` seconds (and at the end) the master appends the new
+   results *in place* to a private shadow copy of the file
+   (``.<file>.shadow``), fsyncs it and publishes it by an atomic rename over
+   the file; the file it replaced, kept under a second name, becomes the next
+   shadow and gets the same results appended at the next checkpoint. Each
+   checkpoint writes the new results twice and copies nothing; the shadow is made
+   by one copy per launch of the run. Then the merged journal entries are deleted.
 
-So at any instant the HDF5 file on disk is a complete, readable version, and
-no result that arrived is lost; readers (``knitsweep status``, the
-post-processor) see the file plus the journal, deduplicated by task id.
+So at any instant the HDF5 file on disk is a complete, readable version, never
+written in place (the shadow is), and no result that arrived is lost; readers
+(``knitsweep status``, the post-processor) see the file plus the journal,
+deduplicated by task id, the journal winning (it is never older than the file).
+A malformed journal entry is skipped, reported by ``journal_problems`` and its
+task recomputed. Disk use during a run: twice the file, plus the journal.
 
 Schema (``schema_version`` 2, :data:`RESULTS_SCHEMA_VERSION`; documented in the
 README). Files of schema 1 (knitsweep before the record round trip) still read;
@@ -38,21 +47,46 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import gc
 import json
 import os
-import pickle
 import shutil
 import socket
+import sys
 from collections.abc import Iterator
-from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .. import __version__
 from ..config import InputError
+from .journal import (
+    Entry,
+    StorageError,
+    atomic_write_bytes,
+    entry_path,
+    fsync_dir,
+    read_entry_file,
+    scan,
+    storage_error,
+    write_entry,
+)
+from .provenance import environment_metadata
+
+__all__ = ["Entry", "ResultWriter", "StorageError", "atomic_write_bytes", "iter_entries",
+           "journal_problems", "read_entry", "read_root"]  # fmt: skip
+
+SPACE_MARGIN_BYTES = 256 * 1024
+"""Free space a checkpoint leaves at least, for HDF5's own metadata."""
+_HDF5_WRITE_FAILED = False
+
+
+def hdf5_write_failed() -> bool:
+    """Whether an HDF5 write failed in this process: the library may then fail again
+    when it closes its files at exit, so the CLI leaves without that clean-up."""
+    return _HDF5_WRITE_FAILED
+
 
 RESULTS_SCHEMA_VERSION = 2
 """The results-file format this knitsweep writes."""
@@ -79,13 +113,8 @@ def lock_path(path: Path) -> Path:
     return path.with_name(path.name + ".lock")
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+def _hidden(path: Path, what: str) -> Path:
+    return path.with_name(f".{path.name}.{what}")
 
 
 def _h5():
@@ -99,57 +128,6 @@ def _string_dtype():
     if _STR is None:
         _STR = _h5().string_dtype()
     return _STR
-
-
-def environment_metadata() -> dict[str, str]:
-    """Versions, host, git commit and SLURM job of this run (root attributes)."""
-    import platform
-
-    import numba
-    import numpy
-    import scipy
-
-    h5py = _h5()
-    meta = {
-        "knitsweep_version": __version__,
-        "python_version": platform.python_version(),
-        "numpy_version": numpy.__version__,
-        "scipy_version": scipy.__version__,
-        "numba_version": numba.__version__,
-        "h5py_version": h5py.__version__,
-        "hdf5_version": h5py.version.hdf5_version,
-        "host": socket.gethostname(),
-        "slurm_job_id": os.environ.get("SLURM_JOB_ID", ""),
-        "git_commit": _git_commit(),
-    }
-    try:
-        import mpi4py
-
-        mpi4py.rc.initialize = False  # asking for versions must not start MPI
-        from mpi4py import MPI
-
-        meta["mpi4py_version"] = mpi4py.__version__
-        meta["mpi_library_version"] = MPI.Get_library_version().strip().splitlines()[0]
-    except Exception as e:
-        meta["mpi4py_version"] = f"unavailable ({e})"
-        meta["mpi_library_version"] = "unavailable"
-    return meta
-
-
-def _git_commit() -> str:
-    import subprocess
-
-    here = Path(__file__).resolve().parent
-    try:
-        out = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=5)  # fmt: skip
-        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=5)  # fmt: skip
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    if out.returncode != 0:
-        return "unknown (not a git checkout)"
-    return out.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
 
 
 # ---- writing ---------------------------------------------------------------------
@@ -227,23 +205,56 @@ def describe_dataset(group, kind: str, name: str) -> None:
             ds.dims[axis].attach_scale(scale)
 
 
-@dataclass
-class Entry:
-    """One finished task as journalled: its kind, id, record and metadata."""
+def _put(f, entry: Entry) -> None:
+    """Write one entry's group into an open file, replacing an earlier version (a
+    failure being replaced by a rerun, or a duplicate after a crash)."""
+    group_path = f"{entry.kind}/{entry.task_id}"
+    if group_path in f:
+        del f[group_path]
+    _write_group(f.create_group(group_path), entry.record, entry.meta)
 
-    kind: str
-    task_id: str
-    record: dict[str, Any]
-    meta: dict[str, Any]
+
+def _copy_group(src, dst, kind: str, task_id: str) -> None:
+    """Copy one task's group from an open file to another (HDF5 copies the stored,
+    compressed chunks as they are)."""
+    group_path = f"{kind}/{task_id}"
+    if group_path in dst:
+        del dst[group_path]
+    src.copy(src[group_path], dst.require_group(kind), name=task_id)
+
+
+def _unused(path: Path) -> bool:
+    """Whether no HDF5 reader holds ``path`` open (HDF5 readers hold a shared
+    flock for as long as the file is open)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # also drops the probe's lock
 
 
 class ResultWriter:
-    """The master's handle on a results file (journal + atomic checkpoints)."""
+    """The master's handle on a results file (journal + in-place shadow checkpoints).
+
+    ``malformed`` lists the journal files found damaged when the writer opened
+    (removed: their tasks count as unfinished and are recomputed)."""
 
     def __init__(self, path: str | Path, job, extra_meta: dict[str, Any] | None = None) -> None:
         self.path = Path(path)
         self.job = job
         self.journal = journal_dir(self.path)
+        self._shadow, self._spare = _hidden(self.path, "shadow"), _hidden(self.path, "spare")
+        self._pending: dict[tuple[str, str], Entry] = {}  # journalled, not yet in the file
+        self._lag: list[tuple[str, str]] = []  # groups in the file, not yet in the shadow
+        self._lag_attrs: dict[str, Any] = {}
+        self._shadow_ready = False
+        self.malformed: list[tuple[Path, str]] = []
         self._lock_fd: int | None = None
         self._root_updates: dict[str, Any] = {}
         self.previous_run_seconds = 0.0  # wall time of the earlier runs into this file
@@ -259,15 +270,21 @@ class ResultWriter:
         """An exclusive flock on ``<file>.lock`` for the life of this writer; the
         kernel drops it when the process dies, however it dies."""
         lock = lock_path(self.path)
+        if not self.path.parent.is_dir():
+            raise StorageError(2, f"cannot write {self.path}: directory {self.path.parent} "
+                               "does not exist")  # fmt: skip
         while True:
-            fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
+            try:
+                fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
+            except OSError as e:
+                raise storage_error(self.path, e) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                owner = " on host ".join(os.read(fd, 200).decode().split()) or "?"
+                owner = " on host ".join(os.read(fd, 200).decode(errors="replace").split())
                 os.close(fd)
                 raise InputError(
-                    f"{self.path} is being written by process {owner}; wait for it to finish"
+                    f"{self.path} is being written by process {owner or '?'}; wait for it to finish"
                 ) from None
             try:  # the file we locked may have been unlinked by a finishing writer
                 same = os.fstat(fd).st_ino == os.stat(lock).st_ino
@@ -276,8 +293,12 @@ class ResultWriter:
             if same:
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()} {socket.gethostname()}".encode())
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()} {socket.gethostname()}".encode())
+        except OSError as e:
+            os.close(fd)
+            raise storage_error(self.path, e) from None
         self._lock_fd = fd
 
     def _release_lock(self) -> None:
@@ -288,14 +309,15 @@ class ResultWriter:
 
     def _open_or_create(self, extra_meta: dict[str, Any]) -> None:
         h5py = _h5()
-        self.journal.mkdir(parents=True, exist_ok=True)
-        for stale in self.path.parent.glob(f".{self.path.name}.*.tmp"):
+        for stale in (
+            self._shadow,
+            self._spare,
+            *self.path.parent.glob(f".{self.path.name}.*.tmp"),
+        ):
             stale.unlink(missing_ok=True)  # a checkpoint interrupted before its rename
-        for stale in self.journal.glob(".*.tmp"):
-            stale.unlink(missing_ok=True)
         if self.path.exists():
             grown = check_compatible(self.path, self.job)
-            with h5py.File(self.path, "r") as f:
+            with _open(self.path) as f:
                 self.previous_run_seconds = float(f.attrs.get("run_seconds", 0.0))
             # the file describes the job now running; applied at the first checkpoint
             self._root_updates = {**extra_meta, "run_status": "running"}
@@ -303,68 +325,172 @@ class ResultWriter:
                 self._root_updates |= {"job_json": self.job.model_dump_json(),
                                        "job_hash": self.job.job_hash, "job_name": self.job.name,
                                        "grown_from": grown}  # fmt: skip
+        try:
+            self.journal.mkdir(exist_ok=True)
+            for stale in self.journal.glob(".*.tmp"):
+                stale.unlink(missing_ok=True)
+        except OSError as e:
+            raise storage_error(self.journal, e) from None
+        entries, self.malformed = scan(self.journal, with_data=True)
+        for path, _ in self.malformed:
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)  # reported by the caller; the task is redone
+        self._pending = {(e.kind, e.task_id): e for e in entries}
+        if self.path.exists():
             return
-        tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        with h5py.File(tmp, "w") as f:
-            f.attrs["schema_version"] = RESULTS_SCHEMA_VERSION
-            f.attrs["job_json"] = self.job.model_dump_json()
-            f.attrs["job_hash"] = self.job.job_hash
-            f.attrs["job_name"] = self.job.name
-            f.attrs["started_at"] = now()
-            f.attrs["finished_at"] = ""
-            f.attrs["run_status"] = "running"
-            for k, v in {**environment_metadata(), **extra_meta}.items():
-                f.attrs[k] = v
-            for kind in KINDS:
-                f.create_group(kind)
-        os.replace(tmp, self.path)
+        tmp = _hidden(self.path, f"{os.getpid()}.tmp")
+        try:
+            with _quiet_failed_writes(), h5py.File(tmp, "w") as f:
+                f.attrs["schema_version"] = RESULTS_SCHEMA_VERSION
+                f.attrs["job_json"] = self.job.model_dump_json()
+                f.attrs["job_hash"] = self.job.job_hash
+                f.attrs["job_name"] = self.job.name
+                f.attrs["started_at"] = now()
+                f.attrs["finished_at"] = ""
+                f.attrs["run_status"] = "running"
+                for k, v in {**environment_metadata(), **extra_meta}.items():
+                    f.attrs[k] = v
+                for kind in KINDS:
+                    f.create_group(kind)
+            _fsync_file(tmp)
+            os.replace(tmp, self.path)
+        except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
+            tmp.unlink(missing_ok=True)
+            raise storage_error(self.path, e) from None
+        fsync_dir(self.path.parent)
 
     def add(self, kind: str, task_id: str, record: dict[str, Any], meta: dict[str, Any]) -> None:
-        """Journal one finished task durably (atomic, fsynced)."""
+        """Journal one finished task durably (atomic, fsynced); StorageError if the
+        disk refuses it (the task then counts as unfinished)."""
         entry = Entry(kind, task_id, record, meta)
-        atomic_write_bytes(self.journal / f"{kind}-{task_id}.pkl", pickle.dumps(entry, protocol=5))
+        write_entry(self.journal, entry)
+        self._pending[(kind, task_id)] = entry
 
     def checkpoint(self, attrs: dict[str, Any] | None = None) -> int:
-        """Fold journalled results into the HDF5 file atomically; returns how many."""
-        entries = list(_journal_entries(self.journal))
+        """Fold the journalled results into the HDF5 file atomically, appending in
+        place to the shadow copy and renaming it over the file; returns how many.
+        On a write error the file is unchanged, the journal kept, no temporary file
+        is left and StorageError names the cause."""
+        entries = list(self._pending.values())
         attrs = {**self._root_updates, **(attrs or {})}
-        self._root_updates = {}
         if not entries and not attrs:
             return 0
-        h5py = _h5()
-        tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        shutil.copyfile(self.path, tmp)
-        merged = []
-        with h5py.File(tmp, "a") as f:
+        spare = None
+        failure = None
+        self._check_space(entries)
+        with _quiet_failed_writes():
+            try:
+                spare = self._fold(entries, attrs)
+            except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
+                global _HDF5_WRITE_FAILED
+                _HDF5_WRITE_FAILED = True
+                for p in (self._shadow, self._spare):
+                    p.unlink(missing_ok=True)
+                failure = storage_error(self.path, e)
+        if failure is not None:
+            raise failure
+        fsync_dir(self.path.parent)
+        for e in entries:
+            with contextlib.suppress(OSError):
+                entry_path(self.journal, e.kind, e.task_id).unlink(missing_ok=True)
+            self._pending.pop((e.kind, e.task_id), None)
+        self._root_updates = {}
+        if spare is not None:
+            with contextlib.suppress(OSError):
+                os.replace(spare, self._shadow)
+                self._shadow_ready = True
+                self._lag = [(e.kind, e.task_id) for e in entries]
+                self._lag_attrs = dict(attrs or {})
+        return len(entries)
+
+    def _check_space(self, entries: list[Entry]) -> None:
+        """StorageError before HDF5 writes a byte if the disk cannot hold this
+        checkpoint (HDF5 copes badly with a disk that fills under it)."""
+        new = sum(v.nbytes for e in entries for v in e.record.values() if hasattr(v, "nbytes"))
+        need = 2 * new + SPACE_MARGIN_BYTES  # written twice (this and the next shadow)
+        if not (self._shadow_ready and self._shadow.exists()):
+            need += self.path.stat().st_size  # the shadow is made first
+        try:
+            st = os.statvfs(self.path.parent)
+        except OSError:
+            return
+        if st.f_bavail * st.f_frsize < need:
+            raise StorageError(28, f"cannot write {self.path}: the disk is full (a checkpoint "
+                               f"needs ~{need // 1024} KiB, {st.f_bavail * st.f_frsize // 1024} "
+                               "KiB are free)")  # fmt: skip
+
+    def _fold(self, entries: list[Entry], attrs: dict[str, Any] | None) -> Path | None:
+        """Append to the shadow, fsync it and rename it over the file; returns the
+        spare name of the version replaced (None: no hard links here)."""
+        if not (self._shadow_ready and _unused(self._shadow)):
+            # once per launch (or after a reader held the retired file open: unlink
+            # that name first, copying onto it would rewrite the reader's file)
+            self._shadow.unlink(missing_ok=True)
+            shutil.copyfile(self.path, self._shadow)
+            self._lag, self._lag_attrs = [], {}
+        self._shadow_ready = False  # until it is published whole
+        with _h5().File(self._shadow, "a") as f:
+            if self._lag:  # last checkpoint's groups, copied as stored (no recompression)
+                with _h5().File(self.path, "r") as published:
+                    for kind, task_id in self._lag:
+                        _copy_group(published, f, kind, task_id)
             for e in entries:
-                group_path = f"{e.kind}/{e.task_id}"
-                if group_path in f:
-                    del f[group_path]  # an earlier failure being replaced by a rerun
-                _write_group(f.create_group(group_path), e.record, e.meta)
-                merged.append(e)
-            for k, v in (attrs or {}).items():
+                _put(f, e)
+            for k, v in {**self._lag_attrs, **(attrs or {})}.items():
                 f.attrs[k] = v
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, self.path)
-        for e in merged:
-            (self.journal / f"{e.kind}-{e.task_id}.pkl").unlink(missing_ok=True)
-        return len(merged)
+        _fsync_file(self._shadow)
+        try:  # keep the version being replaced: it becomes the next shadow
+            os.link(self.path, self._spare)
+            spare = self._spare
+        except OSError:
+            spare = None  # no hard links here: the next checkpoint copies
+        os.replace(self._shadow, self.path)
+        return spare
 
     def close(self, run_status: str, attrs: dict[str, Any] | None = None) -> None:
+        """The last checkpoint with the run's status; the shadow and lock are removed
+        even when it fails (the journal then keeps what arrived)."""
         try:
             self.checkpoint({**(attrs or {}), "run_status": run_status, "finished_at": now()})
             with contextlib.suppress(OSError):
                 self.journal.rmdir()
         finally:
+            for p in (self._shadow, self._spare):
+                with contextlib.suppress(OSError):
+                    p.unlink(missing_ok=True)
             self._release_lock()
+
+
+@contextlib.contextmanager
+def _quiet_failed_writes():
+    """While a write may fail: h5py objects freed after a failed flush report it again
+    from ``__dealloc__`` ("Exception ignored"); the failure itself is raised once."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        if not (
+            isinstance(unraisable.exc_value, RuntimeError) and "h5py" in repr(unraisable.object)
+        ):
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        gc.collect()
+        sys.unraisablehook = previous
+
+
+def _fsync_file(path: Path) -> None:
+    with open(path, "rb") as fh:
+        os.fsync(fh.fileno())
 
 
 def writer_alive(lock: Path) -> bool:
     """Whether a live process holds the results file's writer lock."""
     try:
         fd = os.open(lock, os.O_RDONLY)
-    except FileNotFoundError:
+    except OSError:
         return False
     try:
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
@@ -382,32 +508,32 @@ old results in the file)."""
 
 
 def check_compatible(path: Path, job) -> str | None:
-    """Refuse to write ``job`` into a file made by a job with other numerics,
-    protocol, starts or stored observables. Returns None for the same job, or the
-    job hashes the file grew from (comma-separated) when only ``GROWABLE`` differ."""
-    h5py = _h5()
-    try:
-        with h5py.File(path, "r") as f:
-            version = int(f.attrs.get("schema_version", -1))
-            their_hash = str(f.attrs.get("job_hash", ""))
-            their_json = str(f.attrs.get("job_json", "{}"))
-            history = str(f.attrs.get("grown_from", ""))
-    except OSError as e:
-        raise InputError(
-            f"{path} exists but is not a readable HDF5 file ({e}); move it away"
-        ) from None
+    """Refuse to write ``job`` into anything that is not a knitsweep results file, or
+    into one made by a job with other numerics, protocol, starts or stored
+    observables. Returns None for the same job, or the job hashes the file grew from
+    (comma-separated) when only ``GROWABLE`` differ."""
+    root = read_root(path)
+    version = root["schema_version"]
     if version != RESULTS_SCHEMA_VERSION:
-        readable = " (it still reads: status, phase-diagram)" if version in READABLE_SCHEMAS else ""
         raise InputError(
-            f"{path} has results schema_version {version}{readable}, this knitsweep writes "
-            f"{RESULTS_SCHEMA_VERSION}: write to a new file (--out), or resume it with the "
-            "knitsweep version that made it"
+            f"{path} has results schema_version {version} (it still reads: status, "
+            f"phase-diagram), this knitsweep writes {RESULTS_SCHEMA_VERSION}: write to a new "
+            "file (--out), or resume it with the knitsweep version that made it"
         )
-    if their_hash == job.job_hash:
+    if str(root["job_hash"]) == job.job_hash:
         return None
+    from pydantic import ValidationError
+
     from .jobs import JobSpec
 
-    diff = _differences(JobSpec.model_validate_json(their_json).canonical(), job.canonical())
+    try:
+        theirs = JobSpec.model_validate_json(str(root["job_json"])).canonical()
+    except ValidationError:
+        raise InputError(
+            f"{path} holds results of a job whose spec this knitsweep cannot read; choose "
+            "another --out file, or rerun the job that made it with the knitsweep that made it"
+        ) from None
+    diff = _differences(theirs, job.canonical())
     fixed = [d for d in diff if d.split(".")[0] not in GROWABLE]
     if fixed or not diff:
         raise InputError(
@@ -415,7 +541,7 @@ def check_compatible(path: Path, job) -> str | None:
             f"{', '.join(fixed) or 'settings'}); only the grid and directions may change "
             "between runs into one file: choose another --out file, or rerun that job"
         )
-    return ", ".join(filter(None, [history, their_hash]))
+    return ", ".join(filter(None, [str(root.get("grown_from", "")), str(root["job_hash"])]))
 
 
 def _differences(a: Any, b: Any, prefix: str = "") -> list[str]:
@@ -430,21 +556,29 @@ def _differences(a: Any, b: Any, prefix: str = "") -> list[str]:
 # ---- reading ---------------------------------------------------------------------
 
 
-def _journal_entries(journal: Path) -> Iterator[Entry]:
-    if not journal.is_dir():
-        return
-    for p in sorted(journal.glob("*.pkl")):
-        try:
-            yield pickle.loads(p.read_bytes())
-        except (FileNotFoundError, EOFError, pickle.UnpicklingError):
-            continue  # merged and deleted meanwhile, or never completed
+@contextlib.contextmanager
+def _open(path: Path):
+    """The results file opened for reading; InputError naming what it is otherwise."""
+    if path.is_dir():
+        raise InputError(f"{path}: a directory, not a results file")
+    try:
+        f = _h5().File(path, "r")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such results file") from None
+    except Exception as e:  # h5py raises OSError, sometimes others, for foreign files
+        why = str(e).split("(")[0].strip() or type(e).__name__
+        raise InputError(f"{path}: not a readable HDF5 file ({why})") from None
+    try:
+        yield f
+    finally:
+        f.close()
 
 
 def _read_group(group) -> tuple[dict[str, Any], dict[str, Any]]:
     attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in group.attrs.items()}
     data = {}
     for k, ds in group.items():
-        if ds.is_scale:  # a dimension's coordinates, not a field of the record
+        if not isinstance(ds, _h5().Dataset) or ds.is_scale:  # (scales: coordinates)
             continue
         v = ds[()]
         if ds.dtype.kind == "O":
@@ -453,64 +587,95 @@ def _read_group(group) -> tuple[dict[str, Any], dict[str, Any]]:
     return attrs, data
 
 
+def _groups(f, kind: str):
+    """(task id, group) of one kind in an open file; foreign members are skipped."""
+    h5py = _h5()
+    parent = f.get(kind)
+    if not isinstance(parent, h5py.Group):
+        return
+    for tid, group in parent.items():
+        if isinstance(group, h5py.Group):
+            yield tid, group
+
+
 def iter_entries(path: str | Path, with_data: bool = False) -> Iterator[Entry]:
     """Every finished task of a results file, deduplicated: the HDF5 file's
-    groups first, then journal entries not yet merged into it."""
+    groups that the journal has no newer version of, then the journal's entries.
+
+    The journal is read first: an entry merged and deleted meanwhile is then in
+    the file opened after it. Malformed journal entries are skipped
+    (``journal_problems`` lists them)."""
     path = Path(path)
-    seen: set[tuple[str, str]] = set()
+    journalled = scan(journal_dir(path), with_data)[0]
+    newer = {(e.kind, e.task_id) for e in journalled}
     if path.exists():
-        with _h5().File(path, "r") as f:
+        with _open(path) as f:
             for kind in KINDS:
-                for tid, group in f.get(kind, {}).items():
+                for tid, group in _groups(f, kind):
+                    if (kind, tid) in newer:
+                        continue
                     if with_data:
                         meta, record = _read_group(group)
                     else:
                         meta, record = dict(group.attrs), {}
-                    seen.add((kind, tid))
                     yield Entry(kind, tid, record, meta)
-    for e in _journal_entries(journal_dir(path)):
-        if (e.kind, e.task_id) not in seen:
-            seen.add((e.kind, e.task_id))
-            yield e
+    yield from journalled
 
 
 def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
-    """One finished task with its data, from the HDF5 file or the journal."""
+    """One finished task with its data, from the journal or the HDF5 file."""
+    from .journal import Malformed
+
     path = Path(path)
+    try:
+        return read_entry_file(entry_path(journal_dir(path), kind, task_id))
+    except (FileNotFoundError, Malformed):
+        pass
     if path.exists():
-        with _h5().File(path, "r") as f:
+        with _open(path) as f:
             group = f.get(f"{kind}/{task_id}")
-            if group is not None:
+            if isinstance(group, _h5().Group):
                 meta, record = _read_group(group)
                 return Entry(kind, task_id, record, meta)
-    try:
-        return pickle.loads((journal_dir(path) / f"{kind}-{task_id}.pkl").read_bytes())
-    except (FileNotFoundError, EOFError, pickle.UnpicklingError):
-        return None
+    return None
+
+
+def journal_problems(path: str | Path) -> list[str]:
+    """One line per malformed journal entry of a results file (their tasks are
+    recomputed when the run resumes)."""
+    return [f"{p.name}: {why}" for p, why in scan(journal_dir(Path(path)))[1]]
 
 
 def read_root(path: str | Path) -> dict[str, Any]:
-    """Root attributes of a results file (schema checked)."""
+    """Root attributes of a knitsweep results file (schema checked); InputError
+    naming the file for anything else (missing, not HDF5, foreign HDF5, other
+    schema)."""
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such results file")
-    try:
-        with _h5().File(path, "r") as f:
-            attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
-    except OSError as e:
-        raise InputError(f"{path}: not a readable HDF5 file ({e})") from None
-    if attrs.get("schema_version") not in READABLE_SCHEMAS:
+    with _open(path) as f:
+        attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
+    version = attrs.get("schema_version")
+    if version is None:
+        raise InputError(f"{path}: an HDF5 file, but not a knitsweep results file (no "
+                         "schema_version attribute)")  # fmt: skip
+    if not isinstance(version, int) or isinstance(version, bool):
+        raise InputError(f"{path}: schema_version {version!r} is not an integer: not a results "
+                         "file written by knitsweep")  # fmt: skip
+    if version not in READABLE_SCHEMAS:
         raise InputError(
-            f"{path}: results schema_version {attrs.get('schema_version')!r}; this knitsweep "
-            f"reads {' and '.join(map(str, READABLE_SCHEMAS))}: use the knitsweep version that "
-            "wrote it"
+            f"{path}: results schema_version {version}; this knitsweep reads "
+            f"{' and '.join(map(str, READABLE_SCHEMAS))}: use the knitsweep version that wrote it"
         )
+    missing = [k for k in ("job_json", "job_hash") if k not in attrs] if version >= 2 else []
+    if missing:
+        raise InputError(f"{path}: schema_version {version} but no {' or '.join(missing)} "
+                         "attribute: not a complete knitsweep results file")  # fmt: skip
     return attrs
 
 
 def read_progress(path: str | Path) -> dict[str, Any] | None:
     p = progress_path(Path(path))
     try:
-        return json.loads(p.read_text())
-    except (FileNotFoundError, json.JSONDecodeError):
+        data = json.loads(p.read_text())
+    except (OSError, ValueError):
         return None
+    return data if isinstance(data, dict) else None

@@ -14,12 +14,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 from ..config import DONE, FAILED, InputError
+from . import signals
 from .jobs import JobSpec, load_job
 from .results_file import (
     POINTS,
     RESULTS_SCHEMA_VERSION,
     SERIES,
     iter_entries,
+    journal_problems,
     lock_path,
     read_progress,
     read_root,
@@ -27,6 +29,8 @@ from .results_file import (
 )
 
 ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
+LARGE_GRID_TASKS = 20_000
+"""Jobs with more tasks (points and sweeps) than this need ``--max-tasks`` (README)."""
 
 
 def default_output(job: JobSpec, shard: tuple[int, int] | None) -> Path:
@@ -43,48 +47,101 @@ def run(
     shard: str | None = None,
     retry_failed: bool = False,
     show_progress: bool = True,
+    max_tasks: int | None = None,
 ):
-    """Run a job file; returns the ``RunSummary`` (None on MPI worker ranks)."""
-    from .executors import ProcessExecutor, SerialExecutor, launched_by_mpi
-    from .master import parse_shard, run_job
+    """Run a job file; returns the ``RunSummary`` (None on MPI worker ranks).
 
-    if workers < 1:
-        raise InputError(f"workers = {workers}: must be >= 1")
+    Everything that can be refused is checked before any compute: the job, the
+    shard, the grid size against ``max_tasks`` (default ``LARGE_GRID_TASKS``) and
+    whether ``out`` can be written."""
+    from .executors import launched_by_mpi
+    from .master import run_job
+
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"workers = {workers!r}: must be an integer >= 1")
     use_mpi = executor == "mpi" or (executor == "auto" and launched_by_mpi())
     if use_mpi:
-        from mpi4py import MPI
-
-        comm = MPI.COMM_WORLD
+        comm = _mpi_world()
         if comm.Get_size() > 1:
-            return _run_mpi(comm, job_path, out, shard, retry_failed, show_progress)
+            return _run_mpi(comm, job_path, out, shard, retry_failed, show_progress, max_tasks)
         if executor == "mpi":
             raise InputError("executor = 'mpi' needs at least 2 ranks (mpirun -n 2 or more)")
-    job = load_job(job_path)
-    shard_t = parse_shard(shard)
-    out = Path(out) if out is not None else default_output(job, shard_t)
-    if executor == "processes" or (executor == "auto" and workers > 1):
-        ex = ProcessExecutor(job, workers)
-    else:
-        ex = SerialExecutor(job)
+    with signals.interruptible():
+        job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks)
+        ex = _local_executor(job, executor, workers)
     return run_job(job, out, ex, shard=shard_t, retry_failed=retry_failed,
                    show_progress=show_progress)  # fmt: skip
 
 
-def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress):
-    from .executors import MPIExecutor, mpi_worker_loop
-    from .master import parse_shard, run_job
+def _mpi_world():
+    """MPI_COMM_WORLD; MPI_Init runs deferred: a signal during it is recorded, and
+    rank 0 raises it only after it can release the workers (``_run_mpi``)."""
+    with signals.deferred():
+        try:
+            from mpi4py import MPI
+        except ImportError as e:
+            if signals.received() is not None:
+                raise signals.Interrupted(signals.received()) from None
+            raise InputError(f"MPI could not start: {e}") from None
+    return MPI.COMM_WORLD
+
+
+def _prepare_run(job_path, out, shard, max_tasks):
+    """(job, shard, out) after every check that needs no compute."""
+    from .master import parse_shard
+
+    job = load_job(job_path)
+    shard_t = parse_shard(shard)
+    out = Path(out) if out is not None else default_output(job, shard_t)
+    check_grid_size(job, max_tasks)
+    check_output(out)
+    return job, shard_t, out
+
+
+def _local_executor(job, executor, workers):
+    from .executors import ProcessExecutor, SerialExecutor
+    from .worker import prepare
+
+    if executor == "processes" or (executor == "auto" and workers > 1):
+        prepare(job)  # compile once here (interruptible); the workers load numba's cache
+        with signals.deferred():  # a pool is not left half-started
+            return ProcessExecutor(job, workers)
+    return SerialExecutor(job)
+
+
+def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:
+    """Refuse a grid of more than ``max_tasks`` tasks (default LARGE_GRID_TASKS)
+    unless asked for explicitly: a mistyped range must not become a week of work."""
+    limit = LARGE_GRID_TASKS if max_tasks is None else max_tasks
+    n = len(job.points()) * (1 + len(job.directions))
+    if n > limit:
+        raise InputError(
+            f"the job has {n} tasks ({n // (1 + len(job.directions))} grid points), more than "
+            f"{limit}; check the grid, or confirm with --max-tasks {n}"
+        )
+
+
+def check_output(out: Path) -> None:
+    """Refuse an output path that cannot be written, before any compute."""
+    from ..formats import check_writable
+
+    check_writable(out, "results file", overwrite=True)
+
+
+def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress, max_tasks):
+    from .executors import MPIExecutor, mpi_worker_loop, release_workers
+    from .master import run_job
 
     if comm.Get_rank() != 0:
         mpi_worker_loop(comm)
         return None
     try:
-        job = load_job(job_path)
-        shard_t = parse_shard(shard)
-        out = Path(out) if out is not None else default_output(job, shard_t)
+        with signals.interruptible():  # raises at once for a signal during MPI_Init
+            job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks)
+            ex = MPIExecutor(job, comm)  # compiles, then hands the job to the workers
     except BaseException:
-        comm.bcast(None, root=0)  # release the workers: there is no job
+        release_workers(comm)  # there is no job: the workers leave
         raise
-    ex = MPIExecutor(job, comm)
     return run_job(job, out, ex, shard=shard_t, retry_failed=retry_failed,
                    show_progress=show_progress)  # fmt: skip
 
@@ -154,6 +211,7 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
         "by": {by: {str(k): v for k, v in sorted(groups.items(), key=lambda kv: str(kv[0]))}}
         if by is not None
         else {},
+        "journal_problems": journal_problems(path),
         "series": {
             "done": sum(m.get("status") == "done" for m in series),
             "total": len(series),
@@ -190,6 +248,15 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     if not inputs:
         raise InputError("merge needs at least one input file")
     out = Path(out)
+    seen: dict[Path, str] = {}
+    for p in inputs:
+        real = Path(p).resolve()
+        if real in seen:
+            raise InputError(f"{p} is given twice (also as {seen[real]}); name each shard once")
+        if real == out.resolve():
+            raise InputError(f"{out} is also an input; merge into a new file")
+        seen[real] = str(p)
+    check_output(out)
     roots = [read_root(p) for p in inputs]
     old = [str(p) for p, r in zip(inputs, roots, strict=True)
            if r.get("schema_version") != RESULTS_SCHEMA_VERSION]  # fmt: skip
@@ -206,8 +273,6 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     points, sweeps = plan(job)
     chosen: dict[tuple[str, str], Any] = {}
     for path in inputs:
-        if Path(path).resolve() == out.resolve():
-            raise InputError(f"{out} is also an input; merge into a new file")
         for e in iter_entries(path, with_data=True):
             key = (e.kind, e.task_id)
             if key not in chosen or (

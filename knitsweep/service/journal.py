@@ -1,0 +1,243 @@
+"""The results file's write-ahead journal: one checksummed entry file per finished task.
+
+An entry is ``<file>.journal/<kind>-<task id>.entry``, written through a temporary
+file, fsync and an atomic rename, so after a kill -9 it is whole or absent. Its
+bytes are
+
+    b"KSJ1" | sha256(payload) (32 bytes) | payload
+
+and the payload is an uncompressed ``.npz`` archive (read with
+``allow_pickle=False``): a JSON header ``__entry__`` (format, kind, task id, the
+scalar metadata) and one ``.npy`` member per array. Nothing in an entry can run
+code when it is read (the journal used to be pickles: whoever could write into
+the journal directory could run code in the master). A damaged, truncated,
+foreign or old (pickle) entry is *malformed*: readers skip it and report it
+(``knitsweep status``), and the master recomputes its task.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import io
+import json
+import os
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+MAGIC = b"KSJ1"
+ENTRY_FORMAT = 1
+SUFFIX = ".entry"
+_HEADER = "__entry__"
+_NAME = re.compile(r"^(points|sweeps|series)-([A-Za-z0-9._-]{1,200})$")
+
+
+@dataclass
+class Entry:
+    """One finished task as journalled: its kind, id, record (arrays) and metadata
+    (scalars, strings, JSON-able dicts)."""
+
+    kind: str
+    task_id: str
+    record: dict[str, Any]
+    meta: dict[str, Any]
+
+
+class StorageError(OSError):
+    """A results file, journal entry or output could not be written (disk full,
+    read-only or missing directory, permissions): one line for the user."""
+
+
+def storage_error(what: str | Path, e: BaseException) -> StorageError:
+    """A one-line StorageError for a failed write of ``what``."""
+    code = getattr(e, "errno", None)
+    text = str(e)
+    if code == errno.ENOSPC or "No space left" in text:
+        reason = "the disk is full"
+    elif code == errno.EROFS or "Read-only file system" in text:
+        reason = "the file system is read-only"
+    elif code in (errno.EACCES, errno.EPERM) or "Permission denied" in text:
+        reason = "permission denied"
+    elif code == errno.ENOENT:
+        reason = "its directory does not exist"
+    elif code == errno.EDQUOT:
+        reason = "the disk quota is exceeded"
+    else:
+        reason = getattr(e, "strerror", None) or (text.splitlines() or [type(e).__name__])[0]
+    return StorageError(code or errno.EIO, f"cannot write {what}: {reason}")
+
+
+def fsync_dir(path: Path) -> None:
+    """Make a rename or unlink in directory ``path`` durable."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass  # some file systems do not fsync directories; the rename is still atomic
+    finally:
+        os.close(fd)
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temporary file, fsync and rename: a reader sees
+    the old file or the new one, never a part. On failure no temporary file is left
+    and ``StorageError`` names the cause."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        raise storage_error(path, e) from None
+
+
+# ---- encoding -------------------------------------------------------------------
+
+
+def _plain(value: Any) -> Any:
+    """A JSON value for a scalar of a record or its metadata."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):  # 0-d: a scalar
+        return value.item()
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    raise TypeError(f"cannot journal a value of type {type(value).__name__}")
+
+
+def encode(entry: Entry) -> bytes:
+    """The bytes of one journal entry (see the module docstring)."""
+    arrays: dict[str, np.ndarray] = {}
+    layout: dict[str, list[str]] = {"record": [], "meta": [], "object": []}
+    scalars: dict[str, dict[str, Any]] = {"record": {}, "meta": {}}
+    for part, values in (("record", entry.record), ("meta", entry.meta)):
+        for key, value in values.items():
+            if isinstance(value, np.ndarray) and value.ndim > 0:
+                name = f"{part}/{key}"
+                if value.dtype == object:
+                    value = value.astype(str)
+                    layout["object"].append(name)
+                arrays[f"a{len(arrays)}"] = value
+                layout[part].append(key)
+            else:
+                scalars[part][key] = _plain(value)
+    header = {"format": ENTRY_FORMAT, "kind": entry.kind, "task_id": entry.task_id,
+              "scalars": scalars, "layout": layout}  # fmt: skip
+    buffer = io.BytesIO()
+    np.savez(buffer, **{_HEADER: np.frombuffer(json.dumps(header).encode(), np.uint8)}, **arrays)
+    payload = buffer.getvalue()
+    return MAGIC + hashlib.sha256(payload).digest() + payload
+
+
+class Malformed(ValueError):
+    """A journal entry that cannot be trusted (its message says why)."""
+
+
+def decode(data: bytes, with_data: bool = True) -> Entry:
+    """The entry in ``data``; ``Malformed`` if it is not an intact knitsweep entry."""
+    if data[:2] == b"\x80\x04" or data[:2] == b"\x80\x05":
+        raise Malformed("an old pickle entry, not read (pickle could run code)")
+    if len(data) < 36 or data[:4] != MAGIC:
+        raise Malformed("not a knitsweep journal entry")
+    payload = data[36:]
+    if hashlib.sha256(payload).digest() != data[4:36]:
+        raise Malformed("checksum mismatch (damaged or truncated)")
+    try:
+        with np.load(io.BytesIO(payload), allow_pickle=False) as npz:
+            header = json.loads(npz[_HEADER].tobytes())
+            if header.get("format") != ENTRY_FORMAT:
+                raise Malformed(f"entry format {header.get('format')!r}, expected {ENTRY_FORMAT}")
+            kind, task_id = header["kind"], header["task_id"]
+            record = dict(header["scalars"]["record"])
+            meta = dict(header["scalars"]["meta"])
+            objects = set(header["layout"]["object"])
+            index = 0
+            for part, target in (("record", record), ("meta", meta)):
+                for key in header["layout"][part]:
+                    if with_data or part == "meta":
+                        value = npz[f"a{index}"]
+                        if f"{part}/{key}" in objects:
+                            value = np.array(value.tolist(), dtype=object)
+                        target[key] = value
+                    index += 1
+    except Malformed:
+        raise
+    except Exception as e:  # whatever a checksummed but foreign payload raises
+        raise Malformed(f"unreadable ({type(e).__name__})") from None
+    if not (isinstance(kind, str) and isinstance(task_id, str)):
+        raise Malformed("kind or task id is not a string")
+    return Entry(kind, task_id, record, meta)
+
+
+# ---- the journal directory ------------------------------------------------------
+
+
+def entry_path(journal: Path, kind: str, task_id: str) -> Path:
+    return journal / f"{kind}-{task_id}{SUFFIX}"
+
+
+def write_entry(journal: Path, entry: Entry) -> Path:
+    """Journal one entry durably (atomic, fsynced); returns its path."""
+    path = entry_path(journal, entry.kind, entry.task_id)
+    atomic_write_bytes(path, encode(entry))
+    return path
+
+
+def read_entry_file(path: Path, with_data: bool = True) -> Entry:
+    """One entry file, checked against its name; ``Malformed`` or FileNotFoundError."""
+    match = _NAME.match(path.name.removesuffix(SUFFIX))
+    if match is None:
+        raise Malformed("not a journal entry name")
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise
+    except OSError as e:
+        raise Malformed(f"unreadable ({e.strerror or e})") from None
+    entry = decode(data, with_data)
+    if (entry.kind, entry.task_id) != match.groups():
+        raise Malformed(f"holds {entry.kind}/{entry.task_id}, not what its name says")
+    return entry
+
+
+def scan(journal: Path, with_data: bool = False) -> tuple[list[Entry], list[tuple[Path, str]]]:
+    """The journal's intact entries and its malformed files ``(path, why)``.
+
+    Entries merged into the HDF5 file (and deleted) while this reads are skipped;
+    old pickle entries (``*.pkl``) are listed as malformed, never unpickled."""
+    entries: list[Entry] = []
+    problems: list[tuple[Path, str]] = []
+    if not journal.is_dir():
+        return entries, problems
+    for path in sorted(journal.iterdir()):
+        if path.name.startswith(".") or not path.is_file():
+            continue  # an entry being written (temporary file), or not ours to judge
+        if path.suffix == ".pkl":
+            problems.append((path, "an old pickle entry, not read (pickle could run code)"))
+            continue
+        try:
+            entries.append(read_entry_file(path, with_data))
+        except FileNotFoundError:
+            continue
+        except Malformed as e:
+            problems.append((path, str(e)))
+    return entries, problems
+
+
+def iter_journal(journal: Path, with_data: bool = False) -> Iterator[Entry]:
+    yield from scan(journal, with_data)[0]

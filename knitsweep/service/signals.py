@@ -1,0 +1,161 @@
+"""SIGINT and SIGTERM in every knitsweep process, from its first moment.
+
+A signal is always *recorded* (``received()``); whether it also *raises*
+``Interrupted`` depends on where the process is:
+
+* ``interruptible()`` sections raise at once: start-up (imports, reading the
+  job, compiling the kernels) and a task this process computes itself; whatever
+  they were doing is redone on resume;
+* everywhere else (the default once ``install`` ran, and ``deferred()``
+  sections) the signal is only recorded, and the loops that own the process look
+  at it: the master between replies, an idle MPI worker while it waits. So a
+  journal entry, a checkpoint or an MPI message is never cut in half.
+
+``knitsweep``'s entry point calls ``install(interruptible=True)`` before it
+imports anything heavy, so a signal during start-up (MPI_Init included: it runs
+``deferred``) ends the process with one line and exit code 3 instead of a
+traceback. The state is per process (signals are), hence module-level.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+EXIT_INTERRUPTED = 3
+"""Exit code of an interrupted knitsweep command (a run keeps what it wrote)."""
+MPI_ENV_HINTS = ("PMI_RANK", "PMI_SIZE", "PMI_FD", "PMIX_RANK", "OMPI_COMM_WORLD_SIZE",
+                 "MPI_LOCALNRANKS", "HYDRA_CONTROL_FD")  # fmt: skip
+
+
+def launched_by_mpi() -> bool:
+    """True when this process was started by mpirun/mpiexec/srun --mpi."""
+    return any(k in os.environ for k in MPI_ENV_HINTS)
+
+
+class Interrupted(BaseException):
+    """SIGINT/SIGTERM reached an interruptible section. A BaseException, so the task
+    isolation (``worker.execute`` catches Exception) lets it through."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+_state = {"signum": None, "count": 0, "raise": False}
+
+
+def _quiet(unraisable) -> None:
+    """After an interrupt: objects whose construction the signal cut short (numba's
+    compiler, llvmlite) may fail in ``__del__``; that is no news to the user."""
+
+
+def _handler(signum, frame) -> None:
+    _state["count"] += 1
+    if _state["signum"] is None:
+        _state["signum"] = signum
+    if _state["raise"]:
+        _state["raise"] = False  # raise once: the clean-up after it runs undisturbed
+        _state["unraisablehook"] = _state.get("unraisablehook") or sys.unraisablehook
+        sys.unraisablehook = _quiet
+        raise Interrupted(signum)
+
+
+def install(interruptible: bool = False) -> dict | None:
+    """Handle SIGINT/SIGTERM in this process (main thread only); returns the handlers
+    it replaced (for ``restore``), or None when ours were already installed. A fresh
+    install forgets any earlier signal."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    if signal.getsignal(signal.SIGINT) is _handler:
+        return None
+    old = {s: signal.signal(s, _handler) for s in SIGNALS}
+    _state.update({"signum": None, "count": 0, "raise": interruptible})
+    return old
+
+
+def restore(old: dict | None) -> None:
+    """Put back the handlers ``install`` replaced; the signals they saw are handled
+    (a later run in this process starts afresh)."""
+    if old:
+        for s, h in old.items():
+            signal.signal(s, h)
+        if _state.get("unraisablehook") is not None:
+            sys.unraisablehook = _state.pop("unraisablehook")
+        _state.update({"signum": None, "count": 0, "raise": False})
+
+
+def received() -> int | None:
+    """The first signal received since ``install``, or None."""
+    return _state["signum"]
+
+
+def count() -> int:
+    """How many signals arrived since ``install`` (a second Ctrl-C hurries the stop)."""
+    return _state["count"]
+
+
+def request(signum: int = signal.SIGTERM) -> None:
+    """Act as if ``signum`` had arrived (an MPI worker left on a signal of its own)."""
+    if _state["signum"] is None:
+        _state["signum"] = signum
+
+
+def check() -> None:
+    """Raise ``Interrupted`` if a signal arrived."""
+    if _state["signum"] is not None:
+        raise Interrupted(_state["signum"])
+
+
+@contextlib.contextmanager
+def interruptible():
+    """A section that a signal cuts short with ``Interrupted`` (raised at once if a
+    signal came before it)."""
+    check()
+    old = _state["raise"]
+    _state["raise"] = True
+    try:
+        yield
+    finally:
+        _state["raise"] = old
+
+
+@contextlib.contextmanager
+def deferred():
+    """A section that a signal must not cut: it is only recorded (the section's own
+    loops look at ``received()``, or the next ``check`` raises it)."""
+    old = _state["raise"]
+    _state["raise"] = False
+    try:
+        yield
+    finally:
+        _state["raise"] = old
+
+
+def quiet_exit() -> None:
+    """The command is done: finish MPI (a signal then is only recorded), then ignore
+    SIGINT/SIGTERM for the rest of the interpreter's teardown, where Python would
+    put the default handlers back and a late signal would turn a finished run's
+    exit code into a kill.
+
+    Under mpirun a rank that a signal stopped before it started MPI still starts
+    and finishes it: MPI_Init waits for every rank, and ranks already inside it
+    would otherwise wait for this one for ever."""
+    import sys
+
+    _state["raise"] = False
+    mpi = sys.modules.get("mpi4py.MPI")
+    if mpi is None and launched_by_mpi():
+        try:
+            from mpi4py import MPI as mpi
+        except ImportError:
+            mpi = None  # MPI itself could not start: nothing to finish
+    if mpi is not None and mpi.Is_initialized() and not mpi.Is_finalized():
+        mpi.Finalize()
+    if threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
