@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.paper import TABLE_S3, at_table_1
+from ..analysis.stress_strain import SECANT_STRAIN
 from ..state import CONTACT_CLASSES
 from .plotting import (
     DIRECTION_COLOUR,
@@ -69,10 +70,12 @@ def _curves(red: Reduction, key: tuple, direction: str) -> list[SweepCurves]:
 
 def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...], what: str,
                   y_of: Any, ylabel: str, heading: str, zero_line: bool,
-                  upto: float | None = None) -> Any:  # fmt: skip
+                  upto: float | None = None, overlay: Any = None) -> Any:  # fmt: skip
     """Panels (series × directions) of one per-step quantity against strain,
     coloured by L, solid when jammed in that direction and dashed when not; with
-    ``upto``, only strains up to it (the jammed regime at small strain)."""
+    ``upto``, only strains up to it (the jammed regime at small strain).
+    ``overlay(ax, curve, colour, xmax)`` draws more on the densest, the middle and
+    the loosest curve of a panel (the metric lines); it returns legend handles."""
     present = tuple(d for d in directions if any(c.direction == d for c in red.curves))
     if not present:
         pulls = " or ".join(directions)
@@ -84,15 +87,21 @@ def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...],
     fig = new_figure(max(7.6, 4.9 * ncols + 1.2), 3.3 * -(-n // ncols) + 1.3)
     axes = grid_of_panels(fig, n, ncols)
     cmap, norm = L_colours(red)
+    extra: dict[str, Any] = {}
     for i, (key, d) in enumerate((k, d) for k in keys for d in present):
         ax = axes[i]
         lo, hi = 0.0, 0.0
-        for c in _curves(red, key, d):
+        curves = _curves(red, key, d)
+        marked = {0, len(curves) // 2, len(curves) - 1}  # metric lines: 3 curves, legible
+        for j, c in enumerate(curves):
             keep = c.strain <= upto * (1.0 + 1e-9) if upto is not None else slice(None)
             y = y_of(c)[keep]
             ax.plot(c.strain[keep], y, color=cmap(norm(c.L_mm)), ls="-" if c.jammed else "--",
                     lw=1.5, marker="." if upto is not None else None, ms=4)  # fmt: skip
             lo, hi = min(lo, float(np.min(y))), max(hi, float(np.max(y)))
+            if overlay is not None and j in marked:
+                xmax = upto if upto is not None else float(c.strain[-1])
+                extra |= overlay(ax, c, cmap(norm(c.L_mm)), xmax)
         if upto is not None:
             pad = 0.05 * (hi - lo) if hi > lo else 1.0
             ax.set_xlim(0.0, upto)
@@ -103,24 +112,58 @@ def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...],
         ax.set_title(f"pulled in {d}" + (f"; {lab}" if lab else ""))
         ax.set_xlabel(STRAIN[d])
         ax.set_ylabel(ylabel)
-    jammed_legend(fig, present)
+    jammed_legend(fig, present, list(extra.values()))
     L_colourbar(fig, axes, cmap, norm)
     title(fig, red, heading)
     return fig
 
 
+def _metric_lines(red: Reduction) -> Any:
+    """The overlay of Fig. 1b: the lines that define the metrics of each sweep, the
+    secant to σ(0.02) whose slope is Y_sec (dotted) and the line fitted to the
+    softened regime, drawn from ε = 0 where its intercept is σ0 (dash-dotted)."""
+    from matplotlib.lines import Line2D
+
+    rows = {r["task_id"]: r for r in red.sweeps}
+
+    def draw(ax: Any, c: SweepCurves, colour: Any, xmax: float) -> dict[str, Any]:
+        row = rows.get(c.task_id, {})
+        handles = {}
+        y_sec, at = row.get("Y_sec_N_per_mm"), SECANT_STRAIN
+        if y_sec is not None:
+            ax.plot([0.0, at], [0.0, y_sec * at], color=colour, ls=":", lw=1.3, zorder=3)
+            ax.plot([at], [y_sec * at], color=colour, marker="o", ms=3.5, mfc="white", zorder=4)
+            handles["secant"] = Line2D([], [], color="0.3", ls=":", marker="o", mfc="white",
+                                       ms=3.5, label=r"secant to $\sigma(0.02)$: $Y_{\rm sec}$")  # fmt: skip
+        s0, slope, hi = row.get("sigma0_N_per_mm"), row.get("softened_slope_N_per_mm"), row.get(
+            "sigma0_window_hi")  # fmt: skip
+        if s0 is not None and slope is not None:
+            end = min(xmax, hi if hi is not None else xmax)
+            ax.plot([0.0, end], [s0, s0 + slope * end], color=colour, ls="-.", lw=1.0, zorder=2)
+            ax.plot([0.0], [s0], color=colour, marker="D", ms=3.5, zorder=4, clip_on=False)
+            handles["sigma0"] = Line2D([], [], color="0.3", ls="-.", marker="D", ms=3.5,
+                                       label=r"softened-regime fit, intercept $\sigma_0$")  # fmt: skip
+        return handles
+
+    return draw
+
+
 def fig1b_stress_strain(red: Reduction, notes: list[str]) -> Any:
-    """Stress σ (N/mm) against strain, coloured by L (paper Fig. 1b)."""
+    """Stress σ (N/mm) against strain, coloured by L (paper Fig. 1b), with the lines
+    that define the jamming metrics: the secant whose slope is Y_sec and the
+    softened-regime fit whose intercept is σ0."""
     return _curve_panels(red, notes, ("x", "y"), "fig1b", lambda c: c.stress,
-                         r"stress $\sigma$ (N/mm)", "Stress–strain curves", False)  # fmt: skip
+                         r"stress $\sigma$ (N/mm)", "Stress–strain curves", False,
+                         overlay=_metric_lines(red))  # fmt: skip
 
 
 def fig1b_stress_strain_small(red: Reduction, notes: list[str]) -> Any:
     """Stress–strain curves at small strain, ε ≤ SMALL_STRAIN, where a jammed fabric shows its
-    high tangent modulus (paper Fig. 1b, pink line); dots are the sweep's steps."""
+    high tangent modulus (paper Fig. 1b, pink line); dots are the sweep's steps; the
+    secant of Y_sec and the σ0 fit as in :func:`fig1b_stress_strain`."""
     return _curve_panels(red, notes, ("x", "y"), "fig1b", lambda c: c.stress,
                          r"stress $\sigma$ (N/mm)", r"Stress–strain curves at small strain",
-                         False, upto=SMALL_STRAIN)  # fmt: skip
+                         False, upto=SMALL_STRAIN, overlay=_metric_lines(red))  # fmt: skip
 
 
 def fig5b_area_strain_y(red: Reduction, notes: list[str], upto: float | None = None) -> Any:

@@ -239,8 +239,9 @@ def L_colourbar(fig: Any, axes: Any, cmap: Any, norm: Any) -> None:
                  "yarn length per stitch $L$ (mm)")  # fmt: skip
 
 
-def jammed_legend(fig: Any, directions: Sequence[str]) -> None:
-    """Figure legend for the line styles: jammed (solid) and unjammed (dashed)."""
+def jammed_legend(fig: Any, directions: Sequence[str], extra: Sequence[Any] = ()) -> None:
+    """Figure legend for the line styles: jammed (solid) and unjammed (dashed), and
+    ``extra`` handles (e.g. the metric lines of Fig. 1b)."""
     from matplotlib.lines import Line2D
 
     gaps = ", ".join(
@@ -249,6 +250,7 @@ def jammed_legend(fig: Any, directions: Sequence[str]) -> None:
     handles = [
         Line2D([], [], color="0.3", ls="-", label=f"jammed (gap ≥ threshold: {gaps})"),
         Line2D([], [], color="0.3", ls="--", label="unjammed"),
+        *extra,
     ]
     fig.legend(handles=handles, loc="outside lower center", ncols=legend_columns(2),
                frameon=False)  # fmt: skip
