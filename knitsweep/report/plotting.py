@@ -188,12 +188,17 @@ def title(fig: Any, red: Reduction, text: str) -> None:
     options = current_options()
     fixed = series_label(red.constants, red.constants)
     lines = [text] + ([fixed] if fixed else []) if options.title else []
-    if options.width != "auto":  # ~13 characters of 8 pt type per inch
-        lines = [w for line in lines for w in textwrap.wrap(line, int(13 * WIDTHS[options.width]))]
     if red.partial:
         lines.insert(0, f"PARTIAL RESULTS ({red.partial_reason})")
+    # a character of the title's type is ~0.55 of its size wide: wrap to the figure
+    import matplotlib
+    from matplotlib.font_manager import FontProperties
+
+    size = FontProperties(size=matplotlib.rcParams["figure.titlesize"]).get_size_in_points()
+    chars = max(20, int(fig.get_figwidth() * 72.0 / (0.55 * size * 1.2)))
+    lines = [w for line in lines for w in textwrap.wrap(line, chars)]
     if lines:
-        fig.suptitle("\n".join(lines), fontsize="large",
+        fig.suptitle("\n".join(lines), fontsize=size * 1.2,
                      color=PARTIAL_COLOUR if red.partial else "black")  # fmt: skip
 
 

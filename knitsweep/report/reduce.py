@@ -127,7 +127,8 @@ class Reduction:
         """One line: job, run status and counts (with 'PARTIAL' and why, if so)."""
         n_sw = sum(1 for p in self.problems if p["kind"] == "sweep")
         text = (
-            f"{self.path.name}: job {self.job_name}, run_status {self.run_status}; "
+            f"{' + '.join(p.name for p in self.paths or (self.path,))}: job {self.job_name}, "
+            f"run_status {self.run_status}; "
             f"{len(self.points)} points, {len(self.sweeps)} sweeps analysed"
             f"{f', {len(self.problems)} tasks not analysed ({n_sw} sweeps)' if self.problems else ''}"
             f"; gap threshold {self.threshold:g} mJ"
