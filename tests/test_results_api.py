@@ -87,6 +87,26 @@ def test_every_dataset_of_a_run_is_self_describing(tiny_reference):
                 assert ("step" if kind == SWEEPS else "start") in opened.dims
 
 
+def test_checkpoints_keep_the_dimension_scales(tiny_reference, tmp_path):
+    """A result written at one checkpoint is written again into the next shadow copy:
+    its dimensions must still resolve in the published file after both."""
+    import xarray as xr
+
+    job = load_job(TINY)
+    out = tmp_path / "two.h5"
+    writer = ResultWriter(out, job, {"n_points": 2, "n_sweeps": 4})
+    with h5py.File(tiny_reference) as f:
+        sids = list(f["sweeps"])[:3]
+    for sid in sids:
+        entry = read_entry(tiny_reference, SWEEPS, sid)
+        writer.add(SWEEPS, sid, entry.record, entry.meta)
+        writer.checkpoint()
+    writer.close("partial")
+    for sid in sids:
+        ds = xr.open_dataset(out, engine="h5netcdf", group=f"sweeps/{sid}")
+        assert ds["stress"].dims == ("step",) and ds.sizes["step"] > 2
+
+
 def test_several_files_combine_and_old_schema_reads(tmp_path):
     """Two files of different jobs (k = 0.1 and k = 1.0; results schema 1)."""
     a = write_results(tmp_path / "a.h5", ks=(0.1,), not_knittable_L=None)

@@ -214,15 +214,6 @@ def _put(f, entry: Entry) -> None:
     _write_group(f.create_group(group_path), entry.record, entry.meta)
 
 
-def _copy_group(src, dst, kind: str, task_id: str) -> None:
-    """Copy one task's group from an open file to another (HDF5 copies the stored,
-    compressed chunks as they are)."""
-    group_path = f"{kind}/{task_id}"
-    if group_path in dst:
-        del dst[group_path]
-    src.copy(src[group_path], dst.require_group(kind), name=task_id)
-
-
 def _unused(path: Path) -> bool:
     """Whether no HDF5 reader holds ``path`` open (HDF5 readers hold a shared
     flock for as long as the file is open)."""
@@ -251,7 +242,7 @@ class ResultWriter:
         self.journal = journal_dir(self.path)
         self._shadow, self._spare = _hidden(self.path, "shadow"), _hidden(self.path, "spare")
         self._pending: dict[tuple[str, str], Entry] = {}  # journalled, not yet in the file
-        self._lag: list[tuple[str, str]] = []  # groups in the file, not yet in the shadow
+        self._lag: list[Entry] = []  # in the file, not yet in the shadow
         self._lag_attrs: dict[str, Any] = {}
         self._shadow_ready = False
         self.malformed: list[tuple[Path, str]] = []
@@ -399,7 +390,7 @@ class ResultWriter:
             with contextlib.suppress(OSError):
                 os.replace(spare, self._shadow)
                 self._shadow_ready = True
-                self._lag = [(e.kind, e.task_id) for e in entries]
+                self._lag = entries
                 self._lag_attrs = dict(attrs or {})
         return len(entries)
 
@@ -430,10 +421,11 @@ class ResultWriter:
             self._lag, self._lag_attrs = [], {}
         self._shadow_ready = False  # until it is published whole
         with _h5().File(self._shadow, "a") as f:
-            if self._lag:  # last checkpoint's groups, copied as stored (no recompression)
-                with _h5().File(self.path, "r") as published:
-                    for kind, task_id in self._lag:
-                        _copy_group(published, f, kind, task_id)
+            # last checkpoint's results, written again: a group copied from the other
+            # file (H5Ocopy) would keep references into that file, and its dimension
+            # scales would point at nothing
+            for e in self._lag:
+                _put(f, e)
             for e in entries:
                 _put(f, e)
             for k, v in {**self._lag_attrs, **(attrs or {})}.items():
