@@ -173,18 +173,33 @@ class Fidelity(BaseModel):
 
 
 class SolverSettings(BaseModel):
-    """Constrained minimiser settings (SciPy SLSQP with exact Jacobians, docs/model.md §7)."""
+    """Constrained minimiser settings (exact Jacobians, docs/model.md §7)."""
 
     model_config = _CONFIG
 
+    method: Literal["newton", "slsqp"] = Field(
+        "newton",
+        description="'newton': Newton–KKT trust region on a finite-difference Hessian of the "
+        "exact gradients, carried along a chain (SLSQP finishes what it cannot); 'slsqp': "
+        "SciPy's SLSQP, the authors' minimiser",
+    )
     ftol: float = Field(
         1e-10,
         gt=0.0,
         le=1e-2,
-        description="SLSQP precision goal on the energy (mJ); the authors' effective value "
-        "was SciPy's default 1e-6, the paper quotes 1e-5",
+        description="precision goal on the energy (mJ): SLSQP's ftol, or the Newton decrement "
+        "(the energy still to gain); the authors' effective value was SciPy's default 1e-6, "
+        "the paper quotes 1e-5",
     )
-    maxiter: int = Field(2000, ge=1, le=1_000_000, description="SLSQP iteration limit")
+    maxiter: int = Field(2000, ge=1, le=1_000_000, description="iteration limit of a minimiser")
+    substep_mm: float = Field(
+        0.01,
+        gt=0.0,
+        le=5.0,
+        description="Newton: a strain step that moves the fixed period by more than this (mm) "
+        "is walked in equal sub-steps of at most this, so that the chain follows its branch "
+        "instead of jumping to wherever one Newton solve lands",
+    )
     length_tol_mm: Positive = Field(
         1e-6, description="largest |length - L| (mm) that counts as meeting the constraint"
     )
@@ -203,6 +218,14 @@ class SolverSettings(BaseModel):
 Direction = Literal["x", "y"]
 
 
+Observable = Literal["curve", "secant_modulus", "offset_stress", "energy_gaps"]
+OBSERVABLES: tuple[str, ...] = ("curve", "secant_modulus", "offset_stress", "energy_gaps")
+"""What a sweep can be asked to determine (docs/model.md §8-9): the whole stress-strain
+curve; Y_sec (needs the curve past 2 % strain); sigma0 (the longest softened regime over
+the sweep: needs the whole curve); the energy gaps (both energy components back above
+their zero-force values, so that their minima along the sweep are known)."""
+
+
 class SweepProtocol(BaseModel):
     """The strain schedule; defaults are the authors' (docs/model.md §8)."""
 
@@ -210,7 +233,7 @@ class SweepProtocol(BaseModel):
 
     step_mm: float = Field(0.001, gt=0.0, le=1.0, description="small step h of the period (mm)")
     switch_strain: float = Field(
-        0.05, ge=0.0, description="|strain| from which the large step applies"
+        0.05, ge=0.0, description="|strain| from which the large step applies (fixed steps)"
     )
     large_step_x_mm: float = Field(0.1, gt=0.0, le=5.0, description="large step for x pulls (mm)")
     large_step_y_mm: float = Field(0.05, gt=0.0, le=5.0, description="large step for y pulls (mm)")
@@ -220,6 +243,51 @@ class SweepProtocol(BaseModel):
     mode: Literal["tension", "compression"] = Field(
         "tension", description="pull the cell apart (tension) or push it together"
     )
+    observables: tuple[Observable, ...] = Field(
+        ("curve",),
+        description="what the sweep must determine; it stops as soon as all are: 'curve' (to "
+        "the stop stress or strain), 'secant_modulus' (Y_sec: past 2 % strain), "
+        "'offset_stress' (sigma0: the whole curve, so the same as 'curve'), 'energy_gaps' "
+        "(both energies back above their zero-force values)",
+    )
+    step_control: Literal["fixed", "adaptive"] = Field(
+        "fixed",
+        description="'fixed': h up to switch_strain, then the large step (the authors'); "
+        "'adaptive': from h, each step chosen so that linear interpolation between steps "
+        "errs by at most the tolerances below in the envelope stress and in each energy",
+    )
+    stress_tolerance_N_per_mm: float = Field(
+        2e-5,
+        gt=0.0,
+        description="adaptive steps: absolute interpolation error of the stress (N/mm)",
+    )
+    stress_rtol: float = Field(
+        2e-3,
+        ge=0.0,
+        le=1.0,
+        description="adaptive steps: relative interpolation error of the stress",
+    )
+    energy_tolerance_mJ: float = Field(
+        2e-7, gt=0.0, description="adaptive steps: interpolation error of E_b and E_c (mJ)"
+    )
+    max_step_mm: float = Field(0.1, gt=0.0, le=5.0, description="adaptive steps: largest step (mm)")
+    merge_tolerance_mJ: float = Field(
+        1e-9,
+        ge=0.0,
+        description="chains whose energies differ by at most this (mJ) and whose states differ "
+        "only along soft modes (energy cost 1/2 dx.H.dx at most this) merge; 0: never",
+    )
+
+    @field_validator("observables")
+    @classmethod
+    def _canonical_observables(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        """Sorted and unique; 'curve' when the whole curve is needed anyway, so that two
+        requests that compute the same sweep are the same protocol (and task id)."""
+        if not v:
+            raise ValueError(f"give at least one of {', '.join(OBSERVABLES)}")
+        if "curve" in v or "offset_stress" in v:
+            return ("curve",)
+        return tuple(sorted(set(v)))
 
     def large_step(self, direction: Direction) -> float:
         return self.large_step_x_mm if direction == "x" else self.large_step_y_mm
@@ -250,7 +318,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     },
     "paper": {
         "fidelity": {"samples_per_segment": 10, "quadrature_nodes": 32},
-        "solver": {"ftol": 1e-6},
+        "solver": {"method": "slsqp", "ftol": 1e-6},
         "protocol": {"step_mm": 0.001},
     },
     "converged": {
