@@ -307,6 +307,13 @@ class StartSettings(BaseModel):
     perturbation: float = Field(
         0.02, ge=0.0, le=0.5, description="relative std of the shape perturbations"
     )
+    merge_tolerance_mJ: float = Field(
+        1e-9,
+        ge=0.0,
+        description="starts walking the same continuation stages merge after a stage where "
+        "their energies differ by at most this (mJ) and their states only along soft modes "
+        "(energy cost 1/2 dx.H.dx at most this); 0: never",
+    )
 
 
 # ---- presets ----------------------------------------------------------------------

@@ -9,10 +9,26 @@ called converged.
 """
 
 from ..config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE
-from .continuation import continuation_path, relax_with_continuation
+from .chains import Chain, merge_chains
+from .continuation import continuation_path, relax_with_continuation, walk_starts
+from .kkt import compile_solver
 from .newton import Curvature
-from .relaxer import Relaxer, free_entries, relax
+from .relaxer import Relaxer, free_entries, relax, single_threaded
 from .result import Relaxation
 
-__all__ = ["CONVERGED", "NOT_CONVERGED", "NOT_KNITTABLE", "Curvature", "Relaxation", "Relaxer",
-           "continuation_path", "free_entries", "relax", "relax_with_continuation"]  # fmt: skip
+__all__ = [
+           "CONVERGED",
+           "NOT_CONVERGED",
+           "NOT_KNITTABLE",
+           "Chain",
+           "Curvature",
+           "Relaxation",
+           "Relaxer",
+           "continuation_path",
+           "free_entries",
+           "merge_chains",
+           "relax",
+           "relax_with_continuation",
+           "single_threaded",
+           "walk_starts",
+]  # fmt: skip

@@ -40,14 +40,13 @@ at most ``ftol``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg.lapack import dpotrf, dpotrs, dtrtrs
 
 from ..config import SolverSettings
 from ..state import N_STATE
+from .kkt import kkt_step, sr1_update
 from .problem import Point, Problem
 
 FD_STEP = 1e-7
@@ -63,6 +62,12 @@ REMEASURE_AFTER = 20
 """Iterations after which a relaxation measures the Hessian again (once)."""
 FIRST_RADIUS = 1.0
 """Trust radius (state units) of a chain's first relaxation."""
+MAX_RADIUS, MIN_RADIUS = 10.0, 1e-10
+"""The trust radius stays within these (state units); below the least, no step can
+lower the energy measurably (a kink of the energy, e.g. a contact crossing the
+exclusion boundary): the iteration gives up and SLSQP finishes."""
+SNAP = 1e-10
+"""A start within this relative distance of a bound is put on it (and the bound held)."""
 MAX_PROBES = 2
 """Curvature probes along a negative mode at one point before trusting it."""
 MIN_START_RADIUS = 0.01
@@ -106,14 +111,10 @@ class Curvature:
         positive (third-order effects along a soft mode, not a saddle: taken for
         curvature they would send the next step along a mode that is not negative).
         ``lam=None``: a probe of the curvature, always taken."""
-        ns = float(np.linalg.norm(s))
         if lam is not None and not float(s @ (y_e - lam * y_l)) > 0.0:
             return
-        for h, y in ((self.energy, y_e), (self.length, y_l)):
-            v = y - h @ s
-            d = float(v @ s)
-            if abs(d) > 1e-8 * float(np.linalg.norm(v)) * ns:
-                h += np.outer(v, v) / d
+        sr1_update(self.energy, s, y_e, 1e-8)
+        sr1_update(self.length, s, y_l, 1e-8)
 
 
 def measure_curvature(prob: Problem, pt: Point, radius: float = FIRST_RADIUS) -> Curvature:
@@ -147,92 +148,23 @@ class _Step:
     kappa: np.ndarray  # ∂L/∂z (n,) after the step: the multipliers of the held bounds
 
 
-def _null_space(a: np.ndarray) -> np.ndarray:
-    """An orthonormal basis (m, m-1) of the vectors orthogonal to a (m,): the last m-1
-    columns of the Householder reflection that maps a onto the first axis."""
-    v = a.copy()
-    v[0] += math.copysign(float(np.linalg.norm(v)), v[0] if v[0] != 0.0 else 1.0)
-    z = np.outer(v, v[1:]) * (-2.0 / float(v @ v))
-    z[1:] += np.eye(a.size - 1)
-    return z
-
-
-def _tangential(hz: np.ndarray, rz: np.ndarray,
-                radius: float) -> tuple[np.ndarray, float, np.ndarray | None]:  # fmt: skip
-    """u = argmin rzᵀu + ½ uᵀ hz u over ‖u‖ <= radius, the Newton decrement
-    ½ rzᵀ hz⁻¹ rz (flat modes floored) and, if hz has a negative mode, its direction.
-
-    hz positive definite: Cholesky, and if the Newton step is too long, Moré–Sorensen
-    iterations on the shift ν of hz + νI. Otherwise the eigenvalues decide."""
-    c, info = dpotrf(hz, lower=0, clean=0)
-    if info == 0:
-        u = -dpotrs(c, rz)[0]
-        decrement = -0.5 * float(rz @ u)
-        norm = float(np.linalg.norm(u))
-        if norm <= radius:
-            return u, decrement, None
-        nu, eye = 0.0, np.eye(rz.size)
-        for _ in range(20):
-            q = dtrtrs(c, u, trans=1)[0]  # Rᵀq = u
-            nu += (norm / float(np.linalg.norm(q))) ** 2 * (norm - radius) / radius
-            c, info = dpotrf(hz + nu * eye, lower=0, clean=0)
-            if info != 0:
-                break
-            u = -dpotrs(c, rz)[0]
-            norm = float(np.linalg.norm(u))
-            if norm <= 1.01 * radius:
-                return u * min(1.0, radius / norm), decrement, None
-    w, v = np.linalg.eigh(hz)
-    b = v.T @ rz
-    flat = FLAT_MODE * max(float(np.max(np.abs(w))), 1e-300)
-    decrement = 0.5 * float(np.sum(b * b / np.maximum(w, flat)))
-    lo = max(0.0, -float(w[0])) + flat
-    y = -b / (w + lo)
-    norm = float(np.linalg.norm(y))
-    if norm <= radius:
-        # the hard case: even the least shift stays inside; reach the boundary along
-        # the lowest mode, downhill
-        y[0] += math.sqrt(max(radius * radius - norm * norm, 0.0)) * (1.0 if b[0] <= 0 else -1.0)
-    else:
-        nu = lo
-        for _ in range(40):  # Newton on 1/‖y(ν)‖ − 1/Δ, monotone from the left
-            d = w + nu
-            y = -b / d
-            norm = float(np.linalg.norm(y))
-            if norm <= 1.01 * radius:
-                break
-            nu += (norm / radius - 1.0) * norm * norm / float(np.sum(b * b / d**3))
-    return v @ y, decrement, (v[:, 0] if w[0] < -flat else None)
-
-
 def _kkt_step(b_full: np.ndarray, pt: Point, free: np.ndarray, active: np.ndarray,
               radius: float) -> _Step:  # fmt: skip
     """The trust-region SQP step at ``pt`` with the bounds in ``active`` held;
-    ``b_full`` (30, 30) is the Lagrangian's Hessian, ``free`` the free entries."""
-    f = ~active
-    cols = free[f]
-    g, a = pt.g[f], pt.a[f]
-    bf = b_full[np.ix_(cols, cols)]
-    aa = float(a @ a)
-    pn = (-pt.c / aa) * a  # the least-norm step onto the linearised constraint
-    nn = float(np.linalg.norm(pn))
-    if nn > NORMAL_SHARE * radius:
-        pn *= NORMAL_SHARE * radius / nn
-        nn = NORMAL_SHARE * radius
-    zb = _null_space(a)
-    u, decrement, mode = _tangential(
-        zb.T @ bf @ zb, zb.T @ (g + bf @ pn), math.sqrt(max(radius * radius - nn * nn, 0.0))
-    )
-    pf = pn + zb @ u
-    p = np.zeros(pt.g.size)
-    p[f] = pf
-    lam = float(a @ (g + bf @ pf)) / aa
-    kappa = pt.g + b_full[np.ix_(free, cols)] @ pf - lam * pt.a
-    negative = None
-    if mode is not None:
-        negative = np.zeros(pt.g.size)
-        negative[f] = zb @ mode
-    return _Step(p, lam, decrement, negative, kappa)
+    ``b_full`` (30, 30) is the Lagrangian's Hessian, ``free`` the free entries
+    (compiled: ``kkt.kkt_step``)."""
+    n = free.size
+    p, kappa, negative = np.empty(n), np.empty(n), np.empty(n)
+    lam, decrement, has_negative = kkt_step(b_full, free, active, pt.g, pt.a, pt.c, radius,
+                                            NORMAL_SHARE, FLAT_MODE, p, kappa, negative)  # fmt: skip
+    return _Step(p, lam, decrement, negative if has_negative else None, kappa)
+
+
+def _snap(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """z with entries within ``SNAP`` (relative) of a finite bound moved onto it."""
+    near_lo = np.isfinite(lo) & (z - lo <= SNAP * (1.0 + np.abs(lo)))
+    near_hi = np.isfinite(hi) & (hi - z <= SNAP * (1.0 + np.abs(hi)))
+    return np.where(near_lo, lo, np.where(near_hi, hi, z))
 
 
 def _predicted_start(curv: Curvature, prob: Problem, z0: np.ndarray, lo: np.ndarray,
@@ -273,7 +205,7 @@ def newton_minimise(
     usable = curvature is not None and bool(np.all(curvature.known[free]))
     if usable:
         z0 = _predicted_start(curvature, prob, z0, lo, hi)
-    pt = prob.evaluate(z0)
+    pt = prob.evaluate(_snap(z0, lo, hi))
     if not pt.finite:
         return pt.z, False, "non-finite energy at the start", 0, curvature
     if usable and curvature.anchor is not None:  # the secant from the last solution
@@ -354,17 +286,17 @@ def newton_minimise(
         if trial.finite and (ared >= 1e-4 * pred or (pred <= noise and ared >= -noise)):
             curvature.update(s_full, trial.ge - pt.ge, trial.gl - pt.gl, lam)
             pt, probes = trial, 0
-            if alpha < 1.0:
-                active = active | hit
             ratio = ared / pred if pred > 0 else 1.0
-            if ratio > 0.75 and norm >= 0.99 * radius * alpha:
-                radius = min(2.0 * radius, 10.0)
+            if alpha < 1.0:  # cut short by a bound, which the model did not know of
+                active = active | hit
+            elif ratio > 0.75 and norm >= 0.99 * radius:
+                radius = min(2.0 * radius, MAX_RADIUS)
             elif ratio < 0.25:
-                radius = max(0.25 * norm, 1e-14)
+                radius = 0.25 * norm
         else:
-            radius = 0.25 * (norm if norm > 0 else radius)
-            if radius < 1e-13:
-                return pt.z, False, "Newton: trust region collapsed", it, curvature
+            radius = 0.25 * (norm if alpha == 1.0 else radius)
+        if radius < MIN_RADIUS:
+            return pt.z, False, "Newton: trust region collapsed", it, curvature
         if it >= REMEASURE_AFTER and not measured:
             curvature = measure_curvature(prob, pt, radius)
             measured = True

@@ -9,6 +9,7 @@ plus the twist bound cos(tw) >= c_tw written as a bound on tw itself.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -34,11 +35,9 @@ class Point:
 
     @property
     def finite(self) -> bool:
-        return (
-            math.isfinite(self.energy)
-            and math.isfinite(self.c)
-            and bool(np.all(np.isfinite(self.g)) and np.all(np.isfinite(self.a)))
-        )
+        # a sum of squares is finite only if every entry is (or overflows, far beyond
+        # any physical gradient)
+        return math.isfinite(self.energy + self.c + float(self.ge @ self.ge + self.gl @ self.gl))
 
 
 class Problem:
@@ -102,16 +101,18 @@ class Problem:
         return g[self.free]
 
     def bounds(self, x0: np.ndarray) -> list[tuple[float | None, float | None]]:
-        """``state_bounds`` of the free entries, each widened to contain the start."""
-        all_bounds = state_bounds(self.model.ip.L, self.model.ip.r)
-        return [_widen(all_bounds[i], x0[i]) for i in self.free]
+        """``state_bounds`` of the free entries, each widened to contain the start (SciPy's
+        format: None where unbounded)."""
+        lo, hi = _widened(self.model.ip.L, self.model.ip.r, x0, self.free)
+        return [(None if math.isinf(a) else float(a), None if math.isinf(b) else float(b))
+                for a, b in zip(lo, hi, strict=True)]  # fmt: skip
 
     def box(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds (n,) of the free entries as arrays (±inf where free),
         the twist bound included as |tw - 2 pi k| <= arccos(c_tw) around the start's
-        branch k (equivalent to cos(tw) >= c_tw there)."""
-        lo = np.array([-np.inf if b[0] is None else b[0] for b in self.bounds(x0)])
-        hi = np.array([np.inf if b[1] is None else b[1] for b in self.bounds(x0)])
+        branch k (equivalent to cos(tw) >= c_tw there; not widened: a start beyond it
+        is to be moved onto it)."""
+        lo, hi = _widened(self.model.ip.L, self.model.ip.r, x0, self.free)
         if self.bound > -1.0:
             i = int(np.flatnonzero(self.free == IDX_TW)[0])
             tw = float(x0[IDX_TW])
@@ -121,9 +122,18 @@ class Problem:
         return lo, hi
 
 
-def _widen(bound, value):
-    """A bound never excludes the starting value itself."""
-    lo, hi = bound
-    lo = None if lo is None else min(lo, value)
-    hi = None if hi is None else max(hi, value)
+@functools.lru_cache(maxsize=64)
+def _state_box(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """``state_bounds(L, r)`` as arrays (30,) with ±inf where unbounded, made once."""
+    b = state_bounds(L, r)
+    lo = np.array([-np.inf if v[0] is None else v[0] for v in b])
+    hi = np.array([np.inf if v[1] is None else v[1] for v in b])
+    lo.setflags(write=False)
+    hi.setflags(write=False)
     return lo, hi
+
+
+def _widened(L: float, r: float, x0: np.ndarray, free: np.ndarray):
+    """The free entries' bounds, widened so that they never exclude the start x0."""
+    lo, hi = _state_box(L, r)
+    return np.minimum(lo[free], x0[free]), np.maximum(hi[free], x0[free])

@@ -14,6 +14,7 @@ what the process did before.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 
@@ -29,6 +30,26 @@ from .result import Relaxation, assess
 from .slsqp import slsqp_minimise
 
 _BLAS: list[ThreadpoolController] = []  # made on first use: inspecting the libraries costs ~1 ms
+SUBSTEP_FTOL = 1e-8
+"""Energy tolerance (mJ) of the unrecorded sub-steps of a large strain step."""
+_DEPTH = [0]  # how many single_threaded() blocks are open in this process
+
+
+@contextlib.contextmanager
+def single_threaded():
+    """BLAS/LAPACK on one thread for the block (re-entrant: a nested block costs nothing,
+    so that a sweep can hold it around its thousands of relaxations)."""
+    if _DEPTH[0]:
+        yield
+        return
+    if not _BLAS:
+        _BLAS.append(ThreadpoolController())
+    with _BLAS[0].limit(limits=1):
+        _DEPTH[0] += 1
+        try:
+            yield
+        finally:
+            _DEPTH[0] -= 1
 
 
 def free_entries(fixed: Direction | None) -> np.ndarray:
@@ -65,9 +86,7 @@ class Relaxer:
         if model is not self._model:
             self._model, self._neighbours = model, model.neighbour_list(x0)
         prob = Problem(model, x0, free, self._neighbours)
-        if not _BLAS:
-            _BLAS.append(ThreadpoolController())
-        with _BLAS[0].limit(limits=1):
+        with single_threaded():
             try:
                 z, success, message, nit = self._minimise(prob, x0, settings)
                 x = prob.full(z)
@@ -95,7 +114,7 @@ class Relaxer:
         n = math.ceil(abs(change) / settings.substep_mm - 1e-9)
         if n <= 1 or not np.array_equal(anchor.x[free], x0[free]):
             return None
-        loose = settings.model_copy(update={"ftol": max(settings.ftol, 1e-8)})
+        loose = settings.model_copy(update={"ftol": max(settings.ftol, SUBSTEP_FTOL)})
         x, iterations, evaluations = anchor.x.copy(), 0, 0
         for k in range(1, n):
             x[i] = anchor.x[i] + change * k / n

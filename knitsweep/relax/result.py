@@ -100,7 +100,7 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
         g[IDX_TW] = -math.sin(x[IDX_TW])
         cols.append(g[free])
     a = np.column_stack(cols)
-    coef, *_ = np.linalg.lstsq(a, ge[free], rcond=None)
+    coef = np.linalg.solve(a.T @ a, a.T @ ge[free])  # the normal equations: 1 or 2 columns
     kkt = float(np.max(np.abs(ge[free] - a @ coef)))
     lam = float(coef[0])
     forces = (float(ge[IDX_AX] - lam * gl[IDX_AX]), float(ge[IDX_AY] - lam * gl[IDX_AY]))

@@ -59,8 +59,10 @@ def wall_time_budget(seconds: float):
 def prepare(job: JobSpec) -> None:
     """Compile (or load from numba's cache) the kernels this job's tasks use."""
     from ..model import compile_kernels
+    from ..relax import compile_solver
 
     compile_kernels(job.fidelity)
+    compile_solver()
 
 
 def execute(job: JobSpec, task: PointTask | SweepTask, zero: dict | None, rank: int) -> Reply:

@@ -28,10 +28,9 @@ from ..config import (
     SweepProtocol,
 )
 from ..model import CellModel
-from ..relax import Relaxation
+from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
 from ..state import IDX_AX, IDX_AY
 from ..zero_force import ZeroForce, pick_lowest, zero_force
-from .chains import merge_chains, start_chains
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
 
@@ -49,9 +48,12 @@ def strain_sweep(
 
     ``progress(step, strain, stress)`` is called after every step.
     """
-    protocol = protocol or SweepProtocol()
-    fidelity = fidelity or Fidelity()
-    solver = solver or SolverSettings()
+    with single_threaded():
+        return _sweep(params, zero, direction, protocol or SweepProtocol(),
+                      fidelity or Fidelity(), solver or SolverSettings(), progress)  # fmt: skip
+
+
+def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> SweepResult:
     t_start = time.perf_counter()
     model = CellModel(params, fidelity)
     idx, other = (IDX_AX, IDX_AY) if direction == "x" else (IDX_AY, IDX_AX)
@@ -59,9 +61,10 @@ def strain_sweep(
     a0, a_perp0 = float(best.x[idx]), float(best.x[other])
     sign = 1.0 if protocol.mode == "tension" else -1.0
     n_starts = len(zero.relaxations)
-    merged_into = np.full(n_starts, -1, dtype=np.int64)
-    merged_at = np.full(n_starts, -1, dtype=np.int64)
-    chains = start_chains(zero.relaxations, zero.winner, solver)
+    # starts that merged on their way to the zero-force state count as merged there
+    merged_into = np.array(zero.merged_into or [-1] * n_starts, dtype=np.int64)
+    merged_at = np.where(merged_into >= 0, 0, -1).astype(np.int64)
+    chains = _start_chains(zero, merged_into, solver)
     carried = np.zeros(n_starts, dtype=bool)
     carried[[c.start for c in chains]] = True
     chains = merge_chains(chains, model, None, protocol.merge_tolerance_mJ, 0, merged_into,
@@ -126,6 +129,17 @@ def strain_sweep(
     return _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
                      stopped_by, n_relax, n_eval, (carried, merged_into, merged_at),
                      time.perf_counter() - t_start)  # fmt: skip
+
+
+def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettings) -> list[Chain]:
+    """A chain for every start whose own zero-force state converged (the winner alone
+    if none did)."""
+    chains = [Chain(i, r.x.copy(), Relaxer(solver), r) for i, r in enumerate(zero.relaxations)
+              if r.status == CONVERGED and merged_into[i] < 0 and np.all(np.isfinite(r.x))]  # fmt: skip
+    if not chains:
+        best = zero.best
+        chains = [Chain(zero.winner, best.x.copy(), Relaxer(solver), best)]
+    return chains
 
 
 def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,

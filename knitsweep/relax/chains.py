@@ -1,16 +1,17 @@
-"""The chains of a sweep and their merging (docs/model.md §8).
+"""Chains of relaxations from several starts, and their merging (docs/model.md §7-8).
 
-Every start that reached a converged zero-force state is pulled as its own chain, and
-the lowest energy wins each step (the authors' "4 Init files, keep the lowest"). Often
-several starts end in the same minimum: their states then differ only along soft
-modes, and pulling both again at every step repeats the same work. Two chains merge
-when, at the same step, both converged, their energies differ by at most the
+A point is relaxed from several starts, each walked through the same continuation
+stages, and each converged start is then pulled as its own chain of strain steps; the
+lowest energy wins (the authors' "4 Init files, keep the lowest"). Often several
+starts end in the same minimum: their states then differ only along soft modes, and
+relaxing both again at every stage or step repeats the same work. Two chains merge
+when, at the same stage or step, both converged, their energies differ by at most the
 tolerance, and moving from one state to the other costs at most the tolerance in the
 quadratic model of the lower one, ½ δᵀ B δ with δ the state difference projected onto
 the tangent of the length constraint and B the Lagrangian's Hessian: a difference
 along a soft mode (curvature ~1e-4 mJ/mm²) of 1e-3 mm costs 5·10⁻¹¹ mJ, one along a
-stiff mode (~1e2 mJ/mm²) of the same size 5·10⁻⁵ mJ. The chain with the higher energy (the later start on a
-tie) stops; the record says which start it joined and at which step.
+stiff mode (~1e2 mJ/mm²) of the same size 5·10⁻⁵ mJ. The chain with the higher energy
+(the later start on a tie) stops; the records say which start it joined and where.
 """
 
 from __future__ import annotations
@@ -20,16 +21,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import CONVERGED, SolverSettings
+from ..config import CONVERGED
 from ..model import CellModel
-from ..relax import Relaxation, Relaxer, free_entries
-from ..relax.newton import measure_curvature
-from ..relax.problem import Problem
+from .newton import measure_curvature
+from .problem import Problem
+from .relaxer import Relaxer, free_entries
+from .result import Relaxation
 
 
 @dataclass
 class Chain:
-    """One start pulled along the sweep: its index among the point's starts, its
+    """One start's relaxations in sequence: its index among the point's starts, its
     latest state (30,) and relaxation, and its solver (neighbour list, curvature)."""
 
     start: int
@@ -55,9 +57,10 @@ def soft_distance(model: CellModel, keep: Chain, other: Chain, fixed: str | None
 
 
 def merge_chains(chains: list[Chain], model: CellModel, fixed: str | None, tolerance: float,
-                 step: int, merged_into: np.ndarray, merged_at: np.ndarray) -> list[Chain]:  # fmt: skip
+                 where: int, merged_into: np.ndarray, merged_at: np.ndarray) -> list[Chain]:  # fmt: skip
     """The chains that go on after merging those at the same minimum (see the module
-    docstring); writes the merged starts into ``merged_into`` and ``merged_at``."""
+    docstring); for each merged one, writes the start it joined into ``merged_into`` and
+    ``where`` (the stage or step) into ``merged_at``."""
     if tolerance <= 0.0 or len(chains) < 2:
         return chains
 
@@ -71,19 +74,7 @@ def merge_chains(chains: list[Chain], model: CellModel, fixed: str | None, toler
             twin = next((k for k in kept if energy(c) - energy(k) <= tolerance
                          and soft_distance(model, k, c, fixed) <= tolerance), None)  # fmt: skip
             if twin is not None:
-                merged_into[c.start], merged_at[c.start] = twin.start, step
+                merged_into[c.start], merged_at[c.start] = twin.start, where
                 continue
         kept.append(c)
     return sorted(kept, key=lambda c: c.start)
-
-
-def start_chains(relaxations: tuple[Relaxation, ...], winner: int,
-                 solver: SolverSettings) -> list[Chain]:  # fmt: skip
-    """A chain for every start whose zero-force state converged (the winner alone if
-    none did)."""
-    chains = [Chain(i, r.x.copy(), Relaxer(solver), r) for i, r in enumerate(relaxations)
-              if r.status == CONVERGED and np.all(np.isfinite(r.x))]  # fmt: skip
-    if not chains:
-        best = relaxations[winner]
-        chains = [Chain(winner, best.x.copy(), Relaxer(solver), best)]
-    return chains
