@@ -3,12 +3,13 @@
 Steps. ``fixed`` is the authors' schedule: multiples of h from the first one beyond
 a_0, then the large step from ``switch_strain`` on. ``adaptive`` starts with h and
 chooses every next step from the last three: for the envelope stress (exact at every
-step, from the length multiplier) and each energy component, the second divided
-difference y'' estimates the error of interpolating linearly between steps, |y''| h²/8;
-the next h makes the largest of these errors, relative to its tolerance, about 0.8
-(at most doubling, at least halving; within [h, ``max_step_mm``]). So steps are small
-where the curve bends (the jammed rise, the minimum of an energy component that sets
-an energy gap) and large where it is straight.
+step, from the length multiplier) and, while it is below its zero-force value plus
+``GAP_MARGIN_MJ`` (its minimum, which sets its energy gap, may lie ahead), each energy
+component, the second divided difference y'' estimates the error of interpolating
+linearly between steps, |y''| h²/8; the next h makes the largest of these errors,
+relative to its tolerance, about 0.8 (at most doubling, at least halving; within
+[h, ``max_step_mm``]). So steps are small where the curve bends (the jammed rise, the
+dip of an energy component) and large where it is straight.
 
 Stopping. Besides the stop stress and strain (the reference's rule), a sweep stops as
 soon as everything its protocol's ``observables`` ask for is determined:
@@ -59,12 +60,11 @@ class StepControl:
                 self.h = p.large_step(self.direction)
             return a[-1] + self.sign * self.h
         if len(a) >= 3:
-            ratio = max(
-                _interpolation_error(a, stress) / (p.stress_tolerance_N_per_mm
-                                                   + p.stress_rtol * abs(stress[-1])),
-                _interpolation_error(a, eb) / p.energy_tolerance_mJ,
-                _interpolation_error(a, ec) / p.energy_tolerance_mJ,
-            )  # fmt: skip
+            tolerance = p.stress_tolerance_N_per_mm + p.stress_rtol * abs(stress[-1])
+            ratio = _interpolation_error(a, stress) / tolerance
+            for e in (eb, ec):  # an energy matters while its minimum may lie ahead
+                if e[-1] < e[0] + GAP_MARGIN_MJ:
+                    ratio = max(ratio, _interpolation_error(a, e) / p.energy_tolerance_mJ)
             factor = 2.0 if ratio <= 0.0 else min(2.0, max(0.5, math.sqrt(TARGET_ERROR / ratio)))
             self.h = min(max(self.h * factor, p.step_mm), p.max_step_mm)
         return a[-1] + self.sign * self.h
