@@ -91,10 +91,11 @@ def test_bad_job_via_cli_writes_nothing(tmp_path):
 
 def test_presets_and_overrides():
     job = JobSpec(schema_version=1, name="t", grid={"L_mm": 11.6}, preset="draft",
-                  fidelity={"quadrature_nodes": 16})  # fmt: skip
-    assert job.fidelity.samples_per_segment == 6  # from the preset
-    assert job.fidelity.quadrature_nodes == 16  # explicit override
-    assert job.solver.ftol == 1e-8 and job.protocol.step_mm == 0.005
+                  fidelity={"quadrature_nodes": 24}, protocol={"observables": ["curve"]})  # fmt: skip
+    assert job.fidelity.samples_per_segment == 10  # from the preset
+    assert job.fidelity.quadrature_nodes == 24  # explicit override
+    assert job.solver.ftol == 1e-6 and job.protocol.step_mm == 0.002
+    assert job.protocol.step_control == "adaptive" and job.protocol.observables == ("curve",)
 
 
 def test_task_ids_hash_parameters_not_names_or_order():

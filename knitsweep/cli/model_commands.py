@@ -115,7 +115,8 @@ def sweep(
     compression: Annotated[bool, typer.Option("--compression", help="push instead of pull")] = False,
     observables: Annotated[str | None, typer.Option(
         "--observables", help="what the sweep must determine, comma-separated: curve, "
-        "secant_modulus, offset_stress, energy_gaps; it stops once they are [curve]")] = None,
+        "secant_modulus, offset_stress, energy_gaps; it stops once they are [curve, with "
+        "any preset]")] = None,
     step_control: Annotated[str | None, typer.Option(
         "--step-control", help="fixed (the authors' steps) or adaptive [the preset's]")] = None,
     out: Annotated[Path | None, typer.Option("--out", help="write the table: .csv or .h5")] = None,
@@ -136,7 +137,8 @@ def sweep(
             preset, ftol=ftol, samples_per_segment=samples, quadrature_nodes=quadrature_nodes,
             images=images, step_mm=step, stop_stress_N_per_mm=stop_stress, max_strain=max_strain,
             mode="compression" if compression else None, step_control=step_control,
-            observables=None if observables is None else tuple(
+            # the whole curve unless asked otherwise, whatever the preset's default
+            observables=("curve",) if observables is None else tuple(
                 o.strip() for o in observables.split(",") if o.strip()),
         )  # fmt: skip
         protocol = n.protocol

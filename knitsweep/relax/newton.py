@@ -33,13 +33,17 @@ Newton step is taken before any evaluation (from the extrapolated KKT conditions
 the first evaluation lands within O(h²) of the new minimum.
 
 Converged when the length residual is below both 1e-3 of ``length_tol_mm`` and
-ftol/|λ|, no held bound wants to be released, the reduced Hessian has no negative mode,
-and the Newton decrement ½ rᵀ H_r⁻¹ r (the energy the model still expects to gain) is
-at most ``ftol``.
+ftol/|λ|, the reduced Hessian has no negative mode, the Newton decrement ½ rᵀ H_r⁻¹ r
+(the energy the model still expects to gain) is at most ``ftol``, and, at zero force
+(both periods free), so is what the largest component of ∇E − λ∇ℓ (over the entries not
+held at a bound) would gain along a mode of curvature 1e-3 mJ/mm²:
+|∇L|_max <= sqrt(2 · 1e-3 · ftol), which keeps the period forces there below 5e-7 N
+(a soft mode can hide a larger gradient from the decrement alone).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +58,8 @@ FD_STEP = 1e-7
 truncation error ~h·|∇³E| ~ 1e-7 mJ/mm² and the rounding ~1e-16·|∇E|/h ~ 1e-10 stay
 far below the softest modes (1e-4); central differences, at twice the cost, measured
 no fewer iterations."""
+SOFTEST = 1e-3
+"""The curvature (mJ/mm²) that scales the zero-force stationarity test."""
 FLAT_MODE = 1e-12
 """A reduced-Hessian eigenvalue below this fraction of the largest counts as flat."""
 NORMAL_SHARE = 0.8
@@ -68,8 +74,10 @@ lower the energy measurably (a kink of the energy, e.g. a contact crossing the
 exclusion boundary): the iteration gives up and SLSQP finishes."""
 SNAP = 1e-10
 """A start within this relative distance of a bound is put on it (and the bound held)."""
-MAX_PROBES = 2
-"""Curvature probes along a negative mode at one point before trusting it."""
+MAX_PROBES = 3
+"""Curvature probes along negative modes in one relaxation: a mode that an update made
+up is gone after one; after three, the negative curvature is real (a state past the
+fold of its branch) and the trust region steps down it, growing 4x per good step."""
 MIN_START_RADIUS = 0.01
 """A relaxation starts with at least this radius: one that collapsed on the last
 one's final, noise-level steps would cost a dozen doublings."""
@@ -103,18 +111,20 @@ class Curvature:
         """B = ∇²E − λ∇²ℓ, (30, 30)."""
         return self.energy - lam * self.length
 
-    def update(self, s: np.ndarray, y_e: np.ndarray, y_l: np.ndarray,
-               lam: float | None) -> None:  # fmt: skip
-        """Symmetric rank-one updates of ∇²E and ∇²ℓ from a step s (30,) of the full
-        state and the changes y_e, y_l (30,) of ∇E and ∇ℓ; skipped when ill-defined,
-        and, given λ, when the Lagrangian's secant curvature sᵀ(y_e − λ y_l) is not
-        positive (third-order effects along a soft mode, not a saddle: taken for
-        curvature they would send the next step along a mode that is not negative).
-        ``lam=None``: a probe of the curvature, always taken."""
-        if lam is not None and not float(s @ (y_e - lam * y_l)) > 0.0:
+    def update(self, s: np.ndarray, y_e: np.ndarray, y_l: np.ndarray, lam: float,
+               probe: bool = False) -> None:  # fmt: skip
+        """A symmetric rank-one update of the Lagrangian's Hessian B = ∇²E − λ∇²ℓ from a
+        step s (30,) of the full state and the changes y_e, y_l (30,) of ∇E and ∇ℓ, so
+        that B s = y_e − λ y_l afterwards (∇²ℓ is updated by its own secant first, ∇²E
+        then carries the rest). Skipped when ill-defined and, unless ``probe`` (a step
+        taken to measure the curvature), when the secant curvature sᵀ(y_e − λ y_l) is
+        not positive: near a minimum that is the third-order change along a soft mode,
+        and taken for curvature it would make up a negative mode the state does not have."""
+        y = y_e - lam * y_l
+        if not probe and not float(s @ y) > 0.0:
             return
-        sr1_update(self.energy, s, y_e, 1e-8)
         sr1_update(self.length, s, y_l, 1e-8)
+        sr1_update(self.energy, s, y + lam * (self.length @ s), 1e-8)
 
 
 def measure_curvature(prob: Problem, pt: Point, radius: float = FIRST_RADIUS) -> Curvature:
@@ -244,11 +254,19 @@ def newton_minimise(
             q = prob.evaluate(pt.z + FD_STEP * step.negative)
             s_full = np.zeros(N_STATE)
             s_full[free] = q.z - pt.z
-            curvature.update(s_full, q.ge - pt.ge, q.gl - pt.gl, None)
+            curvature.update(s_full, q.ge - pt.ge, q.gl - pt.gl, lam, probe=True)
             continue
         lam = step.lam
         c_tol = min(1e-3 * settings.length_tol_mm, settings.ftol / max(abs(lam), 1e-300))
-        if abs(pt.c) <= c_tol and step.decrement <= settings.ftol and step.negative is None:
+        # at zero force, the stationarity a soft mode hides from the decrement (there the
+        # period components of ∇L are the period forces, an output): ∇L along a mode of
+        # curvature SOFTEST leaves at most ftol to gain
+        g_tol = math.sqrt(2.0 * SOFTEST * settings.ftol)
+        stationary = prob.free.size < N_STATE or g_tol >= float(
+            np.max(np.abs(np.where(active, 0.0, pt.g - lam * pt.a)))
+        )
+        if (abs(pt.c) <= c_tol and step.decrement <= settings.ftol and step.negative is None
+                and stationary):  # fmt: skip
             curvature.radius = radius
             curvature.anchor = Anchor(prob.full(pt.z), pt.ge, pt.gl, pt.c, pt.energy)
             return (
@@ -285,12 +303,12 @@ def newton_minimise(
         norm = float(np.linalg.norm(s))
         if trial.finite and (ared >= 1e-4 * pred or (pred <= noise and ared >= -noise)):
             curvature.update(s_full, trial.ge - pt.ge, trial.gl - pt.gl, lam)
-            pt, probes = trial, 0
+            pt = trial
             ratio = ared / pred if pred > 0 else 1.0
             if alpha < 1.0:  # cut short by a bound, which the model did not know of
                 active = active | hit
             elif ratio > 0.75 and norm >= 0.99 * radius:
-                radius = min(2.0 * radius, MAX_RADIUS)
+                radius = min((2.0 if step.negative is None else 4.0) * radius, MAX_RADIUS)
             elif ratio < 0.25:
                 radius = 0.25 * norm
         else:

@@ -21,7 +21,7 @@ import time
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from ..config import CONVERGED, Direction, SolverSettings
+from ..config import Direction, SolverSettings
 from ..model import CellModel, NeighbourList
 from ..state import N_STATE, PERIOD_INDEX
 from .newton import Curvature, newton_minimise
@@ -118,11 +118,13 @@ class Relaxer:
         x, iterations, evaluations = anchor.x.copy(), 0, 0
         for k in range(1, n):
             x[i] = anchor.x[i] + change * k / n
-            r = self.relax(model, x, fixed, loose)
-            iterations, evaluations = iterations + r.iterations, evaluations + r.evaluations
-            if r.status != CONVERGED:
+            # the minimiser alone: a sub-step is not recorded, so not assessed either
+            prob = Problem(model, x, free, self._neighbours)
+            z, success, _, nit = self._minimise(prob, x, loose)
+            iterations, evaluations = iterations + nit, evaluations + prob.evaluations
+            if not (success and np.all(np.isfinite(z))):
                 break
-            x = r.x.copy()
+            x = prob.full(z)
         x[i] = x0[i]
         return x, iterations, evaluations
 
