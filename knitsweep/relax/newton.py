@@ -74,10 +74,11 @@ lower the energy measurably (a kink of the energy, e.g. a contact crossing the
 exclusion boundary): the iteration gives up and SLSQP finishes."""
 SNAP = 1e-10
 """A start within this relative distance of a bound is put on it (and the bound held)."""
-MAX_PROBES = 3
-"""Curvature probes along negative modes in one relaxation: a mode that an update made
-up is gone after one; after three, the negative curvature is real (a state past the
-fold of its branch) and the trust region steps down it, growing 4x per good step."""
+MAX_PROBES = 2
+"""Curvature probes along a negative mode at one point: a mode that an update made up is
+gone after one; a mode that survives them is real (a state past the fold of its
+branch), and the trust region steps down it, growing 4x per good step. Only a mode
+that has just appeared, or whose decrement has grown a hundredfold, is probed."""
 MIN_START_RADIUS = 0.01
 """A relaxation starts with at least this radius: one that collapsed on the last
 one's final, noise-level steps would cost a dozen doublings."""
@@ -233,7 +234,7 @@ def newton_minimise(
     radius, rho = max(curvature.radius, MIN_START_RADIUS), 1.0
     active = (pt.z <= lo) | (pt.z >= hi)
     lam = float(pt.a @ pt.g) / float(pt.a @ pt.a)
-    probes = 0
+    probes, previous = 0, None
     for it in range(1, settings.maxiter + 1):
         b_full = curvature.lagrangian(lam)
         step = _kkt_step(b_full, pt, free, active, radius)
@@ -247,15 +248,22 @@ def newton_minimise(
             inwards = (at_lo & (loose.p > 0)) | (at_hi & (loose.p < 0))
             if np.all(inwards[release]):
                 active, step = active & ~release, loose
-        if step.negative is not None and probes < MAX_PROBES:
-            # a negative mode may be a rank-one update's artefact: measure the curvature
-            # along it (one evaluation) and let the update correct the model there
+        suspect = (
+            previous is None
+            or previous.negative is None
+            or (step.decrement > 100.0 * previous.decrement)
+        )
+        if step.negative is not None and suspect and probes < MAX_PROBES:
+            # a negative mode that has just appeared (or grown a hundredfold) may be a
+            # rank-one update's artefact: measure the curvature along it (one
+            # evaluation) and let the update correct the model there
             probes += 1
             q = prob.evaluate(pt.z + FD_STEP * step.negative)
             s_full = np.zeros(N_STATE)
             s_full[free] = q.z - pt.z
             curvature.update(s_full, q.ge - pt.ge, q.gl - pt.gl, lam, probe=True)
             continue
+        previous = step
         lam = step.lam
         c_tol = min(1e-3 * settings.length_tol_mm, settings.ftol / max(abs(lam), 1e-300))
         # at zero force, the stationarity a soft mode hides from the decrement (there the
@@ -303,7 +311,7 @@ def newton_minimise(
         norm = float(np.linalg.norm(s))
         if trial.finite and (ared >= 1e-4 * pred or (pred <= noise and ared >= -noise)):
             curvature.update(s_full, trial.ge - pt.ge, trial.gl - pt.gl, lam)
-            pt = trial
+            pt, probes = trial, 0
             ratio = ared / pred if pred > 0 else 1.0
             if alpha < 1.0:  # cut short by a bound, which the model did not know of
                 active = active | hit
