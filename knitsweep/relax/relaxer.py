@@ -77,14 +77,14 @@ class Relaxer:
         settings = settings or self.settings
         t0 = time.perf_counter()
         x0 = np.asarray(x0, dtype=float)
+        if model is not self._model:
+            self._model, self._neighbours = model, model.neighbour_list(x0)
         walked = self._walk(model, x0, fixed, settings)
         if walked is not None:
             x0, iterations, evaluations = walked
         else:
             iterations = evaluations = 0
         free = free_entries(fixed)
-        if model is not self._model:
-            self._model, self._neighbours = model, model.neighbour_list(x0)
         prob = Problem(model, x0, free, self._neighbours)
         with single_threaded():
             try:

@@ -119,14 +119,18 @@ def run_setting(point: StitchParams, s: Setting, series: list[float], threshold:
         evaluations.append(sw.evaluations_total)
         gaps = energy_gaps(sw.bending_energy, sw.contact_energy)
         out.values[f"Y_sec_{d}"] = secant_modulus(sw.strain, sw.stress).Y_sec
-        out.values[f"sigma0_{d}"] = offset_stress(
-            sw.strain, sw.stress, **FD_STRESS_SMOOTHING
-        ).sigma0
+        # sigma0 is the longest softened regime of the whole curve: a sweep that stopped
+        # once its observables were known has not determined it
+        out.values[f"sigma0_{d}"] = (
+            offset_stress(sw.strain, sw.stress, **FD_STRESS_SMOOTHING).sigma0
+            if "curve" in s.protocol.observables
+            else None
+        )
         out.values[f"dEc_{d}" if d == "x" else f"dEb_{d}"] = (
             gaps.delta_E_c if d == "x" else gaps.delta_E_b
         )
         if progress:
-            progress(f"{s.name}: {d} sweep {sweep_times[-1]:.1f} s")
+            progress(f"{s.name}: {d} sweep {sweep_times[-1]:.2f} s")
     out.seconds_point = out.seconds_relax + sum(sweep_times)
     gap_series = []
     for L in series:
