@@ -11,8 +11,10 @@ preset) and both directions, the same zero-force state is pulled four ways:
 
 Printed: per direction, (L/r)_trans and its bracket from each variant's gaps (the one
 jamming rule, ``analysis.transition``), the largest change of a gap against ``all
-chains`` (relative to max(gap, threshold)), the points where a gap moved by more than
-1 %, and each variant's total CPU seconds, relaxations and evaluations.
+chains`` (relative to max(gap, threshold)) and, for the early stops, against ``merged``
+(the same chains pulled to the end: what the stop rule alone changes), the points where
+a gap moved by more than 1 %, and each variant's total CPU seconds, relaxations and
+evaluations.
 
 Run: ``python benchmarks/bench_merging_and_stops.py [--L 10.5 11.0 …]``; a few minutes.
 """
@@ -69,8 +71,8 @@ def main() -> None:
     x = [L / args.r for L in args.L]
     for d in "xy":
         ref = gaps[("all chains", d)]
-        print(f"\n{d}: {'variant':<16}{'(L/r)_trans':>12}{'bracket':>22}{'max |d gap|':>13}  "
-              "gaps moved > 1 % (L mm: relative change)")  # fmt: skip
+        print(f"\n{d}: {'variant':<16}{'(L/r)_trans':>12}{'bracket':>22}{'max |d gap|':>13}"
+              f"{'vs merged':>11}  gaps moved > 1 % (L mm: relative change)")  # fmt: skip
         for name in VARIANTS:
             g = gaps[(name, d)]
             t = transition(x, g)
@@ -78,7 +80,10 @@ def main() -> None:
             moved = ", ".join(f"{L}: {r:.1%}" for L, r in zip(args.L, rel, strict=True)
                               if r > 0.01) or "none"  # fmt: skip
             bracket = f"({t.bracket_lower:.4f}, {t.bracket_upper:.4f}]"
-            print(f"   {name:<16}{t.L_over_r_trans:12.4f}{bracket:>22}{max(rel):13.1e}  {moved}")
+            merged = gaps[("merged", d)]
+            stop = max(abs(a - b) / max(b, GAP_THRESHOLD) for a, b in zip(g, merged, strict=True))
+            print(f"   {name:<16}{t.L_over_r_trans:12.4f}{bracket:>22}{max(rel):13.1e}"
+                  f"{stop:11.1e}  {moved}")  # fmt: skip
     print(f"\n{'variant':<16}{'CPU s':>8}{'relaxations':>13}{'evaluations':>13}")
     for name, (sec, n_relax, n_eval) in cost.items():
         print(f"{name:<16}{sec:8.1f}{n_relax:13d}{n_eval:13d}")
