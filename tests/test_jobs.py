@@ -107,3 +107,21 @@ def test_task_ids_hash_parameters_not_names_or_order():
     assert len(ids(a) & ids(c)) == 1
     assert all(len(i) == 16 and "." not in i for i in ids(a))
     assert a.job_hash != c.job_hash
+
+
+def test_observables_enter_sweep_ids_only_as_they_change_results():
+    """The same sweep asked for in other words is the same task; other observables give
+    other sweeps of the same points."""
+
+    def ids(observables):
+        job = JobSpec(schema_version=1, name="t", grid={"L_mm": 11.6},
+                      protocol={"observables": observables})  # fmt: skip
+        points, sweeps = plan(job)
+        return [p.task_id for p in points], [s.task_id for s in sweeps], job.job_hash
+
+    gaps_first = ids(["energy_gaps", "secant_modulus"])
+    assert ids(["secant_modulus", "energy_gaps", "secant_modulus"]) == gaps_first
+    assert ids(["offset_stress"]) == ids(["curve"]) == ids(["curve", "energy_gaps"])
+    curve = ids(["curve"])
+    assert curve[0] == gaps_first[0]  # the zero-force tasks are shared
+    assert set(curve[1]).isdisjoint(gaps_first[1]) and curve[2] != gaps_first[2]

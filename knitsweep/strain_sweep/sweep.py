@@ -71,7 +71,7 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
                           merged_at)  # fmt: skip
     steps: list[Relaxation] = [best]
     winners = [zero.winner]
-    a_values = [a0]
+    a_values, strains = [a0], [0.0]
     envelope = [0.0]
     eb, ec = [best.bending_energy], [best.contact_energy]
     control = StepControl(protocol, direction, a0, sign)
@@ -96,18 +96,18 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
         steps.append(win)
         winners.append(chains[w].start)
         a_values.append(a_next)
+        strains.append((a_next - a0) / a0)
         envelope.append(win.period_forces[0 if idx == IDX_AX else 1] / a_perp0)
         eb.append(win.bending_energy)
         ec.append(win.contact_energy)
         i = len(steps) - 1
-        strain = (a_next - a0) / a0
+        strain = strains[-1]
         e = [b + c for b, c in zip(eb[-3:], ec[-3:], strict=True)]
         sigma_ref = (e[0] - e[-1]) / (a_values[-3] - a_values[-1]) / a_perp0 if i >= 2 else 0.0
         if progress is not None:
             progress(i, strain, sigma_ref)
         chains = merge_chains(chains, model, direction, protocol.merge_tolerance_mJ, i,
                               merged_into, merged_at)  # fmt: skip
-        strains = [(a - a0) / a0 for a in a_values]
         determined = observables_determined(protocol, strains, eb, ec)
         if step_status == NOT_KNITTABLE:
             status, stopped_by = "not_knittable", "not_knittable"
