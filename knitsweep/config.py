@@ -204,18 +204,33 @@ class Fidelity(BaseModel):
 
 
 class SolverSettings(BaseModel):
-    """Constrained minimiser settings (SciPy SLSQP with exact Jacobians, docs/model.md §7)."""
+    """Constrained minimiser settings (exact Jacobians, docs/model.md §7)."""
 
     model_config = _CONFIG
 
+    method: Literal["newton", "slsqp"] = Field(
+        "newton",
+        description="'newton': Newton–KKT trust region on a finite-difference Hessian of the "
+        "exact gradients, carried along a chain (SLSQP finishes what it cannot); 'slsqp': "
+        "SciPy's SLSQP, the authors' minimiser",
+    )
     ftol: float = Field(
         1e-10,
         ge=1e-16,
         le=1e-2,
-        description="SLSQP precision goal on the energy (mJ); the authors' effective value "
-        "was SciPy's default 1e-6, the paper quotes 1e-5",
+        description="precision goal on the energy (mJ): SLSQP's ftol, or the Newton decrement "
+        "(the energy still to gain); the authors' effective value was SciPy's default 1e-6, "
+        "the paper quotes 1e-5",
     )
-    maxiter: int = Field(2000, ge=1, le=1_000_000, description="SLSQP iteration limit")
+    maxiter: int = Field(2000, ge=1, le=1_000_000, description="iteration limit of a minimiser")
+    substep_mm: float = Field(
+        0.01,
+        gt=0.0,
+        le=5.0,
+        description="Newton: a strain step that moves the fixed period by more than this (mm) "
+        "is walked in equal sub-steps of at most this, so that the chain follows its branch "
+        "instead of jumping to wherever one Newton solve lands",
+    )
     length_tol_mm: Positive = Field(
         1e-6, le=0.1, description="largest |length - L| (mm) that counts as meeting the constraint"
     )
@@ -236,6 +251,14 @@ class SolverSettings(BaseModel):
 Direction = Literal["x", "y"]
 
 
+Observable = Literal["curve", "secant_modulus", "offset_stress", "energy_gaps"]
+OBSERVABLES: tuple[str, ...] = ("curve", "secant_modulus", "offset_stress", "energy_gaps")
+"""What a sweep can be asked to determine (docs/model.md §8-9): the whole stress-strain
+curve; Y_sec (needs the curve past 2 % strain); sigma0 (the longest softened regime over
+the sweep: needs the whole curve); the energy gaps (both energy components back above
+their zero-force values, so that their minima along the sweep are known)."""
+
+
 class SweepProtocol(BaseModel):
     """The strain schedule; defaults are the authors' (docs/model.md §8)."""
 
@@ -243,7 +266,10 @@ class SweepProtocol(BaseModel):
 
     step_mm: float = Field(0.001, gt=0.0, le=1.0, description="small step h of the period (mm)")
     switch_strain: float = Field(
-        0.05, ge=0.0, le=10.0, description="|strain| from which the large step applies"
+        0.05,
+        ge=0.0,
+        le=10.0,
+        description="|strain| from which the large step applies (fixed steps)",
     )
     large_step_x_mm: float = Field(0.1, gt=0.0, le=5.0, description="large step for x pulls (mm)")
     large_step_y_mm: float = Field(0.05, gt=0.0, le=5.0, description="large step for y pulls (mm)")
@@ -255,6 +281,57 @@ class SweepProtocol(BaseModel):
     mode: Literal["tension", "compression"] = Field(
         "tension", description="pull the cell apart (tension) or push it together"
     )
+    observables: tuple[Observable, ...] = Field(
+        ("curve",),
+        description="what the sweep must determine; it stops as soon as all are: 'curve' (to "
+        "the stop stress or strain), 'secant_modulus' (Y_sec: past 2 % strain), "
+        "'offset_stress' (sigma0: the whole curve, so the same as 'curve'), 'energy_gaps' "
+        "(both energies back above their zero-force values)",
+    )
+    step_control: Literal["fixed", "adaptive"] = Field(
+        "fixed",
+        description="'fixed': h up to switch_strain, then the large step (the authors'); "
+        "'adaptive': from h, each step chosen so that linear interpolation between steps "
+        "errs by at most the tolerances below in the envelope stress and in each energy",
+    )
+    stress_tolerance_N_per_mm: float = Field(
+        2e-5,
+        gt=0.0,
+        description="adaptive steps: absolute interpolation error of the stress (N/mm)",
+    )
+    stress_rtol: float = Field(
+        2e-3,
+        ge=0.0,
+        le=1.0,
+        description="adaptive steps: relative interpolation error of the stress",
+    )
+    energy_tolerance_mJ: float = Field(
+        2e-7, gt=0.0, description="adaptive steps: interpolation error of E_b and E_c (mJ)"
+    )
+    max_step_mm: float = Field(0.1, gt=0.0, le=5.0, description="adaptive steps: largest step (mm)")
+    merge_tolerance_mJ: float = Field(
+        1e-9,
+        ge=0.0,
+        description="chains whose energies differ by at most this (mJ) and whose states differ "
+        "only along soft modes (energy cost 1/2 dx.H.dx at most this) merge; 0: never",
+    )
+
+    @field_validator("observables", mode="before")
+    @classmethod
+    def _from_a_list(cls, v: Any) -> Any:
+        """A job file's TOML list (its names are still checked strictly)."""
+        return tuple(v) if isinstance(v, list) else v
+
+    @field_validator("observables")
+    @classmethod
+    def _canonical_observables(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        """Sorted and unique; 'curve' when the whole curve is needed anyway, so that two
+        requests that compute the same sweep are the same protocol (and task id)."""
+        if not v:
+            raise ValueError(f"give at least one of {', '.join(OBSERVABLES)}")
+        if "curve" in v or "offset_stress" in v:
+            return ("curve",)
+        return tuple(sorted(set(v)))
 
     def large_step(self, direction: Direction) -> float:
         return self.large_step_x_mm if direction == "x" else self.large_step_y_mm
@@ -274,42 +351,69 @@ class StartSettings(BaseModel):
     perturbation: float = Field(
         0.02, ge=0.0, le=0.5, description="relative std of the shape perturbations"
     )
+    merge_tolerance_mJ: float = Field(
+        1e-9,
+        ge=0.0,
+        description="starts walking the same continuation stages merge after a stage where "
+        "their energies differ by at most this (mJ) and their states only along soft modes "
+        "(energy cost 1/2 dx.H.dx at most this); 0: never",
+    )
 
 
 # ---- presets ----------------------------------------------------------------------
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "draft": {
-        "fidelity": {"samples_per_segment": 6, "quadrature_nodes": 12},
-        "solver": {"ftol": 1e-8},
-        "protocol": {"step_mm": 0.005},
+        "fidelity": {"samples_per_segment": 10, "quadrature_nodes": 16},
+        "solver": {
+            "method": "newton",
+            "ftol": 1e-6,
+            "substep_mm": 0.05,
+            "continuation_dL_mm": 0.3,
+        },
+        "protocol": {
+            "step_mm": 0.002,
+            "step_control": "adaptive",
+            "stress_rtol": 0.05,
+            "energy_tolerance_mJ": 5e-6,
+            "max_step_mm": 0.05,
+            "observables": ("energy_gaps", "secant_modulus"),
+        },
     },
     "paper": {
         "fidelity": {"samples_per_segment": 10, "quadrature_nodes": 32},
-        "solver": {"ftol": 1e-6},
+        "solver": {"method": "slsqp", "ftol": 1e-6},
         "protocol": {"step_mm": 0.001},
     },
     "converged": {
         "fidelity": {"samples_per_segment": 10, "quadrature_nodes": 32},
-        "solver": {"ftol": 1e-10},
+        "solver": {"method": "newton", "ftol": 1e-10},
         "protocol": {"step_mm": 0.001},
     },
     "fine": {
         "fidelity": {"samples_per_segment": 20, "quadrature_nodes": 32},
-        "solver": {"ftol": 1e-12},
-        "protocol": {"step_mm": 0.0005},
+        "solver": {"method": "newton", "ftol": 1e-12},
+        "protocol": {"step_mm": 0.0005, "merge_tolerance_mJ": 0.0},
     },
 }
-"""Named fidelity presets: the numerical knobs of every layer in one word.
+"""Named fidelity presets: the numerical knobs of every layer in one word, chosen
+from the measured speed/accuracy front (README, ``knitsweep accuracy``).
 
-* ``draft``: coarse and fast, for exploring a parameter space.
-* ``paper``: the authors' numerical settings exactly (10 samples per segment,
-  SciPy's default SLSQP tolerance 1e-6 that their script ends up using, 0.001 mm
-  steps), with exact quadrature.
-* ``converged`` (default): the paper's discretisation with the optimiser driven
-  to a true constrained minimum (tolerance 1e-10).
-* ``fine``: twice the contact samples, tighter tolerance, half the step.
+* ``draft``: what a survey needs, about 7x cheaper than ``converged`` per point: the
+  same contact sampling (fewer samples err by several per cent in the energy gaps),
+  16 quadrature nodes (1e-10 off), a loose Newton tolerance, continuation in 0.3 mm
+  stages of L, adaptive strain steps, and sweeps that stop once Y_sec and the energy
+  gaps (so the transition) are known: within 2 % of ``converged`` on those (measured
+  at L = 11.0 mm, k = 0.1 mN/mm^2), no offset stress.
+* ``paper``: the authors' numerical settings exactly (10 samples per segment, SLSQP
+  with the SciPy default tolerance 1e-6 that their script ends up using, 0.001 mm
+  steps), with exact quadrature: their numbers, noise included.
+* ``converged`` (default): the paper's discretisation and steps with the Newton
+  solver driven to a true constrained minimum (decrement 1e-10 mJ).
+* ``fine``: twice the contact samples, tighter tolerance, half the step, and no
+  merging of chains.
 
-The measured cost and error of each are in the README (``knitsweep accuracy``)."""
+Jobs and sweeps take the preset's observables; ``knitsweep sweep`` computes the whole
+curve unless told otherwise."""
 DEFAULT_PRESET = "converged"
 SECTIONS = {"fidelity": Fidelity, "solver": SolverSettings, "protocol": SweepProtocol}
 """The settings a preset fixes, by section name."""

@@ -7,6 +7,7 @@ are numpy arrays of shape (30,), laid out as in ``knitsweep.state``.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -199,9 +200,16 @@ class CellModel:
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
         """Cell thickness dz = z_max - z_min + 2r of the centre-line (paper SI S4), mm."""
         cp = self.control_points(x)
-        b = basis_tables(np.linspace(0.0, 1.0, samples))[0]
-        z = np.einsum("ti,si->st", b, cp[:, :, 2])
+        z = np.einsum("ti,si->st", _thickness_basis(samples), cp[:, :, 2])
         return float(z.max() - z.min() + 2.0 * self.ip.r)
+
+
+@functools.lru_cache(maxsize=8)
+def _thickness_basis(samples: int) -> np.ndarray:
+    """Bernstein basis (samples, 6) at evenly spaced parameters in [0, 1], made once."""
+    b = basis_tables(np.linspace(0.0, 1.0, samples))[0]
+    b.setflags(write=False)
+    return b
 
 
 def compile_kernels(
@@ -212,6 +220,7 @@ def compile_kernels(
     not cached yet, so that a user knows why the first run waits."""
     from . import kernels
     from .formats import shipped_state
+    from .kernels.kkt import compile_solver
 
     if notice is not None and not kernels.cached():
         notice(f"compiling numerical kernels, once per install: ~{kernels.COMPILE_SECONDS} s "
@@ -224,6 +233,7 @@ def compile_kernels(
     model.thickness(x)
     model.contacts_by_class(x)
     model.contact_pair_forces_by_class(x)
+    compile_solver()  # the Newton step of the relaxations
 
 
 def _as_state(x: np.ndarray) -> np.ndarray:

@@ -119,10 +119,21 @@ START_QUANTITIES = dict(
         _q("relax_seconds", "s", "wall time of the relaxation"),
         _q("labels", "1", "where the start came from"),
         _q("stages", "1", "continuation stages from the start's parameters"),
+        _q("merged_into", "1", "the start whose continuation this one joined (-1: none)"),
+        _q("merged_at", "1", "the continuation stage where it joined (-1: never)"),
         _q("contact_forces", "N", "contact forces by class of the winner"),
     )
 )
 """Per-start datasets of a point (the first dimension is ``start``)."""
+
+SWEEP_START_QUANTITIES = dict(
+    (
+        _q("carried", "1", "the start reached a zero-force state and was pulled as a chain"),
+        _q("merged_into", "1", "the start whose chain this one joined (-1: none)"),
+        _q("merged_at", "1", "the step where it joined (0: at zero force; -1: never)"),
+    )
+)
+"""Per-start datasets of a sweep (their first dimension is ``start``, not ``step``)."""
 
 AXES = {
     "state_entry": STATE_NAMES,
@@ -218,5 +229,12 @@ def table_column(name: str) -> str:
 
 def dataset_quantity(kind: str, name: str) -> Quantity | None:
     """The quantity of dataset ``name`` in a ``points`` or ``sweeps`` group."""
-    table = STEP_QUANTITIES if kind == "sweeps" else START_QUANTITIES
-    return table.get(name)
+    if kind == "sweeps":
+        return STEP_QUANTITIES.get(name) or SWEEP_START_QUANTITIES.get(name)
+    return START_QUANTITIES.get(name)
+
+
+def leading_dimension(kind: str, name: str) -> str:
+    """The first dimension of dataset ``name``: ``step`` in a sweep (``start`` for
+    its per-start arrays), ``start`` in a point."""
+    return "step" if kind == "sweeps" and name not in SWEEP_START_QUANTITIES else "start"

@@ -5,6 +5,10 @@ slightly different Init files and keep the lowest energy. knitsweep does the
 same with the shipped states and/or perturbations drawn from a numpy
 ``SeedSequence``, so a run is reproducible from its seed.
 
+Starts relaxed at the same parameters walk the same continuation stages together and
+merge where they reach the same minimum (``relax.walk_starts``); the record says which
+start each merged into and at which stage.
+
 ``ZeroForce.to_record()`` and ``ZeroForce.from_record()`` convert the result to the
 flat arrays and scalars a results file stores and back, losing nothing.
 """
@@ -27,7 +31,7 @@ from .config import (
 )
 from .formats import SHIPPED_STATES, shipped_state
 from .model import CellModel
-from .relax import Relaxation, relax_with_continuation
+from .relax import Relaxation, single_threaded, walk_starts
 from .state import N_SHAPE
 
 # the parameters the shipped Init files were made for (the authors' k = 0.1 mN/mm^2
@@ -89,7 +93,9 @@ assert set(_START_ARRAYS.values()) == {f.name for f in fields(Relaxation)}
 
 @dataclass(frozen=True)
 class ZeroForce:
-    """The zero-force state of one point: the winner over all starts."""
+    """The zero-force state of one point: the winner over all starts. ``merged_into[i]``:
+    the start whose walk start i joined (-1 if none), at continuation stage
+    ``merged_at[i]``; its relaxation is then that start's."""
 
     relaxations: tuple[Relaxation, ...]
     labels: tuple[str, ...]
@@ -97,6 +103,8 @@ class ZeroForce:
     winner: int
     status: str
     message: str
+    merged_into: tuple[int, ...] = ()
+    merged_at: tuple[int, ...] = ()
 
     @property
     def best(self) -> Relaxation:
@@ -111,6 +119,8 @@ class ZeroForce:
             "message": self.message,
             "labels": np.array(self.labels, dtype=object),
             "stages": np.array(self.stages, dtype=np.int64),
+            "merged_into": np.array(self.merged_into, dtype=np.int64),
+            "merged_at": np.array(self.merged_at, dtype=np.int64),
         }
         for name, attr in _START_ARRAYS.items():
             values = [getattr(r, attr) for r in self.relaxations]
@@ -120,7 +130,8 @@ class ZeroForce:
 
     @classmethod
     def from_record(cls, rec: dict[str, Any]) -> ZeroForce:
-        """The inverse of ``to_record`` (extra keys in ``rec`` are ignored)."""
+        """The inverse of ``to_record`` (extra keys in ``rec`` are ignored; a record
+        written before starts could merge has no merges)."""
         rs = []
         for i in range(len(rec["x"])):
             values = {attr: rec[name][i] for name, attr in _START_ARRAYS.items()}
@@ -131,9 +142,13 @@ class ZeroForce:
                     period_forces=tuple(float(f) for f in values["period_forces"]),
                 )
             )
+        n = len(rs)
+        merged_into = rec.get("merged_into", np.full(n, -1))
+        merged_at = rec.get("merged_at", np.full(n, -1))
         return cls(tuple(rs), tuple(str(s) for s in rec["labels"]),
                    tuple(int(s) for s in rec["stages"]), int(rec["winner"]),
-                   str(rec["relax_status"]), str(rec["message"]))  # fmt: skip
+                   str(rec["relax_status"]), str(rec["message"]),
+                   tuple(int(i) for i in merged_into), tuple(int(i) for i in merged_at))  # fmt: skip
 
 
 def _scalar(v: Any) -> Any:
@@ -184,16 +199,22 @@ def zero_force(
     else:
         length = CellModel(SHIPPED_SOURCE, fidelity).energies(initial).length
         begin = [Start("initial", initial, SHIPPED_SOURCE.model_copy(update={"L_mm": length}))]
-    results, labels, stages = [], [], []
-    for start in begin:
-        r, n = relax_with_continuation(params, fidelity, start.x, start.params, solver)
-        results.append(r)
-        labels.append(start.label)
-        stages.append(n)
-    winner, status = pick_lowest(results)
+    with single_threaded():
+        walked, merged_into, merged_at = walk_starts(
+            params, fidelity, [(s.x, s.params) for s in begin], solver, starts.merge_tolerance_mJ
+        )
+    results = [r for r, _ in walked]
+    labels = [s.label for s in begin]
+    own = [i for i in range(len(results)) if merged_into[i] < 0]  # merged rows are copies
+    w, status = pick_lowest([results[i] for i in own])
+    winner = own[w]
     best = results[winner]
+    merged = len(results) - len(own)
     if status == CONVERGED:
         message = f"lowest of {len(results)} starts: {labels[winner]}"
+        message += f" ({merged} merged on the way)" if merged else ""
     else:
         message = f"no start converged; best ({labels[winner]}): {best.message}"
-    return ZeroForce(tuple(results), tuple(labels), tuple(stages), winner, status, message)
+    return ZeroForce(tuple(results), tuple(labels), tuple(n for _, n in walked), winner, status,
+                     message, tuple(int(i) for i in merged_into),
+                     tuple(int(i) for i in merged_at))  # fmt: skip

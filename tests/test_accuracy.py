@@ -21,7 +21,7 @@ def test_setting_parsing():
 
 def test_study_measures_errors_against_the_finest(tmp_path):
     point = StitchParams(L_mm=11.0, k_mN_per_mm2=0.1)
-    results = accuracy_study(point, [CHEAP, CHEAP + "+samples_per_segment=10"], [11.3, 11.5, 11.7])
+    results = accuracy_study(point, [CHEAP, CHEAP + "+samples_per_segment=12"], [11.3, 11.5, 11.7])
     coarse, fine = results
     assert all(fine.errors[m] == 0 for m in METRICS if fine.values[m] is not None)
     assert coarse.errors["E0"] > 0 and coarse.seconds_sweep > 0

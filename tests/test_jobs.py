@@ -91,10 +91,11 @@ def test_bad_job_via_cli_writes_nothing(tmp_path):
 
 def test_presets_and_overrides():
     job = JobSpec(schema_version=1, name="t", grid={"L_mm": 11.6}, preset="draft",
-                  fidelity={"quadrature_nodes": 16})  # fmt: skip
-    assert job.fidelity.samples_per_segment == 6  # from the preset
-    assert job.fidelity.quadrature_nodes == 16  # explicit override
-    assert job.solver.ftol == 1e-8 and job.protocol.step_mm == 0.005
+                  fidelity={"quadrature_nodes": 24}, protocol={"observables": ["curve"]})  # fmt: skip
+    assert job.fidelity.samples_per_segment == 10  # from the preset
+    assert job.fidelity.quadrature_nodes == 24  # explicit override
+    assert job.solver.ftol == 1e-6 and job.protocol.step_mm == 0.002
+    assert job.protocol.step_control == "adaptive" and job.protocol.observables == ("curve",)
 
 
 def test_task_ids_hash_parameters_not_names_or_order():
@@ -167,3 +168,21 @@ def test_top_level_and_grid_types(tmp_path, text, fragment):
     with pytest.raises(InputError) as e:
         load_job(_job(tmp_path, text))
     assert fragment in str(e.value)
+
+
+def test_observables_enter_sweep_ids_only_as_they_change_results():
+    """The same sweep asked for in other words is the same task; other observables give
+    other sweeps of the same points."""
+
+    def ids(observables):
+        job = JobSpec(schema_version=1, name="t", grid={"L_mm": 11.6},
+                      protocol={"observables": observables})  # fmt: skip
+        points, sweeps = plan(job)
+        return [p.task_id for p in points], [s.task_id for s in sweeps], job.job_hash
+
+    gaps_first = ids(["energy_gaps", "secant_modulus"])
+    assert ids(["secant_modulus", "energy_gaps", "secant_modulus"]) == gaps_first
+    assert ids(["offset_stress"]) == ids(["curve"]) == ids(["curve", "energy_gaps"])
+    curve = ids(["curve"])
+    assert curve[0] == gaps_first[0]  # the zero-force tasks are shared
+    assert set(curve[1]).isdisjoint(gaps_first[1]) and curve[2] != gaps_first[2]

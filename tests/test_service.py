@@ -41,7 +41,7 @@ def six(tmp_path_factory):
     d = tmp_path_factory.mktemp("six")
     job = d / "six.toml"
     text = TINY.read_text().replace("[11.4, 12.0]", "[11.2, 11.4, 11.6, 11.8, 12.0, 12.2]")
-    job.write_text(text.replace("step_mm = 0.02", "step_mm = 0.005"))  # long enough to stop
+    job.write_text(text.replace("step_mm = 0.02", "step_mm = 0.001"))  # long enough to stop
     reference = d / "reference.h5"
     service.run(job, reference, executor="serial", show_progress=False)
     return job, reference

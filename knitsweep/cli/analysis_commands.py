@@ -181,9 +181,12 @@ def accuracy(
         "accuracy"
     ),
     workers: Annotated[int, typer.Option("--workers", help="settings computed in parallel")] = 1,
+    reference: Annotated[str | None, typer.Option(
+        "--reference", help="the setting errors are measured against [the last]")] = None,
 ) -> None:  # fmt: skip
-    """Measure the speed/accuracy trade: one point at rising fidelity, with time per
-    relaxation and per sweep and the error of each observable against the finest."""
+    """Measure the speed/accuracy trade: one point at rising fidelity, with CPU time per
+    relaxation, per sweep and per point and the error of each observable against the
+    finest (or --reference)."""
     from ..config import InputError, StitchParams
     from ..studies.accuracy import accuracy_study, table, write_report
 
@@ -205,9 +208,11 @@ def accuracy(
 
         for spec in specs:
             setting(spec)  # validate every setting before any compute
+        if reference is not None and reference not in specs:
+            raise InputError(f"reference = {reference!r}: must be one of --settings")
     compile_notice()
     results = accuracy_study(params, specs, Ls, workers=workers,
-                             progress=lambda m: typer.echo(m, err=True))  # fmt: skip
+                             progress=lambda m: typer.echo(m, err=True), reference=reference)  # fmt: skip
     typer.echo(table(results))
     for path in write_report(results, out):
         typer.echo(f"wrote {path}", err=True)

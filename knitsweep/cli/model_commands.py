@@ -116,6 +116,12 @@ def sweep(
     stop_stress: Annotated[float | None, typer.Option("--stop-stress", help="N/mm [0.4]")] = None,
     max_strain: Annotated[float | None, typer.Option("--max-strain", help="[1.0]")] = None,
     compression: Annotated[bool, typer.Option("--compression", help="push instead of pull")] = False,
+    observables: Annotated[str | None, typer.Option(
+        "--observables", help="what the sweep must determine, comma-separated: curve, "
+        "secant_modulus, offset_stress, energy_gaps; it stops once they are [curve, with "
+        "any preset]")] = None,
+    step_control: Annotated[str | None, typer.Option(
+        "--step-control", help="fixed (the authors' steps) or adaptive [the preset's]")] = None,
     out: Annotated[Path | None, typer.Option("--out", help="write the table: .csv or .h5")] = None,
 ) -> None:  # fmt: skip
     """One point's strain sweep, with a progress bar; prints the stress–strain table."""
@@ -138,7 +144,10 @@ def sweep(
         n = Numerics.from_preset(
             preset, ftol=ftol, samples_per_segment=samples, quadrature_nodes=quadrature_nodes,
             images=images, step_mm=step, stop_stress_N_per_mm=stop_stress, max_strain=max_strain,
-            mode="compression" if compression else None,
+            mode="compression" if compression else None, step_control=step_control,
+            # the whole curve unless asked otherwise, whatever the preset's default
+            observables=("curve",) if observables is None else tuple(
+                o.strip() for o in observables.split(",") if o.strip()),
         )  # fmt: skip
         protocol = n.protocol
         settings = StartSettings() if starts is None else StartSettings(count=starts)

@@ -3,7 +3,8 @@
 Pipeline: bezier (basis tables) -> crossover, geometry (state -> control points
 + Jacobian) -> bending, contact (energies + gradients; contact's candidate search
 in partition, its vectorisable pow in elementary, an optional Verlet list in
-neighbours) -> cell (their composition).
+neighbours) -> cell (their composition); forces (by contact class); kkt (the
+trust-region Newton step of the relaxations, on plain arrays).
 
 Compiled kernels are cached on disk (``cache=True``). Numba keys a cached
 function on its own source file only, so a kernel that inlines another would
@@ -38,7 +39,7 @@ numba.config.CACHE_DIR = _cache_dir()
 COMPILE_SECONDS = 60
 """About how long compiling every kernel takes once (measured 50 s on a 2-core VM)."""
 _ENTRY_POINTS = ("cell.cell_energy-", "cell.cell_energy_listed-", "contact.min_zeta-",
-                 "forces.contact_forces_by_class-")  # fmt: skip
+                 "forces.contact_forces_by_class-", "kkt.kkt_step-")  # fmt: skip
 
 
 def cached(entry_points: tuple[str, ...] = _ENTRY_POINTS) -> bool:

@@ -169,14 +169,14 @@ def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
             group.attrs[key] = str(value)
 
 
-_LEADING_DIM = {POINTS: ("start", "start of the zero-force relaxation"),
-                SWEEPS: ("step", "strain step (0: the zero-force state)")}  # fmt: skip
+_LEADING_DIM = {"start": "start of the zero-force relaxation",
+                "step": "strain step (0: the zero-force state)"}  # fmt: skip
 
 
 def describe_dataset(group, kind: str, name: str) -> None:
     """``units``, ``long_name`` and dimension scales of dataset ``name`` (xarray and
     netCDF readers then see named dimensions and coordinates)."""
-    from ..quantities import AXES, TRAILING_DIMS, dataset_quantity
+    from ..quantities import AXES, TRAILING_DIMS, dataset_quantity, leading_dimension
 
     ds = group[name]
     q = dataset_quantity(kind, name)
@@ -184,8 +184,8 @@ def describe_dataset(group, kind: str, name: str) -> None:
     ds.attrs["long_name"] = q.long_name if q else name.replace("_", " ")
     trailing = TRAILING_DIMS.get(name, ())
     dims = list(trailing[-(ds.ndim) :]) if ds.ndim <= len(trailing) else list(trailing)
-    if ds.ndim > len(trailing) and kind in _LEADING_DIM:
-        dims = [_LEADING_DIM[kind][0], *dims]
+    if ds.ndim > len(trailing) and kind in (POINTS, SWEEPS):
+        dims = [leading_dimension(kind, name), *dims]
     if len(dims) != ds.ndim:
         return
     for axis, dim in enumerate(dims):
@@ -194,7 +194,7 @@ def describe_dataset(group, kind: str, name: str) -> None:
             labels = AXES.get(dim)
             if labels is None:  # the leading dimension: 0 … n-1
                 scale = group.create_dataset(dim, data=np.arange(ds.shape[axis]))
-                scale.attrs["long_name"] = _LEADING_DIM[kind][1]
+                scale.attrs["long_name"] = _LEADING_DIM[dim]
             else:
                 scale = group.create_dataset(dim, data=np.array(labels, dtype=object),
                                              dtype=_string_dtype())  # fmt: skip

@@ -1,0 +1,142 @@
+"""Continuation in parameters: a zero-force state walked from the parameters it was
+relaxed at to the target in small stages (docs/model.md §7, a knitsweep addition)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..config import NOT_CONVERGED, NOT_KNITTABLE, Fidelity, SolverSettings, StitchParams
+from ..model import CellModel
+from .chains import Chain, merge_chains
+from .relaxer import Relaxer
+from .result import Relaxation, with_status
+
+
+def continuation_path(
+    start: StitchParams, target: StitchParams, settings: SolverSettings
+) -> list[StitchParams]:
+    """Parameter stages from ``start`` to ``target`` (the last one is ``target``).
+
+    L, r, r_core, p and the regularisation move linearly, k and B geometrically,
+    each by at most the step allowed in ``settings``.
+    """
+    f = math.log(settings.continuation_factor)
+    n = max(
+        1,
+        math.ceil(abs(target.L_mm - start.L_mm) / settings.continuation_dL_mm - 1e-9),
+        math.ceil(abs(math.log(target.k_mN_per_mm2 / start.k_mN_per_mm2)) / f - 1e-9),
+        math.ceil(abs(math.log(target.B_mN_mm2 / start.B_mN_mm2)) / f - 1e-9),
+        math.ceil(abs(target.r_mm - start.r_mm) / settings.continuation_dr_mm - 1e-9),
+        math.ceil(abs(target.r_core_mm - start.r_core_mm) / settings.continuation_dr_mm - 1e-9),
+        math.ceil(abs(target.p - start.p) / settings.continuation_dp - 1e-9),
+    )
+    stages = []
+    for i in range(1, n):
+        t = i / n
+
+        def lin(a: float, b: float, t: float = t) -> float:
+            return a + t * (b - a)
+
+        def geo(a: float, b: float, t: float = t) -> float:
+            return a * (b / a) ** t
+
+        stages.append(
+            target.model_copy(
+                update={
+                    "L_mm": lin(start.L_mm, target.L_mm),
+                    "k_mN_per_mm2": geo(start.k_mN_per_mm2, target.k_mN_per_mm2),
+                    "B_mN_mm2": geo(start.B_mN_mm2, target.B_mN_mm2),
+                    "r_mm": lin(start.r_mm, target.r_mm),
+                    "r_core_mm": lin(start.r_core_mm, target.r_core_mm),
+                    "p": lin(start.p, target.p),
+                    "regularization_mN_mm4": lin(
+                        start.regularization_mN_mm4, target.regularization_mN_mm4
+                    ),
+                }
+            )
+        )
+    stages.append(target)
+    return stages
+
+
+def walk_starts(
+    target: StitchParams,
+    fidelity: Fidelity,
+    starts: list[tuple[np.ndarray, StitchParams]],
+    settings: SolverSettings | None = None,
+    merge_tolerance: float = 0.0,
+) -> tuple[list[tuple[Relaxation, int]], np.ndarray, np.ndarray]:
+    """Zero-force relaxations at ``target`` from several starts (state (30,), the
+    parameters it was relaxed at), each walked there in small parameter stages
+    (docs/model.md §7).
+
+    Starts relaxed at the same parameters (lengths within ``length_tol_mm``) walk the same
+    stages, those of the first of them, side by side, and after
+    each intermediate stage those at the same minimum merge (``chains.merge_chains``):
+    only one walks on. Returns, per start, its last relaxation and the number of stages
+    it was relaxed at, and per start the start it merged into and the stage where it did
+    (-1 if not). A merged start's relaxation is the one it merged into, at the target.
+
+    Intermediate stages use a looser tolerance; a stage that ends non-finite or with
+    overlapping cores stops that start's walk, and that stage's status is kept.
+    """
+    settings = settings or SolverSettings()
+    loose = settings.model_copy(update={"ftol": max(settings.ftol, 1e-7)})
+    n = len(starts)
+    merged_into = np.full(n, -1, dtype=np.int64)
+    merged_at = np.full(n, -1, dtype=np.int64)
+    done: dict[int, tuple[Relaxation, int]] = {}
+    # starts relaxed at the same parameters walk one path; lengths that agree within the
+    # length tolerance count as the same (the shipped Init states measure 11.28 mm each,
+    # to ~1e-7 mm)
+    groups: dict[str, list[int]] = {}
+    for i, (_, params) in enumerate(starts):
+        step = settings.length_tol_mm
+        key = params.model_copy(update={"L_mm": round(params.L_mm / step) * step})
+        groups.setdefault(key.model_dump_json(), []).append(i)
+    for members in groups.values():
+        stages = continuation_path(starts[members[0]][1], target, settings)
+        chains = [Chain(i, np.asarray(starts[i][0], dtype=float), Relaxer(settings), None)
+                  for i in members]  # fmt: skip
+        for k, params in enumerate(stages):
+            last = k == len(stages) - 1
+            model = CellModel(params, fidelity)
+            for c in chains:
+                c.last = c.relaxer.relax(model, c.x, None, settings if last else loose)
+                r = c.last
+                if not np.all(np.isfinite(r.x)) or (not last and r.status == NOT_KNITTABLE):
+                    where = (
+                        f"at continuation stage {k + 1}/{len(stages)} (L = {params.L_mm:.4g} mm)"
+                    )
+                    status = r.status if r.status == NOT_KNITTABLE else NOT_CONVERGED
+                    done[c.start] = with_status(r, status, f"{r.message} {where}"), k + 1
+                c.x = r.x
+            chains = [c for c in chains if c.start not in done]
+            if not last:
+                chains = merge_chains(chains, model, None, merge_tolerance, k + 1, merged_into,
+                                      merged_at)  # fmt: skip
+        done.update({c.start: (c.last, len(stages)) for c in chains})
+    for i in np.flatnonzero(merged_into >= 0):
+        j = int(merged_into[i])
+        while merged_into[j] >= 0:  # it merged into one that merged on
+            j = int(merged_into[j])
+        r, total = done[j]
+        note = f"merged into start {j} at continuation stage {merged_at[i]}/{total}: same minimum"
+        done[int(i)] = replace(r, message=note, iterations=0, evaluations=0, seconds=0.0), total
+    return [done[i] for i in range(n)], merged_into, merged_at
+
+
+def relax_with_continuation(
+    target: StitchParams,
+    fidelity: Fidelity,
+    x_start: np.ndarray,
+    start: StitchParams,
+    settings: SolverSettings | None = None,
+) -> tuple[Relaxation, int]:
+    """Zero-force relaxation at ``target`` from one state relaxed at ``start``
+    (``walk_starts`` with one start). Returns the relaxation and the stages used."""
+    (result,), _, _ = walk_starts(target, fidelity, [(x_start, start)], settings)
+    return result

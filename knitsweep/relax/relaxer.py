@@ -1,0 +1,154 @@
+"""One relaxation, or a chain of them, with either minimiser (docs/model.md §7).
+
+``relax`` minimises E at fixed yarn length from one state. ``Relaxer`` does the same for
+relaxations that follow one another (the strain steps of one chain, the stages of a
+continuation): it keeps one Verlet neighbour list per model and, for the Newton solver,
+the curvature (``newton.Curvature``) from one relaxation to the next.
+
+``SolverSettings.method`` picks the minimiser: ``newton`` (Newton–KKT with a trust
+region, falling back to SLSQP from wherever it stopped if it cannot finish) or
+``slsqp``. A relaxation runs its BLAS/LAPACK calls on one thread: with more, OpenBLAS
+sums in another order and the same relaxation ends ~1e-13 elsewhere, depending on
+what the process did before.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+
+import numpy as np
+from threadpoolctl import ThreadpoolController
+
+from ..config import Direction, SolverSettings
+from ..model import CellModel, NeighbourList
+from ..state import N_STATE, PERIOD_INDEX
+from .newton import Curvature, newton_minimise
+from .problem import Problem
+from .result import Relaxation, assess
+from .slsqp import slsqp_minimise
+
+_BLAS: list[ThreadpoolController] = []  # made on first use: inspecting the libraries costs ~1 ms
+SUBSTEP_FTOL = 1e-8
+"""Energy tolerance (mJ) of the unrecorded sub-steps of a large strain step."""
+_DEPTH = [0]  # how many single_threaded() blocks are open in this process
+
+
+@contextlib.contextmanager
+def single_threaded():
+    """BLAS/LAPACK on one thread for the block (re-entrant: a nested block costs nothing,
+    so that a sweep can hold it around its thousands of relaxations)."""
+    if _DEPTH[0]:
+        yield
+        return
+    if not _BLAS:
+        _BLAS.append(ThreadpoolController())
+    with _BLAS[0].limit(limits=1):
+        _DEPTH[0] += 1
+        try:
+            yield
+        finally:
+            _DEPTH[0] -= 1
+
+
+def free_entries(fixed: Direction | None) -> np.ndarray:
+    """Indices of the free state entries: all 30, or all but the pulled period."""
+    return np.array([i for i in range(N_STATE) if fixed is None or i != PERIOD_INDEX[fixed]])
+
+
+class Relaxer:
+    """Relaxations in sequence, each warm-started by the caller, sharing a neighbour
+    list and (Newton) the measured curvature."""
+
+    def __init__(self, settings: SolverSettings | None = None) -> None:
+        self.settings = settings or SolverSettings()
+        self.curvature: Curvature | None = None
+        self._model: CellModel | None = None
+        self._neighbours: NeighbourList | None = None
+
+    def relax(self, model: CellModel, x0: np.ndarray, fixed: Direction | None = None,
+              settings: SolverSettings | None = None) -> Relaxation:  # fmt: skip
+        """Minimise the energy at fixed yarn length ``model.params.L_mm`` from ``x0``.
+
+        ``fixed=None`` frees both periods (zero-force state); ``'x'``/``'y'`` keeps
+        a_x/a_y at its value in ``x0`` (a strain step, docs/model.md §8).
+        """
+        settings = settings or self.settings
+        t0 = time.perf_counter()
+        x0 = np.asarray(x0, dtype=float)
+        if model is not self._model:
+            self._model, self._neighbours = model, model.neighbour_list(x0)
+        walked = self._walk(model, x0, fixed, settings)
+        if walked is not None:
+            x0, iterations, evaluations = walked
+        else:
+            iterations = evaluations = 0
+        free = free_entries(fixed)
+        prob = Problem(model, x0, free, self._neighbours)
+        with single_threaded():
+            try:
+                z, success, message, nit = self._minimise(prob, x0, settings)
+                x = prob.full(z)
+            except (ValueError, FloatingPointError, ZeroDivisionError) as e:
+                x, success, message, nit = x0.copy(), False, f"minimiser failed: {e}", 0
+            last = prob.last_point
+            evaluated = (
+                prob.last_full if last is not None and np.array_equal(last.z, x[free]) else None
+            )
+            return assess(model, x0, x, free, success, message, nit + iterations,
+                          prob.evaluations + evaluations, settings, time.perf_counter() - t0,
+                          evaluated)  # fmt: skip
+
+    def _walk(self, model, x0, fixed, settings):
+        """For Newton, a change of the fixed period by more than ``substep_mm`` since the
+        chain's last solution is walked in equal sub-steps (loosely converged, not
+        recorded); returns (the last sub-step's state with x0's fixed period, their
+        iterations, evaluations), or None if there is nothing to walk."""
+        anchor = self.curvature.anchor if self.curvature is not None else None
+        if settings.method != "newton" or fixed is None or anchor is None:
+            return None
+        i = PERIOD_INDEX[fixed]
+        free = free_entries(fixed)
+        change = float(x0[i] - anchor.x[i])
+        n = math.ceil(abs(change) / settings.substep_mm - 1e-9)
+        if n <= 1 or not np.array_equal(anchor.x[free], x0[free]):
+            return None
+        loose = settings.model_copy(update={"ftol": max(settings.ftol, SUBSTEP_FTOL)})
+        x, iterations, evaluations = anchor.x.copy(), 0, 0
+        for k in range(1, n):
+            x[i] = anchor.x[i] + change * k / n
+            # the minimiser alone: a sub-step is not recorded, so not assessed either
+            prob = Problem(model, x, free, self._neighbours)
+            z, success, _, nit = self._minimise(prob, x, loose)
+            iterations, evaluations = iterations + nit, evaluations + prob.evaluations
+            if not (success and np.all(np.isfinite(z))):
+                break
+            x = prob.full(z)
+        x[i] = x0[i]
+        return x, iterations, evaluations
+
+    def _minimise(self, prob: Problem, x0: np.ndarray, settings: SolverSettings):
+        z0 = x0[prob.free]
+        if settings.method == "slsqp":
+            return slsqp_minimise(prob, z0, prob.bounds(x0), settings)
+        lo, hi = prob.box(x0)
+        z, success, message, nit, self.curvature = newton_minimise(
+            prob, z0, lo, hi, settings, self.curvature
+        )
+        if success:
+            return z, success, message, nit
+        # the Newton iteration could not finish: SLSQP from the best point it reached
+        self.curvature = None
+        z, success, fallback, more = slsqp_minimise(prob, z, prob.bounds(x0), settings)
+        return z, success, f"{message}; SLSQP from there: {fallback}", nit + more
+
+
+def relax(
+    model: CellModel,
+    x0: np.ndarray,
+    fixed: Direction | None = None,
+    settings: SolverSettings | None = None,
+) -> Relaxation:
+    """One relaxation from ``x0`` (see ``Relaxer.relax``)."""
+    return Relaxer(settings).relax(model, x0, fixed)

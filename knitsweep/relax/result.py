@@ -1,0 +1,142 @@
+"""The outcome of one relaxation and its truthful status (docs/model.md §7).
+
+Whatever minimiser ran, ``assess`` measures the end state itself: energies finite,
+length within ``length_tol_mm``, twist bound met, and either the minimiser's own
+success or stationarity (max |∇E − λ∇ℓ − μ∇g| over the free entries at most 1e-6 of
+max |∇E|, multipliers by least squares, μ only where the twist bound is active);
+``not_knittable`` where the hard cores overlap at such a minimum. It also gives the
+length multiplier λ and the period forces dE*/da = ∂E/∂a − λ ∂ℓ/∂a (envelope theorem;
+the twist constraint does not involve a).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, SolverSettings
+from ..kernels.contact import CORE_EPS
+from ..model import CellModel
+from ..state import IDX_AX, IDX_AY, IDX_TW, N_STATE
+
+TWIST_ACTIVE_TOL = 1e-8
+KKT_RTOL = 1e-6  # relative stationarity that counts as converged after a stalled line search
+
+
+@dataclass(frozen=True)
+class Relaxation:
+    """Outcome of one constrained minimisation (energies mJ, lengths mm, forces N)."""
+
+    x: np.ndarray
+    bending_energy: float
+    contact_energy: float
+    length: float
+    status: str
+    message: str
+    iterations: int
+    evaluations: int
+    length_residual: float
+    twist_margin: float
+    twist_active: bool
+    min_zeta: float
+    kkt_residual: float
+    length_multiplier: float
+    period_forces: tuple[float, float]
+    seconds: float
+
+    @property
+    def total_energy(self) -> float:
+        return self.bending_energy + self.contact_energy
+
+    @property
+    def converged(self) -> bool:
+        return self.status == CONVERGED
+
+    @property
+    def a_x(self) -> float:
+        return float(self.x[IDX_AX])
+
+    @property
+    def a_y(self) -> float:
+        return float(self.x[IDX_AY])
+
+
+def with_status(r: Relaxation, status: str, message: str) -> Relaxation:
+    return replace(r, status=status, message=message)
+
+
+def _finite_state(model: CellModel, x: np.ndarray) -> bool:
+    if not (np.all(np.isfinite(x)) and x[IDX_AX] > 0 and x[IDX_AY] > 0):
+        return False
+    e = model.energies(x)
+    return all(map(math.isfinite, (e.bending_energy, e.contact_energy, e.length)))
+
+
+def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, success: bool,
+           message: str, nit: int, nev: int, settings: SolverSettings, seconds: float,
+           evaluated: tuple | None = None) -> Relaxation:  # fmt: skip
+    """Measure the end state ``x`` and give it a truthful status.
+
+    ``evaluated``: (Energies, ∇E (30,), ∇ℓ (30,)) already computed at ``x`` (by the
+    minimiser's last call), saving one evaluation; ``nev`` counts the minimiser's.
+    """
+    if evaluated is None or not math.isfinite(evaluated[0].total_energy):
+        if not _finite_state(model, x):
+            # never report a non-finite state: keep the (finite) start, say what happened
+            x = np.array(x0, dtype=float)
+            success = False
+            message = f"the minimiser left the finite states ({message}); start kept"
+        evaluated = model.energy_and_gradients(x)
+        nev += 1
+    e, ge, gl = evaluated
+    twist_margin = math.cos(x[IDX_TW]) - model.ip.twist_bound
+    twist_active = twist_margin <= TWIST_ACTIVE_TOL
+    # Lagrange multipliers by least squares on the free entries: grad E = lam grad l (+ mu grad g)
+    cols = [gl[free]]
+    if twist_active:
+        g = np.zeros(N_STATE)
+        g[IDX_TW] = -math.sin(x[IDX_TW])
+        cols.append(g[free])
+    a = np.column_stack(cols)
+    coef = np.linalg.solve(a.T @ a, a.T @ ge[free])  # the normal equations: 1 or 2 columns
+    kkt = float(np.max(np.abs(ge[free] - a @ coef)))
+    lam = float(coef[0])
+    forces = (float(ge[IDX_AX] - lam * gl[IDX_AX]), float(ge[IDX_AY] - lam * gl[IDX_AY]))
+    residual = e.length - model.ip.L
+    zeta = model.min_zeta(x)
+    finite = all(map(math.isfinite, (e.bending_energy, e.contact_energy, e.length, kkt)))
+    scale = max(float(np.max(np.abs(ge[free]))), 1e-300)
+    stationary = kkt <= KKT_RTOL * scale
+    if not finite:
+        status, why = NOT_CONVERGED, f"non-finite energy: {message}"
+    elif abs(residual) > settings.length_tol_mm:
+        status, why = NOT_CONVERGED, f"length constraint missed by {residual:.3g} mm: {message}"
+    elif twist_margin < -TWIST_ACTIVE_TOL:
+        status, why = NOT_CONVERGED, f"twist bound violated by {-twist_margin:.3g}: {message}"
+    elif success or stationary:
+        status, why = CONVERGED, message
+        if zeta < CORE_EPS:
+            status = NOT_KNITTABLE
+            why = f"hard cores overlap at the minimum (smallest zeta = {zeta:.3g} < {CORE_EPS:g})"
+    else:
+        status, why = NOT_CONVERGED, message
+    return Relaxation(
+        x=x,
+        bending_energy=e.bending_energy,
+        contact_energy=e.contact_energy,
+        length=e.length,
+        status=status,
+        message=why,
+        iterations=int(nit),
+        evaluations=int(nev),
+        length_residual=float(residual),
+        twist_margin=float(twist_margin),
+        twist_active=bool(twist_active),
+        min_zeta=float(zeta),
+        kkt_residual=kkt,
+        length_multiplier=lam,
+        period_forces=forces,
+        seconds=seconds,
+    )

@@ -1,0 +1,157 @@
+"""A strain sweep's result and its lossless record (docs/model.md §8).
+
+Arrays run over steps, step 0 the zero-force state. Stress, in N/mm per unit
+transverse width at zero force:
+
+* ``stress``: the discrete derivative of the energy at each step, centred (on uniform
+  steps exactly the reference's (E_{j+1} - E_{j-1})/(a_{j+1} - a_{j-1}), attributed to the
+  midpoint as the authors' analysis does; second-order on uneven steps), divided by
+  a_perp0; backward at the last step, 0 at zero force;
+* ``stress_envelope``: dE*/da/a_perp0 at each step from the Lagrange multiplier of the
+  length constraint (envelope theorem), free of differencing error.
+
+Per start (S of them, the zero-force point's starts): ``carried`` (the start reached a
+converged zero-force state and was pulled as a chain), ``merged_into`` (the start whose
+chain it joined, or -1) and ``merged_at`` (the step where it did, 0 = the zero-force
+state, or -1). ``SweepResult.to_record()`` and ``SweepResult.from_record()`` convert a
+sweep to the arrays and scalars a results file stores (its energy gaps included) and
+back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from ..analysis.metrics import EnergyGaps, energy_gaps
+from ..state import N_STATE
+
+
+def first_grid_value(a0: float, h: float, sign: float) -> float:
+    """The first multiple of h strictly beyond a0 in the pulling direction."""
+    n = round(a0 / h)
+    start = h * n
+    if sign > 0:
+        return start if start > a0 else start + h
+    return start if start < a0 else start - h
+
+
+@dataclass
+class SweepResult:
+    """One strain sweep; per-step arrays run over steps, step 0 is the zero-force state.
+
+    ``stopped_by`` says which rule ended it: ``stop_stress``, ``max_strain``,
+    ``observables`` (everything the protocol asked for was determined),
+    ``not_knittable``, ``max_steps`` or ``no_finite_relaxation``; ``stop_reason`` says it
+    in words.
+    """
+
+    direction: str
+    a_fixed: np.ndarray = field(default_factory=lambda: np.empty(0))
+    a_x: np.ndarray = field(default_factory=lambda: np.empty(0))
+    a_y: np.ndarray = field(default_factory=lambda: np.empty(0))
+    strain: np.ndarray = field(default_factory=lambda: np.empty(0))
+    stress: np.ndarray = field(default_factory=lambda: np.empty(0))
+    stress_envelope: np.ndarray = field(default_factory=lambda: np.empty(0))
+    bending_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
+    contact_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
+    thickness: np.ndarray = field(default_factory=lambda: np.empty(0))
+    winner: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    converged: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool))
+    iterations: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    evaluations: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    min_zeta: np.ndarray = field(default_factory=lambda: np.empty(0))
+    length_residual: np.ndarray = field(default_factory=lambda: np.empty(0))
+    kkt_residual: np.ndarray = field(default_factory=lambda: np.empty(0))
+    relax_seconds: np.ndarray = field(default_factory=lambda: np.empty(0))
+    states: np.ndarray = field(default_factory=lambda: np.empty((0, N_STATE)))
+    carried: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool))
+    merged_into: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    merged_at: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    status: str = "done"
+    stop_reason: str = ""
+    stopped_by: str = ""
+    relaxations: int = 0
+    evaluations_total: int = 0
+    wall_seconds: float = 0.0
+
+    @property
+    def total_energy(self) -> np.ndarray:
+        return self.bending_energy + self.contact_energy
+
+    @property
+    def energy_gaps(self) -> EnergyGaps:
+        """ΔE_b and ΔE_c of this sweep (docs/model.md §9)."""
+        return energy_gaps(self.bending_energy, self.contact_energy)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The per-step arrays by name (for tables and storage)."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name in _STEP_ARRAYS}
+
+    def to_record(self) -> dict[str, Any]:
+        """Every field as storable values: the per-step and per-start arrays,
+        ``total_energy``, ``sweep_status``, the stop reason as ``message``, the counts
+        and the energy gaps (``delta_E_b``, ``delta_E_c`` and the direction's
+        ``energy_gap``)."""
+        gaps = self.energy_gaps
+        return {
+            **self.arrays(),
+            **{name: getattr(self, name) for name in _START_ARRAYS},
+            "total_energy": self.total_energy,
+            "direction": self.direction,
+            "sweep_status": self.status,
+            "message": self.stop_reason,
+            "stopped_by": self.stopped_by,
+            "relaxations": self.relaxations,
+            "evaluations_total": self.evaluations_total,
+            "wall_seconds": self.wall_seconds,
+            "delta_E_b": gaps.delta_E_b,
+            "delta_E_c": gaps.delta_E_c,
+            "energy_gap": gaps.jamming_gap(self.direction),
+        }
+
+    @classmethod
+    def from_record(cls, rec: dict[str, Any]) -> SweepResult:
+        """The inverse of ``to_record`` (extra keys are ignored; a record stored
+        without ``states`` gets an empty (0, 30) array; one written before starts could
+        merge or sweeps could stop early gets empty per-start arrays and empty
+        ``stopped_by``/0 total evaluations)."""
+        arrays = {k: np.asarray(rec[k]) for k in (*_STEP_ARRAYS, *_START_ARRAYS) if k in rec}
+        return cls(direction=str(rec["direction"]), **arrays, status=str(rec["sweep_status"]),
+                   stop_reason=str(rec["message"]), stopped_by=str(rec.get("stopped_by", "")),
+                   relaxations=int(rec["relaxations"]),
+                   evaluations_total=int(rec.get("evaluations_total", 0)),
+                   wall_seconds=float(rec["wall_seconds"]))  # fmt: skip
+
+
+_STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "bending_energy",
+                "contact_energy", "thickness", "winner", "converged", "iterations", "evaluations",
+                "min_zeta", "length_residual", "kkt_residual", "relax_seconds", "states")  # fmt: skip
+_START_ARRAYS = ("carried", "merged_into", "merged_at")
+
+
+def centred_stress(energy: np.ndarray, a: np.ndarray, a_perp0: float) -> np.ndarray:
+    """dE/da / a_perp0 at every step (N/mm): the second-order three-point derivative
+    on the possibly uneven grid of periods, 0 at the zero-force state (j = 0) and a
+    backward difference at the last step.
+
+    On a uniform grid this is exactly the reference's centred difference
+    (E_{j+1} - E_{j-1})/(a_{j+1} - a_{j-1}); where the step changes (the first step
+    after a_0, the switch to large steps, adaptive steps) it stays second-order
+    accurate, where the plain centred difference would be biased by the larger step.
+    """
+    n = len(energy)
+    s = np.zeros(n)
+    if n >= 3:
+        hm = a[1:-1] - a[:-2]
+        hp = a[2:] - a[1:-1]
+        s[1:-1] = (
+            (hm**2 * energy[2:] - hp**2 * energy[:-2] + (hp**2 - hm**2) * energy[1:-1])
+            / (hm * hp * (hm + hp))
+            / a_perp0
+        )
+    if n >= 2:
+        s[-1] = (energy[-1] - energy[-2]) / (a[-1] - a[-2]) / a_perp0
+    return s

@@ -1,0 +1,207 @@
+"""Strain sweeps: the stitch pulled step by step in x or y (docs/model.md §8).
+
+From the zero-force state (a_x0, a_y0) one period is fixed step by step (``schedule``),
+the other period and the shape relax, and each step warm-starts from the last. Every
+start of the point is carried along as its own chain (``chains``: each with its own
+solver state, merged when two reach the same minimum); at each step the
+lowest-energy chain wins. The sweep stops by the reference's rule (after step i >= 2,
+(E_{i-2} - E_i)/(a_{i-2} - a_i)/a_perp0 beyond the stop stress, or |strain| beyond the
+largest), or as soon as the observables its protocol asks for are determined.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from ..config import (
+    CONVERGED,
+    NOT_KNITTABLE,
+    Direction,
+    Fidelity,
+    SolverSettings,
+    StartSettings,
+    StitchParams,
+    SweepProtocol,
+)
+from ..model import CellModel
+from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
+from ..state import IDX_AX, IDX_AY
+from ..zero_force import ZeroForce, pick_lowest, zero_force
+from .result import SweepResult, centred_stress
+from .schedule import StepControl, observables_determined
+
+
+def strain_sweep(
+    params: StitchParams,
+    zero: ZeroForce,
+    direction: Direction,
+    protocol: SweepProtocol | None = None,
+    fidelity: Fidelity | None = None,
+    solver: SolverSettings | None = None,
+    progress: Callable[[int, float, float], None] | None = None,
+) -> SweepResult:
+    """Pull the zero-force stitch in ``direction`` following ``protocol``.
+
+    ``progress(step, strain, stress)`` is called after every step.
+    """
+    with single_threaded():
+        return _sweep(params, zero, direction, protocol or SweepProtocol(),
+                      fidelity or Fidelity(), solver or SolverSettings(), progress)  # fmt: skip
+
+
+def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> SweepResult:
+    t_start = time.perf_counter()
+    model = CellModel(params, fidelity)
+    idx, other = (IDX_AX, IDX_AY) if direction == "x" else (IDX_AY, IDX_AX)
+    best = zero.best
+    a0, a_perp0 = float(best.x[idx]), float(best.x[other])
+    sign = 1.0 if protocol.mode == "tension" else -1.0
+    n_starts = len(zero.relaxations)
+    # starts that merged on their way to the zero-force state count as merged there
+    merged_into = np.array(zero.merged_into or [-1] * n_starts, dtype=np.int64)
+    merged_at = np.where(merged_into >= 0, 0, -1).astype(np.int64)
+    chains = _start_chains(zero, merged_into, solver)
+    carried = np.zeros(n_starts, dtype=bool)
+    carried[[c.start for c in chains]] = True
+    chains = merge_chains(chains, model, None, protocol.merge_tolerance_mJ, 0, merged_into,
+                          merged_at)  # fmt: skip
+    steps: list[Relaxation] = [best]
+    winners = [zero.winner]
+    a_values, strains = [a0], [0.0]
+    envelope = [0.0]
+    eb, ec = [best.bending_energy], [best.contact_energy]
+    control = StepControl(protocol, direction, a0, sign)
+    a_next = control.first()
+    status, stopped_by, reason, n_relax, n_eval = "done", "", "", 0, 0
+    while True:
+        for c in chains:
+            x = c.x.copy()
+            x[idx] = a_next
+            r = c.relaxer.relax(model, x, direction)
+            n_relax += 1
+            n_eval += r.evaluations
+            c.last = r
+            if np.all(np.isfinite(r.x)) and math.isfinite(r.total_energy):
+                c.x = r.x
+        w, step_status = pick_lowest([c.last for c in chains])
+        win = chains[w].last
+        if not math.isfinite(win.total_energy):
+            status, stopped_by = "failed", "no_finite_relaxation"
+            reason = f"no finite relaxation at a = {a_next:.6g} mm"
+            break
+        steps.append(win)
+        winners.append(chains[w].start)
+        a_values.append(a_next)
+        strains.append((a_next - a0) / a0)
+        envelope.append(win.period_forces[0 if idx == IDX_AX else 1] / a_perp0)
+        eb.append(win.bending_energy)
+        ec.append(win.contact_energy)
+        i = len(steps) - 1
+        strain = strains[-1]
+        e = [b + c for b, c in zip(eb[-3:], ec[-3:], strict=True)]
+        sigma_ref = (e[0] - e[-1]) / (a_values[-3] - a_values[-1]) / a_perp0 if i >= 2 else 0.0
+        if progress is not None:
+            progress(i, strain, sigma_ref)
+        chains = merge_chains(chains, model, direction, protocol.merge_tolerance_mJ, i,
+                              merged_into, merged_at)  # fmt: skip
+        determined = observables_determined(protocol, strains, eb, ec)
+        if step_status == NOT_KNITTABLE:
+            status, stopped_by = "not_knittable", "not_knittable"
+            reason = f"cores overlap at strain {strain:.4g}"
+        elif i >= 2 and sign * sigma_ref > protocol.stop_stress_N_per_mm:
+            stopped_by = "stop_stress"
+            reason = f"stress {sigma_ref:.4g} N/mm > {protocol.stop_stress_N_per_mm:g}"
+        elif abs(strain) > protocol.max_strain:
+            stopped_by = "max_strain"
+            reason = f"|strain| {abs(strain):.4g} > {protocol.max_strain:g}"
+        elif determined is not None:
+            stopped_by, reason = "observables", f"{determined} at strain {strain:.4g}"
+        elif i >= protocol.max_steps:
+            status, stopped_by = "incomplete", "max_steps"
+            reason = f"step limit {protocol.max_steps} reached"
+        if stopped_by:
+            break
+        a_next = control.next(a_values, envelope, eb, ec)
+    return _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
+                     stopped_by, n_relax, n_eval, (carried, merged_into, merged_at),
+                     time.perf_counter() - t_start)  # fmt: skip
+
+
+def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettings) -> list[Chain]:
+    """A chain for every start whose own zero-force state converged (the winner alone
+    if none did)."""
+    chains = [Chain(i, r.x.copy(), Relaxer(solver), r) for i, r in enumerate(zero.relaxations)
+              if r.status == CONVERGED and merged_into[i] < 0 and np.all(np.isfinite(r.x))]  # fmt: skip
+    if not chains:
+        best = zero.best
+        chains = [Chain(zero.winner, best.x.copy(), Relaxer(solver), best)]
+    return chains
+
+
+def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
+              stopped_by, n_relax, n_eval, starts, wall) -> SweepResult:  # fmt: skip
+    idx = IDX_AX if direction == "x" else IDX_AY
+    a = np.array(a_values)
+    eb = np.array([s.bending_energy for s in steps])
+    ec = np.array([s.contact_energy for s in steps])
+    forces = np.array([s.period_forces[0 if idx == IDX_AX else 1] for s in steps])
+    carried, merged_into, merged_at = starts
+    return SweepResult(
+        direction=direction,
+        a_fixed=a,
+        a_x=np.array([s.a_x for s in steps]),
+        a_y=np.array([s.a_y for s in steps]),
+        strain=(a - a0) / a0,
+        stress=centred_stress(eb + ec, a, a_perp0),
+        stress_envelope=forces / a_perp0,
+        bending_energy=eb,
+        contact_energy=ec,
+        thickness=np.array([model.thickness(s.x) for s in steps]),
+        winner=np.array(winners, dtype=np.int64),
+        converged=np.array([s.status == CONVERGED for s in steps]),
+        iterations=np.array([s.iterations for s in steps], dtype=np.int64),
+        evaluations=np.array([s.evaluations for s in steps], dtype=np.int64),
+        min_zeta=np.array([s.min_zeta for s in steps]),
+        length_residual=np.array([s.length_residual for s in steps]),
+        kkt_residual=np.array([s.kkt_residual for s in steps]),
+        relax_seconds=np.array([s.seconds for s in steps]),
+        states=np.array([s.x for s in steps]),
+        carried=carried,
+        merged_into=merged_into,
+        merged_at=merged_at,
+        status=status,
+        stop_reason=reason,
+        stopped_by=stopped_by,
+        relaxations=n_relax,
+        evaluations_total=n_eval,
+        wall_seconds=wall,
+    )
+
+
+class NoRestState(RuntimeError):
+    """No start of a point reached a converged zero-force state."""
+
+
+def strain_sweep_from_rest(
+    params: StitchParams,
+    direction: Direction,
+    protocol: SweepProtocol | None = None,
+    fidelity: Fidelity | None = None,
+    solver: SolverSettings | None = None,
+    starts: StartSettings | None = None,
+    seed: int = 0,
+    progress: Callable[[int, float, float], None] | None = None,
+) -> tuple[ZeroForce, SweepResult]:
+    """One point from scratch: its zero-force state (every start), then the sweep.
+
+    Raises:
+        NoRestState: no start reached a zero-force state to pull from.
+    """
+    zero = zero_force(params, fidelity, solver, starts, seed)
+    if not zero.best.converged:
+        raise NoRestState(f"no zero-force state: {zero.message}")
+    return zero, strain_sweep(params, zero, direction, protocol, fidelity, solver, progress)
