@@ -29,7 +29,8 @@ import h5py
 import numpy as np
 
 from knitsweep.service.jobs import JobSpec
-from knitsweep.service.results_file import ResultWriter, _write_group
+from knitsweep.service.results_file import ResultWriter
+from knitsweep.service.results_format import _write_group
 
 JOB = JobSpec(schema_version=1, name="bench", grid={"L_mm": 11.6})
 

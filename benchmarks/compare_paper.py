@@ -50,7 +50,7 @@ from knitsweep.analysis.stress_strain import FD_STRESS_SMOOTHING
 from knitsweep.config import StitchParams
 from knitsweep.model import CellModel
 from knitsweep.report.reduce import Reduction, reduce_results
-from knitsweep.service.results_file import iter_entries
+from knitsweep.service.results_read import iter_entries
 
 SIGNS = {  # paper Table 2: direction of each class's force at zero strain
     ("self", "x"): "extend",

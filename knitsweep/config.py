@@ -20,7 +20,6 @@ The status words shared by every layer are defined here too.
 
 from __future__ import annotations
 
-import difflib
 import math
 from collections.abc import Mapping
 from typing import Annotated, Any, Literal, NamedTuple
@@ -30,10 +29,11 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
-    ValidationError,
     ValidationInfo,
     field_validator,
 )
+
+from .errors import InputError
 
 _CONFIG = ConfigDict(
     frozen=True, extra="forbid", allow_inf_nan=False, validate_default=True, strict=True
@@ -465,75 +465,6 @@ class Numerics(BaseModel):
             given[section][field] = value
         sections = preset_sections(name, given)
         return cls(preset=name, **{s: SECTIONS[s](**v) for s, v in sections.items()})
-
-
-# ---- errors -----------------------------------------------------------------------
-class InputError(ValueError):
-    """Bad user input, reported as one line naming the field and the allowed range."""
-
-
-MAX_SEED = 2**63
-"""Seeds are integers in [0, 2**63)."""
-
-
-def check_seed(seed: Any) -> int:
-    """``seed`` if it is an integer in [0, 2**63); InputError otherwise."""
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < MAX_SEED:
-        raise InputError(f"seed = {seed!r}: must be an integer in [0, 2**63)")
-    return seed
-
-
-def did_you_mean(word: str, choices) -> str:
-    """' (did you mean 'x'?)' for the closest of ``choices``, else the list of them."""
-    choices = sorted(choices)
-    close = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
-    if close:
-        return f" (did you mean {close[0]!r}?)"
-    return f" (known: {', '.join(choices)})" if choices else ""
-
-
-def _fields_at(model: type[BaseModel] | None, loc: tuple) -> list[str]:
-    """The field names of the model that holds ``loc[-1]``, following ``loc`` down
-    from ``model`` through nested models (empty if it cannot be followed)."""
-    for part in loc[:-1]:
-        field = model.model_fields.get(part) if model is not None else None
-        annotation = field.annotation if field is not None else None
-        model = (
-            annotation
-            if isinstance(annotation, type) and issubclass(annotation, BaseModel)
-            else None
-        )
-    return list(model.model_fields) if model is not None else []
-
-
-def _short(value: Any, limit: int = 60) -> str:
-    """repr(value), cut to ``limit`` characters (a 10^5-value list is not a message)."""
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 4] + " ..."
-
-
-def describe_validation_error(
-    err: ValidationError | InputError, model: type[BaseModel] | None = None
-) -> str:
-    """One line per problem: ``field = value: what is allowed``; an unknown field gets
-    the closest known name of ``model`` (the validated model) as a suggestion."""
-    if isinstance(err, InputError):
-        return str(err)
-    parts = []
-    for e in err.errors():
-        loc = ".".join(str(x) for x in e["loc"])
-        msg = e["msg"].removeprefix("Value error, ")
-        if not loc:  # a model-level check: its message names the fields itself
-            parts.append(msg)
-        elif e["type"] == "extra_forbidden":
-            known = _fields_at(model, e["loc"])
-            hint = did_you_mean(str(e["loc"][-1]), known) if known else ""
-            parts.append(f"{loc}: unknown field{hint}")
-        elif "input" in e and e["type"] != "missing":
-            parts.append(f"{loc} = {_short(e['input'])}: {msg}")
-        else:
-            parts.append(f"{loc}: {msg}")
-    return "; ".join(parts)
 
 
 def _plain(v: Any) -> Any:

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
-from .config import InputError, StitchParams, describe_validation_error, did_you_mean
+from .config import StitchParams
+from .errors import InputError, describe_validation_error, did_you_mean
 from .state import IDX_AX, IDX_AY, N_STATE
 
 SHIPPED_STATES = tuple(f"Init_{i}.dat" for i in range(1, 8))

@@ -19,7 +19,8 @@ from conftest import SHIPPED, TINY, assert_same_results
 from knitsweep import service
 from knitsweep.config import InputError
 from knitsweep.service.journal import Entry, Malformed, decode, encode, write_entry
-from knitsweep.service.results_file import iter_entries, journal_dir, read_entry, read_root
+from knitsweep.service.results_format import journal_dir
+from knitsweep.service.results_read import iter_entries, read_entry, read_root
 
 
 def knitsweep(*args, timeout=600):

@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from knitsweep.config import InputError
-from knitsweep.service.jobs import JobSpec, Range, load_job, plan
+from knitsweep.service.grid import Range
+from knitsweep.service.jobs import JobSpec, load_job, plan
 
 ROOT = Path(__file__).resolve().parents[1]
 MINIMAL = 'schema_version = 1\nname = "t"\n[grid]\nL_mm = [11.6]\n'

@@ -7,7 +7,8 @@ import pytest
 from conftest import SHIPPED, golden_cases
 from pydantic import ValidationError
 
-from knitsweep.config import Fidelity, InputError, StitchParams, describe_validation_error
+from knitsweep.config import Fidelity, InputError, StitchParams
+from knitsweep.errors import describe_validation_error
 from knitsweep.formats import read_authors_config, read_state, shipped_state, write_state
 
 

@@ -13,8 +13,8 @@ from results_factory import write_results
 from knitsweep.config import InputError
 from knitsweep.report import phase_diagram, reduce_results
 from knitsweep.report.reduce import SERIES_PARAMS
-from knitsweep.service.journal import write_entry
-from knitsweep.service.results_file import Entry, journal_dir
+from knitsweep.service.journal import Entry, write_entry
+from knitsweep.service.results_format import journal_dir
 from knitsweep.state import CONTACT_CLASSES
 
 

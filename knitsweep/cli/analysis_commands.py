@@ -144,7 +144,7 @@ def render(
 ) -> None:  # fmt: skip
     """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a: a task of a results
     file (point, or sweep at --step) or a state file."""
-    from ..config import InputError
+    from ..errors import InputError
     from ..report import render as rendering
 
     with user_errors():
@@ -187,7 +187,8 @@ def accuracy(
     """Measure the speed/accuracy trade: one point at rising fidelity, with CPU time per
     relaxation, per sweep and per point and the error of each observable against the
     finest (or --reference)."""
-    from ..config import InputError, StitchParams
+    from ..config import StitchParams
+    from ..errors import InputError
     from ..studies.accuracy import accuracy_study, table, write_report
 
     with user_errors():

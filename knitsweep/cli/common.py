@@ -57,7 +57,7 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
 def user_errors():
     """Turn bad input, and outputs that cannot be written, into one line on stderr and
     exit code 2, never a traceback."""
-    from ..config import InputError, describe_validation_error
+    from ..errors import InputError, describe_validation_error
     from ..service.journal import StorageError
 
     try:
@@ -78,7 +78,7 @@ def check_range(name: str, value, lo, hi, unit: str = "") -> None:
     no settings model covers (picture sizes, thresholds, worker counts)."""
     import math
 
-    from ..config import InputError
+    from ..errors import InputError
 
     if not (math.isfinite(value) and lo <= value <= hi):
         raise InputError(

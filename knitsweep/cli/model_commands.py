@@ -77,7 +77,8 @@ def relax(
     """Relax the zero-force state at fixed yarn length (both periods free)."""
     import time
 
-    from ..config import Numerics, StartSettings, check_seed
+    from ..config import Numerics, StartSettings
+    from ..errors import check_seed
     from ..formats import read_state
     from ..zero_force import zero_force
 
@@ -125,7 +126,8 @@ def sweep(
     out: Annotated[Path | None, typer.Option("--out", help="write the table: .csv or .h5")] = None,
 ) -> None:  # fmt: skip
     """One point's strain sweep, with a progress bar; prints the stress–strain table."""
-    from ..config import InputError, Numerics, StartSettings, check_seed
+    from ..config import Numerics, StartSettings
+    from ..errors import InputError, check_seed
     from ..formats import check_writable
     from ..report.sweep_table import sweep_table, write_sweep
     from ..service.progress import SweepProgress

@@ -32,7 +32,7 @@ def run(
     """Run a job: every grid point's zero-force state and its x/y strain sweeps, into
     one HDF5 file. Under mpirun -n N, rank 0 schedules and N-1 ranks work."""
     from .. import service
-    from ..config import InputError
+    from ..errors import InputError
 
     with user_errors():
         if executor not in ("auto", "serial", "processes", "mpi"):
@@ -66,7 +66,7 @@ def status(
     """Counts of a results file (done, failed, running, pending), elapsed time and ETA
     while a run writes it, wall time once finished."""
     from .. import service
-    from ..config import InputError
+    from ..errors import InputError
     from ..quantities import PARAMETERS
     from ..service.progress import progress_line
 

@@ -20,7 +20,7 @@ from typing import Any
 
 from .. import __version__
 from ..analysis.transitions import GAP_THRESHOLD
-from ..config import InputError
+from ..errors import InputError
 from .results import Results, load
 
 _STYLE = """
@@ -178,7 +178,7 @@ def report_html(results: Results, title: str | None = None) -> str:
 
 
 def _roots(results: Results) -> list[dict[str, Any]]:
-    from ..service.results_file import read_root
+    from ..service.results_read import read_root
 
     return [read_root(p) | {"file": str(p)} for p in results.paths]
 

@@ -101,7 +101,7 @@ class FigureOptions:
     style: str | None = None
 
     def __post_init__(self) -> None:
-        from ..config import InputError
+        from ..errors import InputError
 
         bad = [f for f in self.formats if f not in FORMATS]
         if bad or not self.formats:
@@ -149,7 +149,7 @@ def style(options: FigureOptions | None = None) -> Iterator[None]:
                 try:
                     stack.enter_context(matplotlib.style.context(options.style))
                 except OSError:
-                    from ..config import InputError
+                    from ..errors import InputError
 
                     raise InputError(f"style = {options.style!r}: not a matplotlib style "
                                      "(name, file or URL) nor 'knitsweep'") from None  # fmt: skip

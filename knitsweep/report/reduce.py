@@ -1,7 +1,7 @@
 """Reduce a results file to the paper's tables (docs/model.md §9; paper Sections IV–VII).
 
 One pass over a results file (``knitsweep run``; schema in :mod:`knitsweep.service.results_file`),
-read through :func:`knitsweep.service.results_file.iter_entries`, so that results still in a
+read through :func:`knitsweep.service.results_read.iter_entries`, so that results still in a
 running job's journal count too. Out come plain rows (dicts of str, float, int, bool
 or None), ready for CSV, printing and the figures of :mod:`.figures`:
 
@@ -36,8 +36,11 @@ from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickn
 from ..analysis.metrics import JAMMING_GAP
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition, series_transitions
-from ..config import Fidelity, InputError
-from ..service.results_file import POINTS, SWEEPS, Entry, iter_entries, read_root
+from ..config import Fidelity
+from ..errors import InputError
+from ..service.journal import Entry
+from ..service.results_format import POINTS, SWEEPS
+from ..service.results_read import iter_entries, read_root
 from ..state import IDX_AX, IDX_AY
 from .force_columns import PAIR_KEYS, force_columns, job_fidelity, pair_force_columns
 

@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from ..config import InputError, StitchParams
+from ..config import StitchParams
+from ..errors import InputError
 from ..kernels.bezier import basis_tables
 
 ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
@@ -291,7 +292,7 @@ def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> S
 
 
 def _find_task(results: Path, task: str) -> Any:
-    from ..service.results_file import iter_entries, read_root
+    from ..service.results_read import iter_entries, read_root
 
     read_root(results)
     matches = [e for e in iter_entries(results, with_data=True) if e.task_id.startswith(task)]
@@ -310,7 +311,8 @@ def stitch_from_results(results: str | Path, task: str, step: int | None = None)
     the sweep's stored ``states`` or ``control_points`` ([store] states or geometry).
     Ids may be abbreviated to a unique prefix.
     """
-    from ..service.results_file import POINTS, iter_entries
+    from ..service.results_format import POINTS
+    from ..service.results_read import iter_entries
 
     results = Path(results)
     e = _find_task(results, task)

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..analysis.transitions import GAP_THRESHOLD
 from ..quantities import COLUMN_QUANTITY, PARAMETERS, STEP_QUANTITIES, table_column
-from ..service.results_file import SWEEPS
+from ..service.results_format import SWEEPS
 from .reduce import Reduction, reduce_results
 
 if TYPE_CHECKING:

@@ -43,7 +43,7 @@ def write_sweep(path: str | Path, result: SweepResult, params: StitchParams) -> 
         return
     import h5py
 
-    from ..service.results_file import SWEEPS, describe_dataset
+    from ..service.results_format import SWEEPS, describe_dataset
 
     with h5py.File(path, "w") as f:
         f.attrs["direction"] = result.direction

@@ -48,34 +48,38 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import gc
-import json
 import os
 import shutil
 import socket
 import sys
-from collections.abc import Iterator
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from ..config import InputError
+from ..errors import InputError
 from .journal import (
     Entry,
     StorageError,
     atomic_write_bytes,
     entry_path,
     fsync_dir,
-    read_entry_file,
     scan,
     storage_error,
     write_entry,
 )
 from .provenance import environment_metadata
+from .results_format import (
+    KINDS,
+    RESULTS_SCHEMA_VERSION,
+    _h5,
+    _write_group,
+    journal_dir,
+    lock_path,
+    now,
+)
+from .results_read import _open, read_root
 
-__all__ = ["Entry", "ResultWriter", "StorageError", "atomic_write_bytes", "iter_entries",
-           "journal_problems", "read_entry", "read_root"]  # fmt: skip
+__all__ = ["ResultWriter", "StorageError", "atomic_write_bytes", "check_compatible",
+           "writer_alive"]  # fmt: skip
 
 SPACE_MARGIN_BYTES = 256 * 1024
 """Free space a checkpoint leaves at least, for HDF5's own metadata."""
@@ -88,121 +92,11 @@ def hdf5_write_failed() -> bool:
     return _HDF5_WRITE_FAILED
 
 
-RESULTS_SCHEMA_VERSION = 2
-"""The results-file format this knitsweep writes."""
-READABLE_SCHEMAS = (1, 2)
-"""Results-file formats this knitsweep reads."""
-POINTS, SWEEPS, SERIES = "points", "sweeps", "series"
-KINDS = (POINTS, SWEEPS, SERIES)
-_STR = None  # h5py string dtype, created lazily
-
-
-def now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
-
-
-def journal_dir(path: Path) -> Path:
-    return path.with_name(path.name + ".journal")
-
-
-def progress_path(path: Path) -> Path:
-    return path.with_name(path.name + ".progress.json")
-
-
-def lock_path(path: Path) -> Path:
-    return path.with_name(path.name + ".lock")
-
-
 def _hidden(path: Path, what: str) -> Path:
     return path.with_name(f".{path.name}.{what}")
 
 
-def _h5():
-    import h5py
-
-    return h5py
-
-
-def _string_dtype():
-    global _STR
-    if _STR is None:
-        _STR = _h5().string_dtype()
-    return _STR
-
-
 # ---- writing ---------------------------------------------------------------------
-
-
-def split_record(record: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(arrays, scalars) of a task's record: what becomes datasets and what becomes
-    attributes of its group."""
-    arrays = {k: v for k, v in record.items() if isinstance(v, np.ndarray) and v.ndim > 0}
-    return arrays, {k: v for k, v in record.items() if k not in arrays}
-
-
-def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
-    """A task's record as datasets (arrays) and attributes (scalars) of ``group``;
-    every dataset gets ``units`` and ``long_name`` and labelled dimension scales
-    (``step`` in a sweep, ``start`` in a point, then e.g. ``state_entry``)."""
-    kind = group.name.strip("/").split("/")[0]
-    for key, value in {**meta, **record}.items():
-        if value is None:
-            continue
-        if isinstance(value, np.ndarray) and value.ndim > 0:
-            if value.dtype == object:
-                group.create_dataset(key, data=value.astype(str).astype(object),
-                                     dtype=_string_dtype())  # fmt: skip
-            else:
-                group.create_dataset(
-                    key, data=value, compression="gzip" if value.size > 256 else None
-                )
-            describe_dataset(group, kind, key)
-        elif isinstance(value, dict):
-            group.attrs[key] = json.dumps(value, sort_keys=True)
-        elif isinstance(value, (bool, np.bool_)):
-            group.attrs[key] = bool(value)
-        elif isinstance(value, (int, np.integer)):
-            group.attrs[key] = int(value)
-        elif isinstance(value, (float, np.floating)):
-            group.attrs[key] = float(value)
-        else:
-            group.attrs[key] = str(value)
-
-
-_LEADING_DIM = {"start": "start of the zero-force relaxation",
-                "step": "strain step (0: the zero-force state)"}  # fmt: skip
-
-
-def describe_dataset(group, kind: str, name: str) -> None:
-    """``units``, ``long_name`` and dimension scales of dataset ``name`` (xarray and
-    netCDF readers then see named dimensions and coordinates)."""
-    from ..quantities import AXES, TRAILING_DIMS, dataset_quantity, leading_dimension
-
-    ds = group[name]
-    q = dataset_quantity(kind, name)
-    ds.attrs["units"] = q.units if q else "1"
-    ds.attrs["long_name"] = q.long_name if q else name.replace("_", " ")
-    trailing = TRAILING_DIMS.get(name, ())
-    dims = list(trailing[-(ds.ndim) :]) if ds.ndim <= len(trailing) else list(trailing)
-    if ds.ndim > len(trailing) and kind in (POINTS, SWEEPS):
-        dims = [leading_dimension(kind, name), *dims]
-    if len(dims) != ds.ndim:
-        return
-    for axis, dim in enumerate(dims):
-        scale = group.get(dim)
-        if scale is None:
-            labels = AXES.get(dim)
-            if labels is None:  # the leading dimension: 0 … n-1
-                scale = group.create_dataset(dim, data=np.arange(ds.shape[axis]))
-                scale.attrs["long_name"] = _LEADING_DIM[dim]
-            else:
-                scale = group.create_dataset(dim, data=np.array(labels, dtype=object),
-                                             dtype=_string_dtype())  # fmt: skip
-                scale.attrs["long_name"] = dim.replace("_", " ")
-            scale.attrs["units"] = "1"
-            scale.make_scale(dim)
-        if scale.shape[0] == ds.shape[axis]:
-            ds.dims[axis].attach_scale(scale)
 
 
 def _put(f, entry: Entry) -> None:
@@ -543,131 +437,3 @@ def _differences(a: Any, b: Any, prefix: str = "") -> list[str]:
             out += _differences(a.get(k), b.get(k), f"{prefix}{k}.")
         return out
     return [] if a == b else [prefix.rstrip(".")]
-
-
-# ---- reading ---------------------------------------------------------------------
-
-
-@contextlib.contextmanager
-def _open(path: Path):
-    """The results file opened for reading; InputError naming what it is otherwise."""
-    if path.is_dir():
-        raise InputError(f"{path}: a directory, not a results file")
-    try:
-        f = _h5().File(path, "r")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such results file") from None
-    except Exception as e:  # h5py raises OSError, sometimes others, for foreign files
-        why = str(e).split("(")[0].strip() or type(e).__name__
-        raise InputError(f"{path}: not a readable HDF5 file ({why})") from None
-    try:
-        yield f
-    finally:
-        f.close()
-
-
-def _read_group(group) -> tuple[dict[str, Any], dict[str, Any]]:
-    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in group.attrs.items()}
-    data = {}
-    for k, ds in group.items():
-        if not isinstance(ds, _h5().Dataset) or ds.is_scale:  # (scales: coordinates)
-            continue
-        v = ds[()]
-        if ds.dtype.kind == "O":
-            v = np.array([s.decode() if isinstance(s, bytes) else s for s in v], dtype=object)
-        data[k] = v
-    return attrs, data
-
-
-def _groups(f, kind: str):
-    """(task id, group) of one kind in an open file; foreign members are skipped."""
-    h5py = _h5()
-    parent = f.get(kind)
-    if not isinstance(parent, h5py.Group):
-        return
-    for tid, group in parent.items():
-        if isinstance(group, h5py.Group):
-            yield tid, group
-
-
-def iter_entries(path: str | Path, with_data: bool = False) -> Iterator[Entry]:
-    """Every finished task of a results file, deduplicated: the HDF5 file's
-    groups that the journal has no newer version of, then the journal's entries.
-
-    The journal is read first: an entry merged and deleted meanwhile is then in
-    the file opened after it. Malformed journal entries are skipped
-    (``journal_problems`` lists them)."""
-    path = Path(path)
-    journalled = scan(journal_dir(path), with_data)[0]
-    newer = {(e.kind, e.task_id) for e in journalled}
-    if path.exists():
-        with _open(path) as f:
-            for kind in KINDS:
-                for tid, group in _groups(f, kind):
-                    if (kind, tid) in newer:
-                        continue
-                    if with_data:
-                        meta, record = _read_group(group)
-                    else:
-                        meta, record = dict(group.attrs), {}
-                    yield Entry(kind, tid, record, meta)
-    yield from journalled
-
-
-def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
-    """One finished task with its data, from the journal or the HDF5 file."""
-    from .journal import Malformed
-
-    path = Path(path)
-    try:
-        return read_entry_file(entry_path(journal_dir(path), kind, task_id))
-    except (FileNotFoundError, Malformed):
-        pass
-    if path.exists():
-        with _open(path) as f:
-            group = f.get(f"{kind}/{task_id}")
-            if isinstance(group, _h5().Group):
-                meta, record = _read_group(group)
-                return Entry(kind, task_id, record, meta)
-    return None
-
-
-def journal_problems(path: str | Path) -> list[str]:
-    """One line per malformed journal entry of a results file (their tasks are
-    recomputed when the run resumes)."""
-    return [f"{p.name}: {why}" for p, why in scan(journal_dir(Path(path)))[1]]
-
-
-def read_root(path: str | Path) -> dict[str, Any]:
-    """Root attributes of a knitsweep results file (schema checked); InputError
-    naming the file for anything else (missing, not HDF5, foreign HDF5, other
-    schema)."""
-    path = Path(path)
-    with _open(path) as f:
-        attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
-    version = attrs.get("schema_version")
-    if version is None:
-        raise InputError(f"{path}: an HDF5 file, but not a knitsweep results file (no "
-                         "schema_version attribute)")  # fmt: skip
-    if not isinstance(version, int) or isinstance(version, bool):
-        raise InputError(f"{path}: schema_version {version!r} is not an integer: not a results "
-                         "file written by knitsweep")  # fmt: skip
-    if version not in READABLE_SCHEMAS:
-        raise InputError(
-            f"{path}: results schema_version {version}; this knitsweep reads "
-            f"{' and '.join(map(str, READABLE_SCHEMAS))}: use the knitsweep version that wrote it"
-        )
-    missing = [k for k in ("job_json", "job_hash") if k not in attrs] if version >= 2 else []
-    if missing:
-        raise InputError(f"{path}: schema_version {version} but no {' or '.join(missing)} "
-                         "attribute: not a complete knitsweep results file")  # fmt: skip
-    return attrs
-
-
-def read_progress(path: str | Path) -> dict[str, Any] | None:
-    p = progress_path(Path(path))
-    try:
-        data = json.loads(p.read_text())
-    except (OSError, ValueError):
-        return None
-    return data if isinstance(data, dict) else None

@@ -13,20 +13,13 @@ import time
 from pathlib import Path
 from typing import Any, Literal
 
-from ..config import DONE, FAILED, InputError
+from ..config import DONE, FAILED
+from ..errors import InputError
 from . import signals
 from .jobs import JobSpec, load_job
-from .results_file import (
-    POINTS,
-    RESULTS_SCHEMA_VERSION,
-    SERIES,
-    iter_entries,
-    journal_problems,
-    lock_path,
-    read_progress,
-    read_root,
-    writer_alive,
-)
+from .results_file import writer_alive
+from .results_format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, lock_path
+from .results_read import iter_entries, journal_problems, read_progress, read_root
 
 ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
 LARGE_GRID_TASKS = 20_000
@@ -243,7 +236,8 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     failed one. Returns counts of what ``out`` holds.
     """
     from .jobs import JobSpec, plan
-    from .results_file import SWEEPS, ResultWriter
+    from .results_file import ResultWriter
+    from .results_format import SWEEPS
 
     if not inputs:
         raise InputError("merge needs at least one input file")

@@ -20,7 +20,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from .. import __version__
-from ..config import InputError
+from ..errors import InputError
 
 TemplateName = Literal["mpi", "array", "merge"]
 TEMPLATE_FILES = {

@@ -1,0 +1,139 @@
+"""The results file's format: its schema version, where its parts live, and how a
+task's record becomes an HDF5 group and back (README, "The results file").
+
+A record's arrays become datasets, its scalars attributes of the task's group; every
+dataset carries ``units`` and ``long_name`` and labelled dimension scales
+(``knitsweep.quantities``). ``results_file`` writes files in this format,
+``results_read`` reads them.
+"""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+RESULTS_SCHEMA_VERSION = 2
+"""The results-file format this knitsweep writes."""
+READABLE_SCHEMAS = (1, 2)
+"""Results-file formats this knitsweep reads."""
+POINTS, SWEEPS, SERIES = "points", "sweeps", "series"
+KINDS = (POINTS, SWEEPS, SERIES)
+_STR = None  # h5py string dtype, created lazily
+
+
+def now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def journal_dir(path: Path) -> Path:
+    return path.with_name(path.name + ".journal")
+
+
+def progress_path(path: Path) -> Path:
+    return path.with_name(path.name + ".progress.json")
+
+
+def lock_path(path: Path) -> Path:
+    return path.with_name(path.name + ".lock")
+
+
+def _h5():
+    import h5py
+
+    return h5py
+
+
+def _string_dtype():
+    global _STR
+    if _STR is None:
+        _STR = _h5().string_dtype()
+    return _STR
+
+
+def split_record(record: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(arrays, scalars) of a task's record: what becomes datasets and what becomes
+    attributes of its group."""
+    arrays = {k: v for k, v in record.items() if isinstance(v, np.ndarray) and v.ndim > 0}
+    return arrays, {k: v for k, v in record.items() if k not in arrays}
+
+
+def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
+    """A task's record as datasets (arrays) and attributes (scalars) of ``group``;
+    every dataset gets ``units`` and ``long_name`` and labelled dimension scales
+    (``step`` in a sweep, ``start`` in a point, then e.g. ``state_entry``)."""
+    kind = group.name.strip("/").split("/")[0]
+    for key, value in {**meta, **record}.items():
+        if value is None:
+            continue
+        if isinstance(value, np.ndarray) and value.ndim > 0:
+            if value.dtype == object:
+                group.create_dataset(key, data=value.astype(str).astype(object),
+                                     dtype=_string_dtype())  # fmt: skip
+            else:
+                group.create_dataset(
+                    key, data=value, compression="gzip" if value.size > 256 else None
+                )
+            describe_dataset(group, kind, key)
+        elif isinstance(value, dict):
+            group.attrs[key] = json.dumps(value, sort_keys=True)
+        elif isinstance(value, (bool, np.bool_)):
+            group.attrs[key] = bool(value)
+        elif isinstance(value, (int, np.integer)):
+            group.attrs[key] = int(value)
+        elif isinstance(value, (float, np.floating)):
+            group.attrs[key] = float(value)
+        else:
+            group.attrs[key] = str(value)
+
+
+_LEADING_DIM = {"start": "start of the zero-force relaxation",
+                "step": "strain step (0: the zero-force state)"}  # fmt: skip
+
+
+def describe_dataset(group, kind: str, name: str) -> None:
+    """``units``, ``long_name`` and dimension scales of dataset ``name`` (xarray and
+    netCDF readers then see named dimensions and coordinates)."""
+    from ..quantities import AXES, TRAILING_DIMS, dataset_quantity, leading_dimension
+
+    ds = group[name]
+    q = dataset_quantity(kind, name)
+    ds.attrs["units"] = q.units if q else "1"
+    ds.attrs["long_name"] = q.long_name if q else name.replace("_", " ")
+    trailing = TRAILING_DIMS.get(name, ())
+    dims = list(trailing[-(ds.ndim) :]) if ds.ndim <= len(trailing) else list(trailing)
+    if ds.ndim > len(trailing) and kind in (POINTS, SWEEPS):
+        dims = [leading_dimension(kind, name), *dims]
+    if len(dims) != ds.ndim:
+        return
+    for axis, dim in enumerate(dims):
+        scale = group.get(dim)
+        if scale is None:
+            labels = AXES.get(dim)
+            if labels is None:  # the leading dimension: 0 … n-1
+                scale = group.create_dataset(dim, data=np.arange(ds.shape[axis]))
+                scale.attrs["long_name"] = _LEADING_DIM[dim]
+            else:
+                scale = group.create_dataset(dim, data=np.array(labels, dtype=object),
+                                             dtype=_string_dtype())  # fmt: skip
+                scale.attrs["long_name"] = dim.replace("_", " ")
+            scale.attrs["units"] = "1"
+            scale.make_scale(dim)
+        if scale.shape[0] == ds.shape[axis]:
+            ds.dims[axis].attach_scale(scale)
+
+
+def _read_group(group) -> tuple[dict[str, Any], dict[str, Any]]:
+    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in group.attrs.items()}
+    data = {}
+    for k, ds in group.items():
+        if not isinstance(ds, _h5().Dataset) or ds.is_scale:  # (scales: coordinates)
+            continue
+        v = ds[()]
+        if ds.dtype.kind == "O":
+            v = np.array([s.decode() if isinstance(s, bytes) else s for s in v], dtype=object)
+        data[k] = v
+    return attrs, data
