@@ -27,21 +27,22 @@ MAX_STATE_VALUE = 1e4
 """|entry| of a state (mm or rad) beyond which a file is not a stitch's state."""
 
 
-def read_text(path: str | Path, what: str) -> str:
-    """The UTF-8 text of a small input file; InputError naming the file for a missing,
-    unreadable, binary, non-UTF-8 (e.g. UTF-16) or oversized one."""
+def read_text(path: str | Path, what: str, max_bytes: int = MAX_TEXT_BYTES, hint: str = "") -> str:
+    """The UTF-8 text of an input file of at most ``max_bytes``; InputError naming the
+    file for a missing, unreadable, binary, non-UTF-8 (e.g. UTF-16) or oversized one
+    (``hint`` is added to the non-UTF-8 message)."""
     path = Path(path)
     try:
         with open(path, "rb") as f:
-            raw = f.read(MAX_TEXT_BYTES + 1)
+            raw = f.read(max_bytes + 1)
     except OSError as e:
         raise InputError(f"{what} {path}: {e.strerror or e}") from None
-    if len(raw) > MAX_TEXT_BYTES:
-        raise InputError(f"{what} {path}: larger than {MAX_TEXT_BYTES} bytes, not a {what}")
+    if len(raw) > max_bytes:
+        raise InputError(f"{what} {path}: larger than {max_bytes} bytes, not a {what}")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise InputError(f"{what} {path}: not UTF-8 text (byte {e.start})") from None
+        raise InputError(f"{what} {path}: not UTF-8 text (byte {e.start}){hint}") from None
     if "\x00" in text:
         raise InputError(f"{what} {path}: a binary file, not a {what}")
     return text

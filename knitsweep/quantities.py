@@ -72,6 +72,25 @@ PARAMETERS = dict(
 )
 """The stitch parameters, named as in job files."""
 
+_RELAXATION = dict(
+    (
+        _q("bending_energy", "mJ", "bending energy E_b"),
+        _q("contact_energy", "mJ", "contact energy E_c"),
+        _q("iterations", "1", "minimiser iterations"),
+        _q("evaluations", "1", "energy and gradient evaluations"),
+        _q("length_residual", "mm", "yarn length minus L"),
+        _q("min_zeta", "1", "smallest compression zeta of any contact (1: none)"),
+        _q("kkt_residual", "mJ", "largest stationarity residual |dE - lambda dl| per state entry"),
+        _q("relax_seconds", "s", "wall time of the relaxation"),
+    )
+)
+"""What every relaxation reports, per step of a sweep and per start of a point."""
+
+
+def _shared(name: str) -> tuple[str, Quantity]:
+    return name, _RELAXATION[name]
+
+
 STEP_QUANTITIES = dict(
     (
         _q("a_fixed", "mm", "period held fixed at this step (a_x in x pulls, a_y in y pulls)"),
@@ -80,18 +99,18 @@ STEP_QUANTITIES = dict(
         _q("strain", "1", "strain of the pulled period, (a - a0)/a0"),
         _q("stress", "N/mm", "2D stress, second-order difference of the energy / a_perp0"),
         _q("stress_envelope", "N/mm", "2D stress from the length constraint's multiplier"),
-        _q("bending_energy", "mJ", "bending energy E_b"),
-        _q("contact_energy", "mJ", "contact energy E_c"),
+        _shared("bending_energy"),
+        _shared("contact_energy"),
         _q("total_energy", "mJ", "total energy E = E_b + E_c"),
         _q("thickness", "mm", "thickness z_max - z_min + 2r of the centre-line"),
         _q("winner", "1", "start (chain) whose relaxation has the lowest energy"),
         _q("converged", "1", "the winning relaxation converged"),
-        _q("iterations", "1", "minimiser iterations"),
-        _q("evaluations", "1", "energy and gradient evaluations"),
-        _q("min_zeta", "1", "smallest compression zeta of any contact (1: none)"),
-        _q("length_residual", "mm", "yarn length minus L"),
-        _q("kkt_residual", "mJ", "largest stationarity residual |dE - lambda dl| per state entry"),
-        _q("relax_seconds", "s", "wall time of the relaxation"),
+        _shared("iterations"),
+        _shared("evaluations"),
+        _shared("min_zeta"),
+        _shared("length_residual"),
+        _shared("kkt_residual"),
+        _shared("relax_seconds"),
         _q("states", "1", "state vector (lengths mm, angles rad; see state_entry)"),
         _q("control_points", "mm", "Bézier control points of the 8 segments"),
         _q("contact_forces", "N", "contact forces by class: -dE_c/da_x, -dE_c/da_y, z push"),
@@ -102,21 +121,21 @@ STEP_QUANTITIES = dict(
 START_QUANTITIES = dict(
     (
         _q("x", "1", "relaxed state of each start (lengths mm, angles rad)"),
-        _q("bending_energy", "mJ", "bending energy E_b"),
-        _q("contact_energy", "mJ", "contact energy E_c"),
+        _shared("bending_energy"),
+        _shared("contact_energy"),
         _q("length", "mm", "yarn length"),
         _q("start_status", "1", "how the relaxation ended"),
         _q("start_message", "1", "the minimiser's message"),
-        _q("iterations", "1", "minimiser iterations"),
-        _q("evaluations", "1", "energy and gradient evaluations"),
-        _q("length_residual", "mm", "yarn length minus L"),
+        _shared("iterations"),
+        _shared("evaluations"),
+        _shared("length_residual"),
         _q("twist_margin", "1", "cos(tw) - c_tw (>= 0: the twist bound holds)"),
         _q("twist_active", "1", "the twist bound is active"),
-        _q("min_zeta", "1", "smallest compression zeta of any contact (1: none)"),
-        _q("kkt_residual", "mJ", "largest stationarity residual |dE - lambda dl| per state entry"),
+        _shared("min_zeta"),
+        _shared("kkt_residual"),
         _q("length_multiplier", "mJ/mm", "Lagrange multiplier of the length constraint"),
         _q("period_forces", "N", "dE*/da_x, dE*/da_y at the relaxed state (0 at zero force)"),
-        _q("relax_seconds", "s", "wall time of the relaxation"),
+        _shared("relax_seconds"),
         _q("labels", "1", "where the start came from"),
         _q("stages", "1", "continuation stages from the start's parameters"),
         _q("merged_into", "1", "the start whose continuation this one joined (-1: none)"),

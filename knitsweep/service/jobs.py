@@ -42,6 +42,7 @@ from ..config import (
     preset_sections,
 )
 from ..errors import describe_validation_error
+from ..formats import read_text
 from .grid import MAX_POINTS, Grid
 
 if sys.version_info >= (3, 11):
@@ -308,19 +309,7 @@ def plan(job: JobSpec) -> tuple[list[PointTask], list[SweepTask]]:
 def load_job(path: str | Path) -> JobSpec:
     """Read and validate a TOML job file; every problem is one ``InputError`` naming
     the file and the field (also for binary, non-UTF-8 and absurdly nested files)."""
-    path = Path(path)
-    try:
-        with open(path, "rb") as f:
-            raw = f.read(MAX_JOB_FILE_BYTES + 1)
-    except OSError as e:
-        raise InputError(f"job file {path}: {e.strerror or e}") from None
-    if len(raw) > MAX_JOB_FILE_BYTES:
-        raise InputError(f"job file {path}: larger than {MAX_JOB_FILE_BYTES} bytes, not a job file")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise InputError(f"job file {path}: not UTF-8 text (byte {e.start}); save it as UTF-8 "
-                         "TOML") from None  # fmt: skip
+    text = read_text(path, "job file", MAX_JOB_FILE_BYTES, hint="; save it as UTF-8 TOML")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -108,20 +108,29 @@ def _put(f, entry: Entry) -> None:
     _write_group(f.create_group(group_path), entry.record, entry.meta)
 
 
-def _unused(path: Path) -> bool:
-    """Whether no HDF5 reader holds ``path`` open (HDF5 readers hold a shared
-    flock for as long as the file is open)."""
+def _lockable(path: Path, mode: int) -> bool | None:
+    """Whether ``path`` could be flocked with ``mode`` right now (the probe's own lock
+    is dropped at once): False if another holder blocks it, None if the file cannot be
+    opened or locked at all."""
     try:
         fd = os.open(path, os.O_RDONLY)
     except OSError:
-        return False
+        return None
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.flock(fd, mode | fcntl.LOCK_NB)
         return True
-    except OSError:
+    except BlockingIOError:
         return False
+    except OSError:
+        return None
     finally:
-        os.close(fd)  # also drops the probe's lock
+        os.close(fd)  # closing also drops the probe's lock
+
+
+def _unused(path: Path) -> bool:
+    """Whether no HDF5 reader holds ``path`` open (HDF5 readers hold a shared
+    flock for as long as the file is open)."""
+    return bool(_lockable(path, fcntl.LOCK_EX))
 
 
 class ResultWriter:
@@ -374,17 +383,7 @@ def _fsync_file(path: Path) -> None:
 
 def writer_alive(lock: Path) -> bool:
     """Whether a live process holds the results file's writer lock."""
-    try:
-        fd = os.open(lock, os.O_RDONLY)
-    except OSError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return True
-    finally:
-        os.close(fd)  # closing also drops the probe's own shared lock
-    return False
+    return _lockable(lock, fcntl.LOCK_SH) is False
 
 
 GROWABLE = ("grid", "directions")
