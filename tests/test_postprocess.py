@@ -13,6 +13,7 @@ from results_factory import write_results
 from knitsweep.config import InputError
 from knitsweep.report import phase_diagram, reduce_results
 from knitsweep.report.reduce import SERIES_PARAMS
+from knitsweep.report.tables import transitions_text
 from knitsweep.service.journal import Entry, write_entry
 from knitsweep.service.results_format import journal_dir
 from knitsweep.state import CONTACT_CLASSES
@@ -67,6 +68,7 @@ def test_tiny_job_cli_tables(tiny, tmp_path):
     out = knitsweep("phase-diagram", str(tiny), "--out", str(tmp_path / "pd"), "--no-figures")
     assert out.returncode == 0, out.stderr
     assert "(L/r)_trans" in out.stdout and "PARTIAL" not in out.stdout
+    assert "––" not in out.stdout  # a series without a jammed-regime fit shows one dash
     sweeps = read_csv(tmp_path / "pd" / "sweeps.csv")
     assert len(sweeps) == 4
     for col in ("task_id", "direction", "L_mm", "L_over_r", "k_mN_per_mm2", "Y_sec_N_per_mm",
@@ -110,6 +112,8 @@ def test_known_transitions(synthetic):
     never = transition_of(red, 1.0, "y")
     assert never["status"] == "jammed_throughout" and never["L_over_r_trans"] is None
     assert never["bracket_lower"] == 24.0
+    text = transitions_text(red)  # the fit's L range; a series without a fit shows one dash
+    assert "10.00–11.00" in text and "––" not in text
 
 
 def test_threshold_moves_the_transition(synthetic):

@@ -84,6 +84,11 @@ def _fmt(value: Any, spec: str = ".4g") -> str:
     return format(value, spec)
 
 
+def _fit_range(lo: float | None, hi: float | None) -> str:
+    """'10.50–11.20' (mm), or one dash when there is no fit."""
+    return "–" if lo is None or hi is None else f"{lo:.2f}–{hi:.2f}"
+
+
 def transitions_text(red: Reduction) -> str:
     """The transitions as an aligned text table (one line per series and direction).
 
@@ -111,7 +116,7 @@ def transitions_text(red: Reduction) -> str:
             _fmt(t["delta_L_over_r"], ".3f"),
             _fmt(t["fit_slope_mJ_per_mm"], ".3e"),
             _fmt(t["fit_intercept_mJ"], ".3e"),
-            f"{_fmt(t['fit_L_lo_mm'], '.2f')}–{_fmt(t['fit_L_hi_mm'], '.2f')}",
+            _fit_range(t["fit_L_lo_mm"], t["fit_L_hi_mm"]),
             str(t["n_jammed"]),
             str(t["n_missing"]),
         ])  # fmt: skip
