@@ -33,8 +33,9 @@ from threadpoolctl import threadpool_limits
 
 from knitsweep.config import SolverSettings, StartSettings, StitchParams, SweepProtocol
 from knitsweep.formats import shipped_state
+from knitsweep.kernels.kkt import compile_solver
 from knitsweep.model import CellModel, compile_kernels
-from knitsweep.relax import Relaxer, compile_solver, free_entries, relax
+from knitsweep.relax import Relaxer, free_entries, relax
 from knitsweep.relax.newton import measure_curvature
 from knitsweep.relax.problem import Problem
 from knitsweep.state import IDX_TW

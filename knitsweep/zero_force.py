@@ -54,6 +54,7 @@ def start_states(
     """The ``settings.count`` starting states for one point, reproducible from ``seed``."""
     fidelity = fidelity or Fidelity()
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(settings.count)]
+    model = CellModel(SHIPPED_SOURCE, fidelity)
     starts = []
     for i in range(settings.count):
         shipped = i % len(SHIPPED_STATES) if settings.source == "shipped" else 0
@@ -64,9 +65,15 @@ def start_states(
             x = x.copy()
             x[:N_SHAPE] *= 1.0 + noise
             label += f"+noise[{i}]"
-        length = CellModel(SHIPPED_SOURCE, fidelity).energies(x).length
-        starts.append(Start(label, x, SHIPPED_SOURCE.model_copy(update={"L_mm": length})))
+        starts.append(_at_own_length(label, x, model))
     return starts
+
+
+def _at_own_length(label: str, x: np.ndarray, shipped: CellModel) -> Start:
+    """A start from state ``x``: the shipped states' parameters at ``x``'s own yarn
+    length (``shipped`` is the model of ``SHIPPED_SOURCE``)."""
+    length = shipped.energies(x).length
+    return Start(label, x, SHIPPED_SOURCE.model_copy(update={"L_mm": length}))
 
 
 # per-start arrays of a stored zero-force record: record name -> Relaxation field
@@ -197,8 +204,7 @@ def zero_force(
     if initial is None:
         begin = start_states(starts, seed, fidelity)
     else:
-        length = CellModel(SHIPPED_SOURCE, fidelity).energies(initial).length
-        begin = [Start("initial", initial, SHIPPED_SOURCE.model_copy(update={"L_mm": length}))]
+        begin = [_at_own_length("initial", initial, CellModel(SHIPPED_SOURCE, fidelity))]
     with single_threaded():
         walked, merged_into, merged_at = walk_starts(
             params, fidelity, [(s.x, s.params) for s in begin], solver, starts.merge_tolerance_mJ

@@ -10,7 +10,7 @@ called converged.
 
 from ..config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE
 from .chains import Chain, merge_chains
-from .continuation import continuation_path, relax_with_continuation, walk_starts
+from .continuation import continuation_path, walk_starts
 from .newton import Curvature
 from .relaxer import Relaxer, free_entries, relax, single_threaded
 from .result import Relaxation
@@ -27,7 +27,6 @@ __all__ = [
     "free_entries",
     "merge_chains",
     "relax",
-    "relax_with_continuation",
     "single_threaded",
     "walk_starts",
 ]

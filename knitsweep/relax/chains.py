@@ -24,7 +24,6 @@ import numpy as np
 from ..config import CONVERGED
 from ..model import CellModel
 from .newton import measure_curvature
-from .problem import Problem
 from .relaxer import Relaxer, free_entries
 from .result import Relaxation
 
@@ -46,7 +45,7 @@ def soft_distance(model: CellModel, keep: Chain, other: Chain, fixed: str | None
     state (its carried curvature, or measured there if it has none)."""
     free = free_entries(fixed)
     curv = keep.relaxer.curvature
-    prob = Problem(model, keep.x, free)
+    prob = keep.relaxer.problem(model, keep.x, free)
     pt = prob.evaluate(keep.x[free])
     if curv is None or not bool(np.all(curv.known[free])):
         curv = measure_curvature(prob, pt)

@@ -127,16 +127,3 @@ def walk_starts(
         note = f"merged into start {j} at continuation stage {merged_at[i]}/{total}: same minimum"
         done[int(i)] = replace(r, message=note, iterations=0, evaluations=0, seconds=0.0), total
     return [done[i] for i in range(n)], merged_into, merged_at
-
-
-def relax_with_continuation(
-    target: StitchParams,
-    fidelity: Fidelity,
-    x_start: np.ndarray,
-    start: StitchParams,
-    settings: SolverSettings | None = None,
-) -> tuple[Relaxation, int]:
-    """Zero-force relaxation at ``target`` from one state relaxed at ``start``
-    (``walk_starts`` with one start). Returns the relaxation and the stages used."""
-    (result,), _, _ = walk_starts(target, fidelity, [(x_start, start)], settings)
-    return result

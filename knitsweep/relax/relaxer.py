@@ -77,16 +77,14 @@ class Relaxer:
         settings = settings or self.settings
         t0 = time.perf_counter()
         x0 = np.asarray(x0, dtype=float)
-        if model is not self._model:
-            self._model, self._neighbours = model, model.neighbour_list(x0)
-        walked = self._walk(model, x0, fixed, settings)
-        if walked is not None:
-            x0, iterations, evaluations = walked
-        else:
-            iterations = evaluations = 0
         free = free_entries(fixed)
-        prob = Problem(model, x0, free, self._neighbours)
-        with single_threaded():
+        with single_threaded():  # the unrecorded sub-steps too
+            walked = self._walk(model, x0, fixed, settings)
+            if walked is not None:
+                x0, iterations, evaluations = walked
+            else:
+                iterations = evaluations = 0
+            prob = self.problem(model, x0, free)
             try:
                 z, success, message, nit = self._minimise(prob, x0, settings)
                 x = prob.full(z)
@@ -99,6 +97,13 @@ class Relaxer:
             return assess(model, x0, x, free, success, message, nit + iterations,
                           prob.evaluations + evaluations, settings, time.perf_counter() - t0,
                           evaluated)  # fmt: skip
+
+    def problem(self, model: CellModel, x: np.ndarray, free: np.ndarray) -> Problem:
+        """The problem at state ``x`` over ``free``, on this relaxer's neighbour list
+        (built at ``x`` for a model it has not seen yet)."""
+        if model is not self._model:
+            self._model, self._neighbours = model, model.neighbour_list(x)
+        return Problem(model, x, free, self._neighbours)
 
     def _walk(self, model, x0, fixed, settings):
         """For Newton, a change of the fixed period by more than ``substep_mm`` since the
@@ -119,7 +124,7 @@ class Relaxer:
         for k in range(1, n):
             x[i] = anchor.x[i] + change * k / n
             # the minimiser alone: a sub-step is not recorded, so not assessed either
-            prob = Problem(model, x, free, self._neighbours)
+            prob = self.problem(model, x, free)
             z, success, _, nit = self._minimise(prob, x, loose)
             iterations, evaluations = iterations + nit, evaluations + prob.evaluations
             if not (success and np.all(np.isfinite(z))):

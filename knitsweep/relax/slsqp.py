@@ -14,8 +14,9 @@ from ..config import SolverSettings
 from .problem import Problem
 
 
-def slsqp_minimise(prob: Problem, z0: np.ndarray, bounds: list, settings: SolverSettings,
-                   maxiter: int | None = None) -> tuple[np.ndarray, bool, str, int]:  # fmt: skip
+def slsqp_minimise(
+    prob: Problem, z0: np.ndarray, bounds: list, settings: SolverSettings
+) -> tuple[np.ndarray, bool, str, int]:
     """Minimise from z0 within ``bounds`` (SciPy's format); returns (z, success,
     message, iterations). Raises what SLSQP raises on non-finite trial points."""
     constraints = [
@@ -30,6 +31,6 @@ def slsqp_minimise(prob: Problem, z0: np.ndarray, bounds: list, settings: Solver
             method="SLSQP",
             bounds=bounds,
             constraints=constraints,
-            options={"ftol": settings.ftol, "maxiter": maxiter or settings.maxiter},
+            options={"ftol": settings.ftol, "maxiter": settings.maxiter},
         )
     return np.asarray(res.x, dtype=float), bool(res.success), str(res.message), int(res.nit)

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis import energy_gaps, offset_stress, secant_modulus
+from ..analysis import offset_stress, secant_modulus
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import GAP_THRESHOLD, threshold_crossing
 from ..config import (
@@ -115,7 +115,6 @@ def run_setting(point: StitchParams, s: Setting, series: list[float], threshold:
         sweep_times.append(time.process_time() - t)
         relaxations.append(sw.relaxations)
         evaluations.append(sw.evaluations_total)
-        gaps = energy_gaps(sw.bending_energy, sw.contact_energy)
         out.values[f"Y_sec_{d}"] = secant_modulus(sw.strain, sw.stress).Y_sec
         # sigma0 is the longest softened regime of the whole curve (fitted to the envelope
         # stress, as the reports do): a sweep that stopped once its observables were
@@ -125,9 +124,7 @@ def run_setting(point: StitchParams, s: Setting, series: list[float], threshold:
             if "curve" in s.protocol.observables
             else None
         )
-        out.values[f"dEc_{d}" if d == "x" else f"dEb_{d}"] = (
-            gaps.delta_E_c if d == "x" else gaps.delta_E_b
-        )
+        out.values[f"dEc_{d}" if d == "x" else f"dEb_{d}"] = sw.energy_gaps.jamming_gap(d)
         if progress:
             progress(f"{s.name}: {d} sweep {sweep_times[-1]:.2f} s")
     out.seconds_point = out.seconds_relax + sum(sweep_times)
@@ -140,7 +137,7 @@ def run_setting(point: StitchParams, s: Setting, series: list[float], threshold:
         sweep_times.append(time.process_time() - t)
         relaxations.append(sw.relaxations)
         evaluations.append(sw.evaluations_total)
-        gap_series.append(energy_gaps(sw.bending_energy, sw.contact_energy).delta_E_c)
+        gap_series.append(sw.energy_gaps.delta_E_c)
     crossing = threshold_crossing(series, gap_series, threshold)
     out.values["L_over_r_trans_x"] = None if crossing is None else crossing / point.r_mm
     out.seconds_sweep = float(np.median(sweep_times))
