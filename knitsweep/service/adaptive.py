@@ -141,6 +141,7 @@ class Refiner:
         self.settings = job.adaptive
         self.coarse = sorted(job.grid.axes()["L_mm"])
         self.series: dict[str, dict[str, Any]] = {}
+        self._states: dict[str, SeriesState] = {}  # each series' state until its gaps change
         for params in job.points():
             for d in job.directions:
                 key = self.key(params, d)
@@ -168,12 +169,18 @@ class Refiner:
         else:
             gap = None
         self.series[key]["gaps"][params.L_mm] = gap
+        self._states.pop(key, None)
 
     def states(self) -> Iterator[tuple[str, SeriesState]]:
+        """Every series' state (``series_state`` of its gaps, recomputed only for the
+        series whose gaps changed since the last call)."""
         s = self.settings
         for key, series in self.series.items():
-            yield key, series_state(self.coarse, series["gaps"], s.threshold_mJ, s.tolerance_mm,
-                                    s.secant_span_mm, s.max_refinements)  # fmt: skip
+            if key not in self._states:
+                self._states[key] = series_state(self.coarse, series["gaps"], s.threshold_mJ,
+                                                 s.tolerance_mm, s.secant_span_mm,
+                                                 s.max_refinements)  # fmt: skip
+            yield key, self._states[key]
 
     def point_params(self, key: str, L: float) -> tuple[StitchParams, str]:
         series = self.series[key]
