@@ -117,9 +117,11 @@ class ProcessExecutor:
     def __init__(self, job, workers: int) -> None:
         self.job = job
         self.capacity = workers
-        prepare(job, stderr_notice)  # compile once here; the workers then load numba's cache
-        ctx = multiprocessing.get_context("spawn")
-        self._pool = ctx.Pool(workers, initializer=_process_worker_init, initargs=(job,))
+        with signals.interruptible():  # compile once here; the workers load numba's cache
+            prepare(job, stderr_notice)
+        with signals.deferred():  # a pool is not left half-started
+            ctx = multiprocessing.get_context("spawn")
+            self._pool = ctx.Pool(workers, initializer=_process_worker_init, initargs=(job,))
         self._replies: queue.Queue = queue.Queue()
         self._running = 0
         self._next_rank = 0
@@ -188,10 +190,8 @@ class MPIExecutor:
         self._left: set[int] = set()
         self._sends: list = []  # requests of tasks not yet received by their worker
         self._stopped = False
-        with signals.interruptible():
-            prepare(
-                job, stderr_notice
-            )  # compile once, into numba's cache, before the workers load it
+        with signals.interruptible():  # compile once, into numba's cache, before the workers
+            prepare(job, stderr_notice)
         with signals.deferred():
             for rank in self._outstanding:
                 comm.send(job.model_dump_json(), dest=rank, tag=JOB)

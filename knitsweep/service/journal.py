@@ -23,7 +23,6 @@ import io
 import json
 import os
 import re
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -237,7 +236,3 @@ def scan(journal: Path, with_data: bool = False) -> tuple[list[Entry], list[tupl
         except Malformed as e:
             problems.append((path, str(e)))
     return entries, problems
-
-
-def iter_journal(journal: Path, with_data: bool = False) -> Iterator[Entry]:
-    yield from scan(journal, with_data)[0]

@@ -100,7 +100,7 @@ class _Master:
         self.ready_sweeps: deque = deque()
         self.zero: dict[str, dict[str, Any]] = {}  # done points' records, while sweeps need them
         self.finished: dict[str, dict[str, dict[str, Any]]] = {POINTS: {}, SWEEPS: {}, SERIES: {}}
-        for e in iter_entries(writer.path):
+        for e in iter_entries(writer.path, journalled=writer.journalled):
             if str(e.meta.get("status")) != FAILED or not retry_failed or e.kind == SERIES:
                 self.finished[e.kind][e.task_id] = e.meta
         self.refiner = Refiner(job) if job.mode == "adaptive" else None

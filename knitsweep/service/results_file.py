@@ -76,7 +76,7 @@ from .results_format import (
     lock_path,
     now,
 )
-from .results_read import _open, read_root
+from .results_read import read_root
 
 __all__ = ["ResultWriter", "StorageError", "atomic_write_bytes", "check_compatible",
            "writer_alive"]  # fmt: skip
@@ -201,6 +201,11 @@ class ResultWriter:
             os.close(self._lock_fd)
             self._lock_fd = None
 
+    @property
+    def journalled(self) -> list[Entry]:
+        """The journal's entries not yet merged into the HDF5 file."""
+        return list(self._pending.values())
+
     def _open_or_create(self, extra_meta: dict[str, Any]) -> None:
         h5py = _h5()
         for stale in (
@@ -210,9 +215,9 @@ class ResultWriter:
         ):
             stale.unlink(missing_ok=True)  # a checkpoint interrupted before its rename
         if self.path.exists():
-            grown = check_compatible(self.path, self.job)
-            with _open(self.path) as f:
-                self.previous_run_seconds = float(f.attrs.get("run_seconds", 0.0))
+            root = read_root(self.path)
+            grown = check_compatible(self.path, self.job, root)
+            self.previous_run_seconds = float(root.get("run_seconds", 0.0))
             # the file describes the job now running; applied at the first checkpoint
             self._root_updates = {**extra_meta, "run_status": "running"}
             if grown is not None:
@@ -392,12 +397,13 @@ content-addressed, so a grown grid adds only the new tasks (a shrunk one keeps t
 old results in the file)."""
 
 
-def check_compatible(path: Path, job) -> str | None:
+def check_compatible(path: Path, job, root: dict[str, Any] | None = None) -> str | None:
     """Refuse to write ``job`` into anything that is not a knitsweep results file, or
     into one made by a job with other numerics, protocol, starts or stored
-    observables. Returns None for the same job, or the job hashes the file grew from
-    (comma-separated) when only ``GROWABLE`` differ."""
-    root = read_root(path)
+    observables (``root``: the file's ``read_root``, read here if not given). Returns
+    None for the same job, or the job hashes the file grew from (comma-separated) when
+    only ``GROWABLE`` differ."""
+    root = read_root(path) if root is None else root
     version = root["schema_version"]
     if version != RESULTS_SCHEMA_VERSION:
         raise InputError(

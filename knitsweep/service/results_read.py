@@ -47,15 +47,17 @@ def _groups(f, kind: str):
             yield tid, group
 
 
-def iter_entries(path: str | Path, with_data: bool = False) -> Iterator[Entry]:
+def iter_entries(path: str | Path, with_data: bool = False,
+                 journalled: list[Entry] | None = None) -> Iterator[Entry]:  # fmt: skip
     """Every finished task of a results file, deduplicated: the HDF5 file's
     groups that the journal has no newer version of, then the journal's entries.
 
-    The journal is read first: an entry merged and deleted meanwhile is then in
-    the file opened after it. Malformed journal entries are skipped
-    (``journal_problems`` lists them)."""
+    The journal is read first (or given as ``journalled``, read before this call): an
+    entry merged and deleted meanwhile is then in the file opened after it. Malformed
+    journal entries are skipped (``journal_problems`` lists them)."""
     path = Path(path)
-    journalled = scan(journal_dir(path), with_data)[0]
+    if journalled is None:
+        journalled = scan(journal_dir(path), with_data)[0]
     newer = {(e.kind, e.task_id) for e in journalled}
     if path.exists():
         with _open(path) as f:
@@ -89,10 +91,12 @@ def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
     return None
 
 
-def journal_problems(path: str | Path) -> list[str]:
+def journal_problems(path: str | Path, problems: list | None = None) -> list[str]:
     """One line per malformed journal entry of a results file (their tasks are
-    recomputed when the run resumes)."""
-    return [f"{p.name}: {why}" for p, why in scan(journal_dir(Path(path)))[1]]
+    recomputed when the run resumes); ``problems``: the journal's scan, if made."""
+    if problems is None:
+        problems = scan(journal_dir(Path(path)))[1]
+    return [f"{p.name}: {why}" for p, why in problems]
 
 
 def read_root(path: str | Path) -> dict[str, Any]:

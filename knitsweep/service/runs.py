@@ -17,8 +17,9 @@ from ..config import DONE, FAILED
 from ..errors import InputError
 from . import signals
 from .jobs import JobSpec, load_job
+from .journal import scan
 from .results_file import writer_alive
-from .results_format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, lock_path
+from .results_format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
 from .results_read import iter_entries, journal_problems, read_progress, read_root
 
 ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
@@ -93,12 +94,9 @@ def _prepare_run(job_path, out, shard, max_tasks):
 
 def _local_executor(job, executor, workers):
     from .executors import ProcessExecutor, SerialExecutor
-    from .worker import prepare
 
     if executor == "processes" or (executor == "auto" and workers > 1):
-        prepare(job)  # compile once here (interruptible); the workers load numba's cache
-        with signals.deferred():  # a pool is not left half-started
-            return ProcessExecutor(job, workers)
+        return ProcessExecutor(job, workers)
     return SerialExecutor(job)
 
 
@@ -106,7 +104,7 @@ def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:
     """Refuse a grid of more than ``max_tasks`` tasks (default LARGE_GRID_TASKS)
     unless asked for explicitly: a mistyped range must not become a week of work."""
     limit = LARGE_GRID_TASKS if max_tasks is None else max_tasks
-    n = len(job.points()) * (1 + len(job.directions))
+    n = job.grid.size() * (1 + len(job.directions))
     if n > limit:
         raise InputError(
             f"the job has {n} tasks ({n // (1 + len(job.directions))} grid points), more than "
@@ -157,7 +155,8 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
     failures = []
     series = []
     groups: dict[Any, dict[str, int]] = {}
-    for e in iter_entries(path):
+    journalled, problems = scan(journal_dir(path))  # once, before the file (iter_entries)
+    for e in iter_entries(path, journalled=journalled):
         if e.kind == SERIES:
             series.append(e.meta)
             continue
@@ -195,7 +194,6 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
         "running": running,
         "pending": pending,
         "total": total,
-        "rate_per_s": float(live.get("rate_per_s", 0.0)) if fresh else 0.0,
         "started_at": root.get("started_at", ""),
         "finished_at": root.get("finished_at", ""),
         "elapsed_s": float(live.get("elapsed_s", math.nan)) if fresh else _wall_seconds(root),
@@ -204,7 +202,7 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
         "by": {by: {str(k): v for k, v in sorted(groups.items(), key=lambda kv: str(kv[0]))}}
         if by is not None
         else {},
-        "journal_problems": journal_problems(path),
+        "journal_problems": journal_problems(path, problems),
         "series": {
             "done": sum(m.get("status") == "done" for m in series),
             "total": len(series),
