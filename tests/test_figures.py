@@ -1,6 +1,7 @@
 """The phase-diagram figures and the stitch renderer: every figure written and
 readable, skipped figures say why, partial files are labelled, bad input is refused."""
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -286,3 +287,25 @@ def test_render_defaults_show_the_stitches(tmp_path):
     inner = white[60:-60, 60:-60]  # inside the picture frame: no white at all
     assert not inner.any(), int(inner.sum())
     assert np.isclose(pixels, BACKGROUND, atol=0.02).all(axis=-1).any()  # the holes
+
+
+@pytest.mark.parametrize("param, value", [("regularization_mN_mm4", 3.0), ("twist_bound", 0.8)])
+def test_phase_diagram_along_any_series_parameter(tmp_path, param, value):
+    """Two files that differ only in ``param``: the phase diagram is drawn against it
+    (every series parameter has a symbol)."""
+    a = write_results(tmp_path / "a.h5", ks=(0.1,), contact_forces=False)
+    b = write_results(tmp_path / "b.h5", ks=(0.1,), contact_forces=False)
+    with h5py.File(b, "a") as f:
+        for kind in ("points", "sweeps"):
+            for tid in list(f[kind]):  # other parameters, other task ids
+                f.move(f"{kind}/{tid}", f"{kind}/{tid}_b")
+                group = f[f"{kind}/{tid}_b"]
+                params = json.loads(group.attrs["params"]) | {param: value}
+                group.attrs["params"] = json.dumps(params, sort_keys=True)
+                group.attrs[param] = value
+                if "point_id" in group.attrs:
+                    group.attrs["point_id"] = f"{group.attrs['point_id']}_b"
+    report = phase_diagram([a, b], tmp_path / "pd")
+    assert param in reduce_results([a, b]).varying
+    assert_image(tmp_path / "pd" / "fig4c_phase_diagram.png")
+    assert all(f.path is not None or "skipped" in f.line for f in report.figures)

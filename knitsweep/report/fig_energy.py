@@ -42,7 +42,9 @@ from .reduce import PARAM_SYMBOLS, SERIES_PARAMS, Reduction
 from .tables import series_label
 
 MATH_SYMBOL = {"k_mN_per_mm2": "k", "B_mN_mm2": "B", "r_core_mm": r"r_{\rm core}", "r_mm": "r",
-               "p": "p"}  # fmt: skip
+               "p": "p", "regularization_mN_mm4": r"{\rm reg}",
+               "twist_bound": r"c_{\rm tw}"}  # fmt: skip
+"""Math-mode symbol of every series parameter (``reduce.SERIES_PARAMS``)."""
 GAP_LABEL = {"x": r"$\Delta E_c$", "y": r"$\Delta E_b$"}
 
 

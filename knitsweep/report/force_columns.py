@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 
 from ..config import Fidelity, StitchParams
-from ..model import CellModel
 from ..state import CONTACT_CLASSES
 
 CONTACT_COLUMNS = tuple(f"F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
@@ -29,8 +28,6 @@ periods, ``CellModel.contact_forces_by_class``): rows ``CONTACT_CLASSES``."""
 PAIR_COLUMNS = tuple(f"pair_F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
 """Columns of the pair forces by class (``CellModel.contact_pair_forces_by_class``,
 unweighted: the paper's Table S3 quantity), rows ``CONTACT_CLASSES``."""
-
-_PARAM_FIELDS = tuple(StitchParams.model_fields)
 
 
 def _fig6h_ratio(f: np.ndarray) -> tuple[float, float, float | None]:
@@ -70,8 +67,9 @@ def pair_force_columns(state: np.ndarray | None, meta: Mapping[str, Any],
     same-column contacts in the y-direction, shown in Fig. 6h")."""
     if state is None:
         return dict.fromkeys(PAIR_KEYS)
-    params = StitchParams(**{k: float(meta[k]) for k in _PARAM_FIELDS})
-    f = CellModel(params, fidelity).contact_pair_forces_by_class(state)
+    from ..model import CellModel  # numba: only for files that store the states
+
+    f = CellModel(StitchParams.from_flat(meta), fidelity).contact_pair_forces_by_class(state)
     out: dict[str, Any] = dict(zip(PAIR_COLUMNS, map(float, f.ravel()), strict=True))
     fx, fy, ratio = _fig6h_ratio(f)
     return out | {"pair_F_x_self_row_N": fx, "pair_F_y_column_N": fy, "force_ratio_xy": ratio}
