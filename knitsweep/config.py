@@ -151,7 +151,7 @@ class StitchParams(BaseModel):
     def from_flat(cls, values: Mapping[str, Any]) -> StitchParams:
         """The parameters from a mapping that holds every field among other keys
         (e.g. the attributes of a results-file group)."""
-        return cls(**{k: _plain(values[k]) for k in cls.model_fields})
+        return cls(**{k: plain_value(values[k]) for k in cls.model_fields})
 
     def internal(self) -> InternalParams:
         """Convert to the kernels' N/mm units once (mN -> N)."""
@@ -467,6 +467,8 @@ class Numerics(BaseModel):
         return cls(preset=name, **{s: SECTIONS[s](**v) for s, v in sections.items()})
 
 
-def _plain(v: Any) -> Any:
-    """numpy scalars (as read from HDF5 attributes) as Python values."""
+def plain_value(v: Any) -> Any:
+    """A numpy scalar (as read from HDF5 attributes) as a Python value, bytes as str."""
+    if isinstance(v, bytes):
+        return v.decode()
     return v.item() if hasattr(v, "item") and getattr(v, "ndim", 1) == 0 else v

@@ -72,6 +72,22 @@ PARAMETERS = dict(
 )
 """The stitch parameters, named as in job files."""
 
+SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regularization_mN_mm4",
+                 "twist_bound")  # fmt: skip
+"""The parameters held fixed along a series in L (the paper's k, B, r_core, r, p, and the
+regularisation and twist bound, which files of different jobs may differ in)."""
+
+PARAM_SYMBOLS = {
+    "k_mN_per_mm2": ("k", "mN/mm²"),
+    "B_mN_mm2": ("B", "mN·mm²"),
+    "r_core_mm": ("r_core", "mm"),
+    "r_mm": ("r", "mm"),
+    "p": ("p", ""),
+    "regularization_mN_mm4": ("reg", "mN·mm⁴"),
+    "twist_bound": ("c_tw", ""),
+}
+"""Plain-text symbol and unit of every series parameter (table headers, labels)."""
+
 _RELAXATION = dict(
     (
         _q("bending_energy", "mJ", "bending energy E_b"),

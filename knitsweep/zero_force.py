@@ -28,6 +28,7 @@ from .config import (
     SolverSettings,
     StartSettings,
     StitchParams,
+    plain_value,
 )
 from .formats import SHIPPED_STATES, shipped_state
 from .model import CellModel
@@ -144,7 +145,11 @@ class ZeroForce:
             values = {attr: rec[name][i] for name, attr in _START_ARRAYS.items()}
             rs.append(
                 Relaxation(
-                    **{k: _scalar(v) for k, v in values.items() if k not in ("x", "period_forces")},
+                    **{
+                        k: plain_value(v)
+                        for k, v in values.items()
+                        if k not in ("x", "period_forces")
+                    },
                     x=np.asarray(values["x"], dtype=float).copy(),
                     period_forces=tuple(float(f) for f in values["period_forces"]),
                 )
@@ -156,13 +161,6 @@ class ZeroForce:
                    tuple(int(s) for s in rec["stages"]), int(rec["winner"]),
                    str(rec["relax_status"]), str(rec["message"]),
                    tuple(int(i) for i in merged_into), tuple(int(i) for i in merged_at))  # fmt: skip
-
-
-def _scalar(v: Any) -> Any:
-    """A numpy scalar (or a bytes string read from HDF5) as a plain Python value."""
-    if isinstance(v, bytes):
-        return v.decode()
-    return v.item() if isinstance(v, np.generic) else v
 
 
 def pick_lowest(results: list[Relaxation] | tuple[Relaxation, ...]) -> tuple[int, str]:

@@ -11,8 +11,8 @@ import pytest
 from results_factory import write_results
 
 from knitsweep.config import InputError
+from knitsweep.quantities import SERIES_PARAMS
 from knitsweep.report import phase_diagram, reduce_results
-from knitsweep.report.reduce import SERIES_PARAMS
 from knitsweep.report.tables import transitions_text
 from knitsweep.service.journal import Entry, write_entry
 from knitsweep.service.results_format import journal_dir

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..analysis.paper import TABLE_S4, at_table_1
 from ..analysis.transitions import Transition
+from ..quantities import PARAM_SYMBOLS, SERIES_PARAMS
 from .plotting import (
     BENDING_COLOUR,
     BRACKET_FILL,
@@ -38,13 +39,13 @@ from .plotting import (
     series_keys,
     title,
 )
-from .reduce import PARAM_SYMBOLS, SERIES_PARAMS, Reduction
+from .reduce import Reduction
 from .tables import series_label
 
 MATH_SYMBOL = {"k_mN_per_mm2": "k", "B_mN_mm2": "B", "r_core_mm": r"r_{\rm core}", "r_mm": "r",
                "p": "p", "regularization_mN_mm4": r"{\rm reg}",
                "twist_bound": r"c_{\rm tw}"}  # fmt: skip
-"""Math-mode symbol of every series parameter (``reduce.SERIES_PARAMS``)."""
+"""Math-mode symbol of every series parameter (``quantities.SERIES_PARAMS``)."""
 GAP_LABEL = {"x": r"$\Delta E_c$", "y": r"$\Delta E_b$"}
 
 

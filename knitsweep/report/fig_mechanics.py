@@ -16,6 +16,7 @@ import numpy as np
 
 from ..analysis.paper import TABLE_S3, at_table_1
 from ..analysis.stress_strain import SECANT_STRAIN
+from ..quantities import SERIES_PARAMS
 from ..state import CONTACT_CLASSES
 from .plotting import (
     DIRECTION_COLOUR,
@@ -38,7 +39,7 @@ from .plotting import (
     series_keys,
     title,
 )
-from .reduce import SERIES_PARAMS, Reduction, SweepCurves
+from .reduce import Reduction, SweepCurves
 
 SMALL_STRAIN = 0.1
 """Strain range of the small-strain figures (the jammed regime)."""

@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from .reduce import SERIES_PARAMS, Reduction
+from ..quantities import SERIES_PARAMS
+from .reduce import Reduction
 from .tables import series_label
 
 CONTACT_COLOUR = "#ee6a50"  # coral: contact energy gap ΔE_c

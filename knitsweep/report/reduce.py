@@ -36,28 +36,14 @@ from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickn
 from ..analysis.metrics import JAMMING_GAP
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition, series_transitions
-from ..config import Fidelity
+from ..config import Fidelity, plain_value
 from ..errors import InputError
+from ..quantities import PARAM_SYMBOLS, SERIES_PARAMS
 from ..service.journal import Entry
 from ..service.results_format import POINTS, SWEEPS
-from ..service.results_read import iter_entries, read_root
+from ..service.results_read import choose_entries, iter_entries, read_root
 from ..state import IDX_AX, IDX_AY
 from .force_columns import PAIR_KEYS, force_columns, job_fidelity, pair_force_columns
-
-SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regularization_mN_mm4",
-                 "twist_bound")  # fmt: skip
-"""The parameters held fixed along a series in L (the paper's k, B, r_core, r, p, and the
-regularisation and twist bound, which files of different jobs may differ in)."""
-
-PARAM_SYMBOLS = {
-    "k_mN_per_mm2": ("k", "mN/mm²"),
-    "B_mN_mm2": ("B", "mN·mm²"),
-    "r_core_mm": ("r_core", "mm"),
-    "r_mm": ("r", "mm"),
-    "p": ("p", ""),
-    "regularization_mN_mm4": ("reg", "mN·mm⁴"),
-    "twist_bound": ("c_tw", ""),
-}
 
 _SWEEP_ARRAYS = ("strain", "stress", "bending_energy", "contact_energy", "a_x", "a_y", "thickness")
 _REQUIRED_META = ("status", "L_mm", "L_over_r", *SERIES_PARAMS)
@@ -139,16 +125,8 @@ class Reduction:
         return f"PARTIAL ({self.partial_reason}) — {text}" if self.partial else text
 
 
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, bytes):
-        return value.decode()
-    return value
-
-
 def _check_meta(path: Path, entry: Entry) -> dict[str, Any]:
-    meta = {k: _plain(v) for k, v in entry.meta.items()}
+    meta = {k: plain_value(v) for k, v in entry.meta.items()}
     need = _REQUIRED_META + (("direction",) if entry.kind == SWEEPS else ())
     missing = [k for k in need if k not in meta]
     if missing:
@@ -185,7 +163,7 @@ def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dic
             "aspect_ratio": a_y0 / a_x0,
             "E_b_rest_mJ": float(rec["bending_energy"][winner]),
             "E_c_rest_mJ": float(rec["contact_energy"][winner]),
-            "thickness0_mm": _plain(meta.get("thickness")),
+            "thickness0_mm": plain_value(meta.get("thickness")),
         }
     stored = rec.get("contact_forces")
     row |= force_columns(stored)
@@ -354,7 +332,7 @@ def _adaptive(entries: list[Entry], rows: list[dict[str, Any]], notes: list[str]
     transition rows, and note where it disagrees with the one found here."""
     found = {}
     for e in entries:
-        meta = {k: _plain(v) for k, v in e.meta.items()}
+        meta = {k: plain_value(v) for k, v in e.meta.items()}
         if all(k in meta for k in ("direction", *SERIES_PARAMS)):
             found[(tuple(float(meta[k]) for k in SERIES_PARAMS), meta["direction"])] = meta
     for row in rows:
@@ -395,7 +373,7 @@ def read_tasks(paths: Sequence[str | Path]) -> tuple[list[dict[str, Any]], list[
     number of its point and sweep tasks), and every finished task of all of them
     (journals included), each task once: a result that is not 'failed' wins over a
     failed one, the first file over later ones. Each entry's meta gets ``file``."""
-    roots, chosen = [], {}
+    roots, entries = [], []
     seen = set()
     for path in map(Path, paths):
         key = path.resolve()
@@ -407,10 +385,8 @@ def read_tasks(paths: Sequence[str | Path]) -> tuple[list[dict[str, Any]], list[
         for e in iter_entries(path, with_data=True):
             e.meta["file"] = str(path)
             root["n_found"] += e.kind in (POINTS, SWEEPS)
-            old = chosen.get((e.kind, e.task_id))
-            if old is None or (old.meta.get("status") == "failed" != e.meta.get("status")):
-                chosen[(e.kind, e.task_id)] = e
-    return roots, list(chosen.values())
+            entries.append(e)
+    return roots, list(choose_entries(entries).values())
 
 
 def reduce_results(

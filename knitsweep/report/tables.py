@@ -15,8 +15,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..quantities import table_column
-from .reduce import PARAM_SYMBOLS, Reduction
+from ..quantities import PARAM_SYMBOLS, table_column
+from .reduce import Reduction
 from .results import Results
 
 TABLES = ("transitions.csv", "sweeps.csv", "points.csv", "problems.csv")

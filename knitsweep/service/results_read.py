@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import contextlib
 import json
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..config import FAILED
 from ..errors import InputError
 from .journal import Entry, entry_path, read_entry_file, scan
 from .results_format import KINDS, READABLE_SCHEMAS, _h5, _read_group, journal_dir, progress_path
@@ -71,6 +72,17 @@ def iter_entries(path: str | Path, with_data: bool = False,
                         meta, record = dict(group.attrs), {}
                     yield Entry(kind, tid, record, meta)
     yield from journalled
+
+
+def choose_entries(entries: Iterable[Entry]) -> dict[tuple[str, str], Entry]:
+    """Each task once, by (kind, task id): a result that is not 'failed' wins over a
+    failed one, an earlier entry over a later one (of several files: the first file)."""
+    chosen: dict[tuple[str, str], Entry] = {}
+    for e in entries:
+        old = chosen.get((e.kind, e.task_id))
+        if old is None or (old.meta.get("status") == FAILED != e.meta.get("status")):
+            chosen[(e.kind, e.task_id)] = e
+    return chosen
 
 
 def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:

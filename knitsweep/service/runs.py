@@ -20,7 +20,7 @@ from .jobs import JobSpec, load_job
 from .journal import scan
 from .results_file import writer_alive
 from .results_format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
-from .results_read import iter_entries, journal_problems, read_progress, read_root
+from .results_read import choose_entries, iter_entries, journal_problems, read_progress, read_root
 
 ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
 LARGE_GRID_TASKS = 20_000
@@ -263,14 +263,7 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
         raise InputError(f"inputs come from different jobs: {names}")
     job = JobSpec.model_validate_json(roots[0]["job_json"])
     points, sweeps = plan(job)
-    chosen: dict[tuple[str, str], Any] = {}
-    for path in inputs:
-        for e in iter_entries(path, with_data=True):
-            key = (e.kind, e.task_id)
-            if key not in chosen or (
-                chosen[key].meta.get("status") == FAILED and e.meta.get("status") != FAILED
-            ):
-                chosen[key] = e
+    chosen = choose_entries(e for path in inputs for e in iter_entries(path, with_data=True))
     writer = ResultWriter(out, job, {"n_points": len(points), "n_sweeps": len(sweeps),
                                      "shard": "", "merged_from": ", ".join(map(str, inputs))})  # fmt: skip
     try:
