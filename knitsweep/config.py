@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Annotated, Any, Literal, NamedTuple
+from typing import Annotated, Any, Literal, NamedTuple, get_args
 
 from pydantic import (
     AfterValidator,
@@ -46,14 +46,7 @@ def _positive(v: float) -> float:
     return v
 
 
-def _non_negative(v: float) -> float:
-    if not (math.isfinite(v) and v >= 0.0):
-        raise ValueError("must be a finite number >= 0")
-    return v
-
-
 Positive = Annotated[float, AfterValidator(_positive)]
-NonNegative = Annotated[float, AfterValidator(_non_negative)]
 
 
 def within(lo: float, hi: float, *, open_lo: bool = False, unit: str = ""):
@@ -252,7 +245,7 @@ Direction = Literal["x", "y"]
 
 
 Observable = Literal["curve", "secant_modulus", "offset_stress", "energy_gaps"]
-OBSERVABLES: tuple[str, ...] = ("curve", "secant_modulus", "offset_stress", "energy_gaps")
+OBSERVABLES: tuple[str, ...] = get_args(Observable)
 """What a sweep can be asked to determine (docs/model.md §8-9): the whole stress-strain
 curve; Y_sec (needs the curve past 2 % strain); sigma0 (the longest softened regime over
 the sweep: needs the whole curve); the energy gaps (both energy components back above

@@ -180,10 +180,10 @@ def read_authors_config(path: str | Path) -> AuthorsConfig:
     )
 
 
-def check_writable(path: str | Path, what: str, *, overwrite: bool) -> Path:
+def check_writable(path: str | Path, what: str) -> Path:
     """Refuse, before any compute, an output ``path`` that cannot be written: a missing
-    or read-only directory, a directory in its place, or (``overwrite`` False) an
-    existing file. Probes the directory by creating and removing a hidden file."""
+    or read-only directory, or a directory in its place (an existing file is
+    overwritten). Probes the directory by creating and removing a hidden file."""
     import os
     import tempfile
 
@@ -193,8 +193,6 @@ def check_writable(path: str | Path, what: str, *, overwrite: bool) -> Path:
         raise InputError(f"{what} {path}: directory {parent} does not exist")
     if path.is_dir():
         raise InputError(f"{what} {path}: is a directory")
-    if path.exists() and not overwrite:
-        raise InputError(f"{what} {path}: already exists; remove it or choose another name")
     try:
         fd, probe = tempfile.mkstemp(prefix=".knitsweep-probe-", dir=parent)
         os.close(fd)
@@ -212,12 +210,12 @@ def check_output_dir(path: str | Path, what: str) -> Path:
     if path.exists() and not path.is_dir():
         raise InputError(f"{what} {path}: exists and is not a directory")
     if path.is_dir():
-        check_writable(path / "probe", what, overwrite=True)
+        check_writable(path / "probe", what)
         return path
     parent = path.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if not parent.is_dir():
         raise InputError(f"{what} {path}: {parent} is not a directory")
-    check_writable(parent / "probe", what, overwrite=True)
+    check_writable(parent / "probe", what)
     return path

@@ -222,9 +222,9 @@ def compile_kernels(
     from .formats import shipped_state
     from .kernels.kkt import compile_solver
 
-    if notice is not None and not kernels.cached():
-        notice(f"compiling numerical kernels, once per install: ~{kernels.COMPILE_SECONDS} s "
-               f"(cached in {kernels.numba.config.CACHE_DIR})")  # fmt: skip
+    message = kernels.compile_notice() if notice is not None else None
+    if message:
+        notice(message)
     model = CellModel(StitchParams(), fidelity)
     x = shipped_state(1)
     model.energy_and_gradients(x)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .state import CONTACT_CLASSES, STATE_NAMES
+from .state import CONTACT_CLASSES, N_SEGMENTS, STATE_NAMES
 
 
 @dataclass(frozen=True)
@@ -172,7 +172,7 @@ SWEEP_START_QUANTITIES = dict(
 
 AXES = {
     "state_entry": STATE_NAMES,
-    "segment": tuple(f"segment_{i}" for i in range(8)),
+    "segment": tuple(f"segment_{i}" for i in range(N_SEGMENTS)),
     "control_point": tuple(f"P{i}" for i in range(6)),
     "axis": ("x", "y", "z"),
     "contact_class": CONTACT_CLASSES,

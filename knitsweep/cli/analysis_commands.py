@@ -67,7 +67,6 @@ def phase_diagram(
 
     with user_errors():
         threshold = GAP_THRESHOLD if threshold is None else threshold
-        check_range("threshold", threshold, 1e-12, 1.0, "mJ")
         if out is not None:
             check_output_dir(out, "--out")
         options = FigureOptions(tuple(f.strip() for f in formats.split(",") if f.strip()), width,
@@ -148,8 +147,6 @@ def render(
     from ..report import render as rendering
 
     with user_errors():
-        if radius is not None and radius > 10.0:  # render checks the rest of the picture
-            raise InputError(f"radius = {radius}: must be <= 10 (mm)")
         params = None
         flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core}
         if state is not None:

@@ -90,9 +90,11 @@ def compile_notice(energy_only: bool = False) -> None:
     """Tell the user when this command will first compile the numerical kernels."""
     from .. import kernels
 
-    if not (kernels.cached(("cell.cell_energy-",)) if energy_only else kernels.cached()):
-        typer.echo(f"compiling numerical kernels, once per install: ~{kernels.COMPILE_SECONDS} s",
-                   err=True)  # fmt: skip
+    message = (
+        kernels.compile_notice(("cell.cell_energy-",)) if energy_only else kernels.compile_notice()
+    )
+    if message:
+        typer.echo(message, err=True)
 
 
 def stitch_inputs(config, **flags):

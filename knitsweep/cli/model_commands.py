@@ -140,7 +140,7 @@ def sweep(
         if out is not None and out.suffix not in (".csv", ".h5"):
             raise InputError(f"out = '{out}': must end in .csv or .h5")
         if out is not None:
-            check_writable(out, "--out", overwrite=True)  # before the sweep, not after
+            check_writable(out, "--out")  # before the sweep, not after
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
                                   regularization=regularization)  # fmt: skip
         n = Numerics.from_preset(

@@ -49,3 +49,12 @@ def cached(entry_points: tuple[str, ...] = _ENTRY_POINTS) -> bool:
     the first call compiles them: up to ``COMPILE_SECONDS``."""
     indexes = [p.name for p in Path(numba.config.CACHE_DIR).glob("**/*.nbi")]
     return all(any(n.startswith(entry) for n in indexes) for entry in entry_points)
+
+
+def compile_notice(entry_points: tuple[str, ...] = _ENTRY_POINTS) -> str | None:
+    """What to tell a user before the first call compiles these kernels (None if
+    they are cached)."""
+    if cached(entry_points):
+        return None
+    return (f"compiling numerical kernels, once per install: ~{COMPILE_SECONDS} s "
+            f"(cached in {numba.config.CACHE_DIR})")  # fmt: skip

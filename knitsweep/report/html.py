@@ -56,7 +56,6 @@ _POINT_COLUMNS = ("L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_cor
                   "status", "a_x0_mm", "a_y0_mm", "aspect_ratio", "E_b_rest_mJ",
                   "E_c_rest_mJ", "thickness0_mm", "regime")  # fmt: skip
 _PROBLEM_COLUMNS = ("kind", "status", "direction", "L_mm", "k_mN_per_mm2", "message", "task_id")
-_PROBLEM_COLUMNS = ("kind", "status", "direction", "L_mm", "k_mN_per_mm2", "message", "task_id")
 _PROVENANCE = ("job_name", "run_status", "started_at", "finished_at", "run_seconds",
                "knitsweep_version", "git_commit", "host", "slurm_job_id", "python_version",
                "numpy_version", "scipy_version", "numba_version", "h5py_version",
@@ -127,7 +126,7 @@ def report_html(results: Results, title: str | None = None) -> str:
     from .plotting import FigureOptions
 
     blocks, skipped = _figures(results, FigureOptions(style="knitsweep"))
-    roots = _roots(results)
+    roots = red.roots
     status = (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}</p>"
               if red.partial else "<p>All planned tasks are present; every run is complete.</p>")  # fmt: skip
     files = "".join(f"<li><code>{html.escape(str(p))}</code></li>" for p in results.paths)
@@ -175,12 +174,6 @@ def report_html(results: Results, title: str | None = None) -> str:
             f"<meta name='viewport' content='width=device-width, initial-scale=1'>"
             f"<title>{html.escape(title)}</title><style>{_STYLE}</style>"
             f"<script>{_SCRIPT}</script></head>\n<body>\n{body}\n</body></html>\n")  # fmt: skip
-
-
-def _roots(results: Results) -> list[dict[str, Any]]:
-    from ..service.results_read import read_root
-
-    return [read_root(p) | {"file": str(p)} for p in results.paths]
 
 
 def _pretty(job_json: str) -> str:

@@ -45,6 +45,8 @@ from ..service.results_read import choose_entries, iter_entries, read_root
 from ..state import IDX_AX, IDX_AY
 from .force_columns import PAIR_KEYS, force_columns, job_fidelity, pair_force_columns
 
+MIN_THRESHOLD, MAX_THRESHOLD = 1e-12, 1.0
+"""The energy-gap thresholds (mJ) a reduction accepts (the paper's: GAP_THRESHOLD)."""
 _SWEEP_ARRAYS = ("strain", "stress", "bending_energy", "contact_energy", "a_x", "a_y", "thickness")
 _REQUIRED_META = ("status", "L_mm", "L_over_r", *SERIES_PARAMS)
 
@@ -89,6 +91,7 @@ class Reduction:
         constants: the series parameters that take one value, with it.
         notes: remarks worth printing (e.g. an adaptive bracket that disagrees).
         entries: every task read (with its arrays), for the per-step tables.
+        roots: each file's root attributes (with ``file`` and ``n_found``).
     """
 
     path: Path
@@ -110,6 +113,7 @@ class Reduction:
     notes: list[str] = field(default_factory=list)
     paths: tuple[Path, ...] = ()
     entries: list[Entry] = field(default_factory=list, repr=False)
+    roots: list[dict[str, Any]] = field(default_factory=list, repr=False)
 
     @property
     def status_line(self) -> str:
@@ -407,13 +411,15 @@ def reduce_results(
 
     Raises:
         InputError: a missing or unreadable file, a wrong schema version, or task
-            groups without the attributes this schema guarantees; threshold ≤ 0.
+            groups without the attributes this schema guarantees; a threshold outside
+            [MIN_THRESHOLD, MAX_THRESHOLD].
     """
     paths = [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
     if not paths:
         raise InputError("give at least one results file")
-    if not (threshold > 0.0 and np.isfinite(threshold)):
-        raise InputError(f"threshold = {threshold!r}: must be a finite number > 0 (mJ)")
+    if not (np.isfinite(threshold) and MIN_THRESHOLD <= threshold <= MAX_THRESHOLD):
+        raise InputError(f"threshold = {threshold!r}: must be in [{MIN_THRESHOLD:g}, "
+                         f"{MAX_THRESHOLD:g}] mJ")  # fmt: skip
     roots, entries = read_tasks(paths)
     tasks = {POINTS: [], SWEEPS: []}
     for e in entries:
@@ -475,6 +481,7 @@ def reduce_results(
         constants={k: v[0] for k, v in values.items() if len(v) == 1},
         notes=notes,
         paths=tuple(paths),
+        roots=roots,
         entries=entries,
     )
 

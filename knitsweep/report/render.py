@@ -128,6 +128,8 @@ RADIUS_FRACTION = 0.5 / 0.74
 """Default tube radius as a fraction of the yarn radius r: the paper drew its Fig. 1a
 with 0.5 mm for r = 0.74 mm "to better display the yarn structure" (a tube of the full
 radius, whose compressible shells overlap, looks like a solid wall)."""
+MAX_RADIUS = 10.0
+"""Largest tube radius (mm) a picture may ask for."""
 
 
 def dense_cell_path(control_points: np.ndarray, spacing: float) -> np.ndarray:
@@ -371,7 +373,7 @@ def render(
 
     Raises:
         InputError: both or neither source, unknown task, bad step, bad output suffix,
-            cells outside 1..8, radius ≤ 0, elevation outside (0, 90], unknown side.
+            cells outside 1..8, radius ≤ 0 or > MAX_RADIUS, elevation outside (0, 90], unknown side.
     """
     out = Path(out)
     if out.suffix.lower() not in OUT_SUFFIXES:
@@ -380,6 +382,8 @@ def render(
         raise InputError(f"cells = {cells}: must be in 1..8")
     if radius is not None and not radius > 0.0:
         raise InputError(f"radius = {radius}: must be > 0 (mm)")
+    if radius is not None and radius > MAX_RADIUS:
+        raise InputError(f"radius = {radius}: must be <= {MAX_RADIUS:g} (mm)")
     if not 0.0 < elevation_deg <= 90.0:
         raise InputError(f"elevation = {elevation_deg}: must be in (0, 90] degrees")
     if side not in SIDES:

@@ -41,7 +41,7 @@ from ..config import (
     SweepProtocol,
     preset_sections,
 )
-from ..errors import describe_validation_error
+from ..errors import MAX_SEED, describe_validation_error
 from ..formats import read_text
 from .grid import MAX_POINTS, Grid
 
@@ -133,7 +133,7 @@ class JobSpec(BaseModel):
         description="names the default output <name>.h5: letters, digits and ._+=,@- only",
     )
     description: str = Field("", max_length=10_000)
-    seed: int = Field(0, ge=0, lt=2**63)
+    seed: int = Field(0, ge=0, lt=MAX_SEED)
     directions: list[Literal["x", "y"]] = Field(default_factory=lambda: ["x", "y"], min_length=1)
     preset: str = DEFAULT_PRESET
     mode: Literal["grid", "adaptive"] = Field(

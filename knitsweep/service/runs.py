@@ -116,7 +116,7 @@ def check_output(out: Path) -> None:
     """Refuse an output path that cannot be written, before any compute."""
     from ..formats import check_writable
 
-    check_writable(out, "results file", overwrite=True)
+    check_writable(out, "results file")
 
 
 def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress, max_tasks):

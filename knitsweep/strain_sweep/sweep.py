@@ -29,7 +29,7 @@ from ..config import (
 )
 from ..model import CellModel
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
-from ..state import IDX_AX, IDX_AY
+from ..state import IDX_AX, IDX_AY, PERIOD_INDEX
 from ..zero_force import ZeroForce, pick_lowest, zero_force
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
@@ -144,7 +144,7 @@ def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettin
 
 def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
               stopped_by, n_relax, n_eval, starts, wall) -> SweepResult:  # fmt: skip
-    idx = IDX_AX if direction == "x" else IDX_AY
+    idx = PERIOD_INDEX[direction]
     a = np.array(a_values)
     eb = np.array([s.bending_energy for s in steps])
     ec = np.array([s.contact_energy for s in steps])
