@@ -44,11 +44,13 @@ from knitsweep.analysis.paper import (
     TABLE_S1_YSEC_L,
     TABLE_S3,
     TABLE_S4,
+    ratio_crossing,
     table_s3_crossing_mm,
 )
 from knitsweep.analysis.stress_strain import FD_STRESS_SMOOTHING
 from knitsweep.config import StitchParams
 from knitsweep.model import CellModel
+from knitsweep.report.force_columns import fig6h_forces
 from knitsweep.report.reduce import Reduction, reduce_results
 from knitsweep.service.results_read import iter_entries
 
@@ -108,7 +110,7 @@ def _forces_by_definition(red: Reduction) -> dict[float, dict[str, np.ndarray]]:
         if e.kind != "points" or e.meta.get("status") != "done":
             continue
         x = np.asarray(e.record["x"][int(e.meta.get("winner", 0))], dtype=float)
-        params = StitchParams(**{k: float(e.meta[k]) for k in StitchParams.model_fields})
+        params = StitchParams.from_flat(e.meta)
         model = CellModel(params)
         out[round(float(e.meta["L_mm"]), 6)] = {
             "pair": model.contact_pair_forces_by_class(x),
@@ -119,14 +121,8 @@ def _forces_by_definition(red: Reduction) -> dict[float, dict[str, np.ndarray]]:
 
 
 def _fx_fy(f: np.ndarray) -> tuple[float, float]:
-    return abs(f[0, 0] + f[1, 0]), abs(f[2, 1] + f[3, 1])
-
-
-def _crossing(Ls: list[float], ratio: list[float]) -> float | None:
-    for (L0, r0), (L1, r1) in pairwise(zip(Ls, ratio, strict=True)):
-        if r0 >= 1.0 > r1:
-            return L0 + (r0 - 1.0) / (r0 - r1) * (L1 - L0)
-    return None
+    fx, fy, _ = fig6h_forces(f)
+    return abs(fx), abs(fy)
 
 
 def table_s3(red: Reduction) -> list[str]:
@@ -146,7 +142,7 @@ def table_s3(red: Reduction) -> list[str]:
     Ls = sorted(forces)
     cross = [f"paper {table_s3_crossing_mm():.2f} mm"]
     for n in names:
-        c = _crossing(Ls, [np.divide(*_fx_fy(forces[L][n])) for L in Ls])
+        c = ratio_crossing(Ls, [np.divide(*_fx_fy(forces[L][n])) for L in Ls])
         cross.append(f"{n} {_e(c, '.2f')} mm")
     out += ["", "ratio crosses 1 at: " + "; ".join(cross)]
     L0 = min(forces)
@@ -218,8 +214,8 @@ def markers(red: Reduction) -> list[str]:
         out.append(f"| {tol:g} | {_e(_first(Ls, [v > tol for v in dip]), 'g')} | "
                    f"{_e(max(last) if last else None, 'g')} |")  # fmt: skip
     pts = sorted((r for r in red.points if r["k_mN_per_mm2"] == k), key=lambda r: r["L_mm"])
-    ratio = _crossing([r["L_mm"] for r in pts], [r["force_ratio_xy"] for r in pts])
-    gen = _crossing([r["L_mm"] for r in pts], [r["generalised_force_ratio_xy"] for r in pts])
+    ratio = ratio_crossing([r["L_mm"] for r in pts], [r["force_ratio_xy"] for r in pts])
+    gen = ratio_crossing([r["L_mm"] for r in pts], [r["generalised_force_ratio_xy"] for r in pts])
     peak = max(pts, key=lambda r: r["aspect_ratio"])["L_mm"]
     trans = {t["direction"]: t for t in red.transitions if t["k_mN_per_mm2"] == k}
     out += [

@@ -3,17 +3,17 @@ finite differences, and the force balance on the cell periods (docs/model.md §9
 pair forces against their rule, the virial of the image shifts, and paper Table S3."""
 
 import json
-from itertools import pairwise
 
 import numpy as np
 import pytest
 
-from knitsweep.analysis.paper import TABLE_S3, table_s3_crossing_mm
+from knitsweep.analysis.paper import TABLE_S3, ratio_crossing, table_s3_crossing_mm
 from knitsweep.config import Fidelity, SolverSettings, StartSettings, StitchParams
 from knitsweep.kernels.contact import find_contacts, pair_potential
 from knitsweep.kernels.forces import contact_class, contact_forces_by_class
 from knitsweep.model import CellModel
 from knitsweep.relax import relax
+from knitsweep.report.force_columns import fig6h_forces
 from knitsweep.state import CONTACT_CLASSES, IDX_AX, IDX_AY
 from knitsweep.zero_force import zero_force
 
@@ -182,7 +182,7 @@ def test_pair_forces_reproduce_table_s3(data_dir):
         f = CellModel(
             StitchParams(L_mm=L, k_mN_per_mm2=0.1), FIDELITY
         ).contact_pair_forces_by_class(np.array(x))
-        fx, fy = abs(f[0, 0] + f[1, 0]), abs(f[2, 1] + f[3, 1])
+        fx, fy = (abs(v) for v in fig6h_forces(f)[:2])
         ratio[L] = fx / fy
         if L in TABLE_S3:
             assert fx == pytest.approx(TABLE_S3[L][0], rel=0.05), L
@@ -193,6 +193,5 @@ def test_pair_forces_reproduce_table_s3(data_dir):
             assert f[i["nn_column"], 1] < 0 < f[i["nnn_column"], 1]  # compress / extend in y
             assert f[i["nn_column"], 2] == f[:, 2].max() > 0  # NN pushes out of plane most
     Ls = sorted(ratio)
-    crossing = next(a + (ratio[a] - 1) / (ratio[a] - ratio[b]) * (b - a)
-                    for a, b in pairwise(Ls) if ratio[a] >= 1 > ratio[b])  # fmt: skip
-    assert crossing == pytest.approx(table_s3_crossing_mm(), abs=0.1)
+    crossing = ratio_crossing(Ls, [ratio[L] for L in Ls])
+    assert crossing is not None and crossing == pytest.approx(table_s3_crossing_mm(), abs=0.1)

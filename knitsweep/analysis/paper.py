@@ -8,7 +8,7 @@ k in mN/mm².
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from itertools import pairwise
 from typing import NamedTuple
 
@@ -88,12 +88,20 @@ TABLE_S1_YSEC_L = {"x": (1.1e7, -1.11), "y": (190000.0, -0.81)}
 """Paper Table S1, Y_sec of the L sweeps: direction → (A, b) of Y_sec = A exp(b L/r), N/mm."""
 
 
+def ratio_crossing(Ls: Sequence[float], ratios: Sequence[float]) -> float | None:
+    """L where a force ratio falls through 1, linearly interpolated between the
+    neighbouring L values (sorted ascending); None if it never does."""
+    for (L0, r0), (L1, r1) in pairwise(zip(Ls, ratios, strict=True)):
+        if r0 >= 1.0 > r1:
+            return L0 + (r0 - 1.0) / (r0 - r1) * (L1 - L0)
+    return None
+
+
 def table_s3_crossing_mm() -> float:
     """L (mm) where Table S3's |F_x|/|F_y| falls through 1, linearly interpolated
     between its neighbouring rows (11.46 mm)."""
-    rows = sorted(TABLE_S3.items())
-    for (L0, (fx0, fy0)), (L1, (fx1, fy1)) in pairwise(rows):
-        r0, r1 = fx0 / fy0, fx1 / fy1
-        if r0 >= 1.0 > r1:
-            return L0 + (r0 - 1.0) / (r0 - r1) * (L1 - L0)
-    raise ValueError("Table S3's ratio does not cross 1")
+    Ls = sorted(TABLE_S3)
+    crossing = ratio_crossing(Ls, [TABLE_S3[L][0] / TABLE_S3[L][1] for L in Ls])
+    if crossing is None:
+        raise ValueError("Table S3's ratio does not cross 1")
+    return crossing

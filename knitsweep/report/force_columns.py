@@ -30,8 +30,9 @@ PAIR_COLUMNS = tuple(f"pair_F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz"
 unweighted: the paper's Table S3 quantity), rows ``CONTACT_CLASSES``."""
 
 
-def _fig6h_ratio(f: np.ndarray) -> tuple[float, float, float | None]:
-    """(x force of self + same row, y force of NN + NNN column, |x|/|y| or None)."""
+def fig6h_forces(f: np.ndarray) -> tuple[float, float, float | None]:
+    """Fig. 6h's sums of forces by class (5, 3): (x force of self + same row, y force of
+    NN + NNN column, |x|/|y| or None)."""
     row = dict(zip(CONTACT_CLASSES, f, strict=True))
     widen_x = float(row["self"][0] + row["same_row"][0])
     column_y = float(row["nn_column"][1] + row["nnn_column"][1])
@@ -50,7 +51,7 @@ def force_columns(forces: Any) -> dict[str, Any]:
     out: dict[str, Any] = dict(zip(CONTACT_COLUMNS, map(float, f.ravel()), strict=True))
     fx, fy, fz = (float(v) for v in f.sum(axis=0))
     out |= {"F_x_N": fx, "F_y_N": fy, "F_z_N": fz}
-    out["generalised_force_ratio_xy"] = _fig6h_ratio(f)[2]
+    out["generalised_force_ratio_xy"] = fig6h_forces(f)[2]
     return out
 
 
@@ -71,7 +72,7 @@ def pair_force_columns(state: np.ndarray | None, meta: Mapping[str, Any],
 
     f = CellModel(StitchParams.from_flat(meta), fidelity).contact_pair_forces_by_class(state)
     out: dict[str, Any] = dict(zip(PAIR_COLUMNS, map(float, f.ravel()), strict=True))
-    fx, fy, ratio = _fig6h_ratio(f)
+    fx, fy, ratio = fig6h_forces(f)
     return out | {"pair_F_x_self_row_N": fx, "pair_F_y_column_N": fy, "force_ratio_xy": ratio}
 
 
