@@ -45,6 +45,16 @@ _SUFFIX = {
 }
 
 
+_UNIT_OF_SUFFIX = sorted(((f"_{s}", u) for u, s in _SUFFIX.items() if s),
+                         key=lambda su: -len(su[0]))  # fmt: skip
+"""(column suffix, units), longest suffix first."""
+
+
+def units_of_column(column: str) -> str:
+    """The unit a table column's suffix names ("1" without one)."""
+    return next((units for suffix, units in _UNIT_OF_SUFFIX if column.endswith(suffix)), "1")
+
+
 def column_name(name: str, units: str) -> str:
     """``name`` with the suffix of ``units`` (unless it already ends with it)."""
     suffix = _SUFFIX[units]

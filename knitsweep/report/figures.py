@@ -65,13 +65,13 @@ def render_figure(
     red: Reduction,
     name: str,
     make: Callable,
-    formats: tuple[str, ...] = ("png",),
     options: FigureOptions | None = None,
 ) -> tuple[FigureOutcome, dict[str, bytes]]:
-    """Draw one figure into memory: (its outcome, {format: the file's bytes}; empty
-    if the figure was skipped)."""
+    """Draw one figure into memory: (its outcome, {format: the file's bytes} for each of
+    ``options.formats``; empty if the figure was skipped)."""
     import io
 
+    options = options or FigureOptions()
     notes: list[str] = []
     files = {}
     with style(options):
@@ -79,7 +79,7 @@ def render_figure(
             fig = make(red, notes)
         except SkipFigure as e:
             return FigureOutcome(name, None, str(e), tuple(notes)), {}
-        for fmt in formats:
+        for fmt in options.formats:
             buf = io.BytesIO()
             fig.savefig(buf, format=fmt, metadata=_METADATA.get(fmt))
             files[fmt] = buf.getvalue()
@@ -100,7 +100,7 @@ def write_figures(
     out.mkdir(parents=True, exist_ok=True)
     outcomes = []
     for name, make in FIGURES.items():
-        outcome, files = render_figure(red, name, make, options.formats, options)
+        outcome, files = render_figure(red, name, make, options)
         paths = []
         for fmt, data in files.items():
             path = out / f"{Path(name).stem}.{fmt}"

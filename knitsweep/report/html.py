@@ -21,6 +21,7 @@ from typing import Any
 from .. import __version__
 from ..analysis.transitions import GAP_THRESHOLD
 from ..errors import InputError
+from .plotting import FigureOptions
 from .results import Results, load
 
 _STYLE = """
@@ -98,13 +99,13 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _figures(results: Results, options: Any) -> tuple[list[str], list[str]]:
+def _figures(results: Results, options: FigureOptions) -> tuple[list[str], list[str]]:
     """(<figure> blocks with inline PNGs, lines for the figures that were skipped)."""
     from .figures import FIGURES, render_figure
 
     blocks, skipped = [], []
     for name, make in FIGURES.items():
-        outcome, files = render_figure(results.reduction, name, make, ("png",), options)
+        outcome, files = render_figure(results.reduction, name, make, options)
         png = files.get("png")
         if png is None:
             skipped.append(f"{html.escape(name)}: {html.escape(outcome.reason or '')}")
@@ -123,9 +124,8 @@ def report_html(results: Results, title: str | None = None) -> str:
     """The page for ``results`` (from ``knitsweep.load``)."""
     red = results.reduction
     title = title or f"knitsweep report: {red.job_name}"
-    from .plotting import FigureOptions
 
-    blocks, skipped = _figures(results, FigureOptions(style="knitsweep"))
+    blocks, skipped = _figures(results, FigureOptions(formats=("png",), style="knitsweep"))
     roots = red.roots
     status = (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}</p>"
               if red.partial else "<p>All planned tasks are present; every run is complete.</p>")  # fmt: skip

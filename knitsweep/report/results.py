@@ -26,7 +26,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..analysis.transitions import GAP_THRESHOLD
-from ..quantities import COLUMN_QUANTITY, PARAMETERS, STEP_QUANTITIES, table_column
+from ..quantities import (
+    COLUMN_QUANTITY,
+    PARAMETERS,
+    STEP_QUANTITIES,
+    table_column,
+    units_of_column,
+)
 from ..service.results_format import SWEEPS
 from .reduce import Reduction, reduce_results
 
@@ -36,26 +42,6 @@ if TYPE_CHECKING:
 
 PARAMETER_COLUMNS = tuple(PARAMETERS)
 """Parameter columns of every table, in this order (``L_over_r`` last)."""
-
-_UNIT_OF_SUFFIX = (  # longest first
-    ("_mN_per_mm2", "mN/mm2"),
-    ("_mJ_per_mm", "mJ/mm"),
-    ("_N_per_mm", "N/mm"),
-    ("_mN_mm2", "mN mm2"),
-    ("_mN_mm4", "mN mm4"),
-    ("_mJ", "mJ"),
-    ("_mm", "mm"),
-    ("_N", "N"),
-    ("_s", "s"),
-)
-
-
-def units_of_column(column: str) -> str:
-    """The unit a table column's suffix names ("1" without one)."""
-    for suffix, units in _UNIT_OF_SUFFIX:
-        if column.endswith(suffix):
-            return units
-    return "1"
 
 
 def _frame(
