@@ -37,9 +37,10 @@ from .plotting import (
     new_figure,
     parameter_axis,
     series_keys,
+    series_rows,
     title,
 )
-from .reduce import Reduction
+from .reduce import Reduction, series_key
 from .tables import series_label
 
 MATH_SYMBOL = {"k_mN_per_mm2": "k", "B_mN_mm2": "B", "r_core_mm": r"r_{\rm core}", "r_mm": "r",
@@ -131,9 +132,7 @@ def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any
     for i, key in enumerate(keys):
         for j, d in enumerate(directions):
             ax = axes[i, j]
-            rows = sorted((r for r in red.sweeps if r["direction"] == d
-                           and tuple(r[p] for p in SERIES_PARAMS) == key),
-                          key=lambda r: r["L_over_r"])  # fmt: skip
+            rows = series_rows(red, key, d)
             if not rows:
                 ax.set_axis_off()
                 continue
@@ -171,9 +170,8 @@ def fig4a_gap_fit(red: Reduction, notes: list[str]) -> Any:
     handles: dict[str, Any] = {}
     for ax, (key, d) in zip(grid_of_panels(fig, len(panels), ncols), panels, strict=True):
         t = red.transition_of[(key, d)]
-        rows = sorted((r for r in red.sweeps if r["direction"] == d
-                       and tuple(r[p] for p in SERIES_PARAMS) == key),
-                      key=lambda r: r["L_over_r"])  # fmt: skip
+        rows = series_rows(red, key, d)
+        r_mm = dict(zip(SERIES_PARAMS, key, strict=True))["r_mm"]
         x = np.array([r["L_over_r"] for r in rows])
         g = np.array([r["jamming_gap"] for r in rows])
         colour = CONTACT_COLOUR if d == "x" else BENDING_COLOUR
@@ -185,9 +183,8 @@ def fig4a_gap_fit(red: Reduction, notes: list[str]) -> Any:
         _fit_line(ax, t, colour, float(x[0]), red.threshold)
         p = _paper_line(key, d)
         if p is not None:
-            r = dict(zip(SERIES_PARAMS, key, strict=True))["r_mm"]
-            xs = np.array([x[0], p.zero_L_mm / r])
-            ax.plot(xs, p.intercept_mJ + p.slope_mJ_per_mm * r * xs, color="0.45", ls="--",
+            xs = np.array([x[0], p.zero_L_mm / r_mm])
+            ax.plot(xs, p.intercept_mJ + p.slope_mJ_per_mm * r_mm * xs, color="0.45", ls="--",
                     lw=1.1, zorder=1, label="paper Table S4 line")  # fmt: skip
         if t.status == "transition":
             ax.axvline(t.L_over_r_trans, color="0.25", ls="--", lw=1.2,
@@ -199,7 +196,6 @@ def fig4a_gap_fit(red: Reduction, notes: list[str]) -> Any:
         ax.set_xlabel(L_OVER_R)
         ax.set_ylabel(f"{GAP_LABEL[d]} (mJ)")
         lab = label_of(red, key)
-        r_mm = dict(zip(SERIES_PARAMS, key, strict=True))["r_mm"]
         ax.set_title(f"pulled in {d}" + (f", {lab}" if lab else "") + f"; fit of {t.fit.n_points} "
                      f"points: slope {t.fit.slope / r_mm:.3e} mJ/mm,\nintercept "
                      f"{t.fit.intercept:.4f} mJ, max |res| {t.fit.max_abs_residual:.1e} mJ"
@@ -388,8 +384,7 @@ def _regime_strip(red: Reduction, key: tuple, by_key: dict) -> Any:
         ax.axvspan(low, high, color=REGIME_FILL[mid], lw=0)
         ax.axvspan(high, lim[1], color=REGIME_FILL["unjammed"], lw=0)
     for yi, d in ((1.0, "x"), (0.0, "y")):
-        rows = [r for r in red.sweeps if r["direction"] == d
-                and tuple(r[p] for p in SERIES_PARAMS) == key]  # fmt: skip
+        rows = [r for r in red.sweeps if r["direction"] == d and series_key(r) == key]
         if not rows:
             continue
         xs = [r["L_over_r"] for r in rows]

@@ -37,9 +37,10 @@ from .plotting import (
     limit_panels,
     new_figure,
     series_keys,
+    series_rows,
     title,
 )
-from .reduce import Reduction, SweepCurves
+from .reduce import Reduction, SweepCurves, series_key
 
 SMALL_STRAIN = 0.1
 """Strain range of the small-strain figures (the jammed regime)."""
@@ -58,10 +59,6 @@ CLASS_LABEL = {
     "nnn_column": "NNN same column",
     "other": "other",
 }
-
-
-def _key(row: dict) -> tuple[float, ...]:
-    return tuple(row[p] for p in SERIES_PARAMS)
 
 
 def _curves(red: Reduction, key: tuple, direction: str) -> list[SweepCurves]:
@@ -208,8 +205,7 @@ def fig2ef_secant_offset(red: Reduction, notes: list[str]) -> Any:
     no_regime = False
     for i, key in enumerate(keys):
         for d in ("x", "y"):
-            rows = sorted((r for r in red.sweeps if _key(r) == key and r["direction"] == d),
-                          key=lambda r: r["L_over_r"])  # fmt: skip
+            rows = series_rows(red, key, d)
             if not rows:
                 continue
             st = {"color": DIRECTION_COLOUR[d], "marker": MARKERS[i % len(MARKERS)],
@@ -256,7 +252,7 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    keys = sorted({_key(r) for r in rows})
+    keys = sorted({series_key(r) for r in rows})
     fig = new_figure(8.0, 5.2)
     ax = fig.subplots()
     if len(keys) == 1:  # one series: shade the regimes along (L/r)², as the paper does
@@ -269,7 +265,7 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
                 ax.axvspan(a, b, color=REGIME_FILL[r["regime"]], alpha=0.55, lw=0)
     regimes = set()
     for i, key in enumerate(keys):
-        pts = sorted((r for r in rows if _key(r) == key), key=lambda r: r["L_over_r"])
+        pts = sorted((r for r in rows if series_key(r) == key), key=lambda r: r["L_over_r"])
         x2 = [r["L_over_r"] ** 2 for r in pts]
         ar = [r["aspect_ratio"] for r in pts]
         ax.plot(x2, ar, color="0.45", lw=1.1, ls=LINESTYLES[i % len(LINESTYLES)], zorder=2)
@@ -330,14 +326,14 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
                          "(set [store] contact_forces = true in the job)")  # fmt: skip
     from matplotlib.lines import Line2D
 
-    keys = sorted({_key(r) for r in rows})
+    keys = sorted({series_key(r) for r in rows})
     fig = new_figure(12.0, 5.3, wide=True)  # two dense panels: page width at least
     ax, ax_c = fig.subplots(1, 2, width_ratios=(1.15, 1.0))
     paper_L = np.array(sorted(TABLE_S3))
     paper = np.array([TABLE_S3[L] for L in paper_L])
     shown_paper = False
     for i, key in enumerate(keys):
-        pts = sorted((r for r in rows if _key(r) == key), key=lambda r: r["L_over_r"])
+        pts = sorted((r for r in rows if series_key(r) == key), key=lambda r: r["L_over_r"])
         colour = f"C{i % 10}" if len(keys) > 1 else "0.15"
         x = [r["L_over_r"] for r in pts]
         ax.plot(x, [r["force_ratio_xy"] for r in pts], color=colour,
@@ -375,7 +371,7 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
                    ncols=legend_columns(min(len(keys), 4)),
                    frameon=False)  # fmt: skip
 
-    pts = sorted((r for r in rows if _key(r) == keys[0]), key=lambda r: r["L_over_r"])
+    pts = sorted((r for r in rows if series_key(r) == keys[0]), key=lambda r: r["L_over_r"])
     x = [r["L_over_r"] for r in pts]
     # hollow markers of falling size, so that classes with equal forces (self and same
     # row coincide in x for the stockinette cell) stay visible on top of each other

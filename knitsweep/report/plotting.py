@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..quantities import SERIES_PARAMS
-from .reduce import Reduction
+from .reduce import Reduction, series_key
 from .tables import series_label
 
 CONTACT_COLOUR = "#ee6a50"  # coral: contact energy gap ΔE_c
@@ -207,6 +207,12 @@ def series_keys(red: Reduction, direction: str | None = None) -> list[tuple[floa
     """The series (values of k, B, r_core, r, p) with analysed sweeps, sorted."""
     keys = {c.series for c in red.curves if direction is None or c.direction == direction}
     return sorted(keys)
+
+
+def series_rows(red: Reduction, key: Sequence[float], direction: str) -> list[dict[str, Any]]:
+    """The sweep rows of one series and direction, by L/r."""
+    rows = (r for r in red.sweeps if r["direction"] == direction and series_key(r) == key)
+    return sorted(rows, key=lambda r: r["L_over_r"])
 
 
 def label_of(red: Reduction, key: Sequence[float]) -> str:

@@ -309,7 +309,8 @@ def transition_row(
     }
 
 
-def _series_key(row: Mapping[str, Any]) -> tuple[float, ...]:
+def series_key(row: Mapping[str, Any]) -> tuple[float, ...]:
+    """The series a table row belongs to: its values of ``SERIES_PARAMS``."""
     return tuple(row[k] for k in SERIES_PARAMS)
 
 
@@ -323,7 +324,7 @@ def _transitions(
     missing: dict[tuple[tuple[float, ...], str], int] = {}
     for p in problems:
         if p["kind"] == "sweep":
-            key = (_series_key(p), p["direction"])
+            key = (series_key(p), p["direction"])
             missing[key] = missing.get(key, 0) + 1
     found = series_transitions(sweeps, SERIES_PARAMS, threshold)
     out = {key: found[key] for key in sorted(found)}
@@ -340,7 +341,7 @@ def _adaptive(entries: list[Entry], rows: list[dict[str, Any]], notes: list[str]
         if all(k in meta for k in ("direction", *SERIES_PARAMS)):
             found[(tuple(float(meta[k]) for k in SERIES_PARAMS), meta["direction"])] = meta
     for row in rows:
-        meta = found.get((_series_key(row), row["direction"]))
+        meta = found.get((series_key(row), row["direction"]))
         if meta is None:
             continue
         row["adaptive_status"] = meta.get("status")
@@ -429,14 +430,14 @@ def reduce_results(
     fidelity_of = {r["file"]: job_fidelity(r) for r in roots}  # each file's own job
     points, sweeps, problems, curves = [], [], [], []
     pair_of: dict[str, dict[str, Any]] = {}
-    for e, meta in sorted(tasks[POINTS], key=lambda em: (_series_key(em[1]), em[1]["L_mm"])):
+    for e, meta in sorted(tasks[POINTS], key=lambda em: (series_key(em[1]), em[1]["L_mm"])):
         row = _point_row(e, meta, fidelity_of[meta["file"]])
         points.append(row)
         pair_of[e.task_id] = {k: row[k] for k in PAIR_KEYS}
         if row["status"] != "done":
             problems.append(_problem("point", row, meta, str(meta.get("message", ""))))
     for e, meta in sorted(
-        tasks[SWEEPS], key=lambda em: (em[1]["direction"], _series_key(em[1]), em[1]["L_mm"])
+        tasks[SWEEPS], key=lambda em: (em[1]["direction"], series_key(em[1]), em[1]["L_mm"])
     ):
         base = _base_row(e, meta)
         if base["status"] != "done":
@@ -495,7 +496,7 @@ def _job_name(root: Mapping[str, Any]) -> str:
 
 def _regime(row: Mapping[str, Any], transition_of: Mapping) -> str | None:
     """Regime of a point from its series' transitions in x and y (None if one is absent)."""
-    key = _series_key(row)
+    key = series_key(row)
     tx, ty = transition_of.get((key, "x")), transition_of.get((key, "y"))
     if tx is None or ty is None:
         return None
