@@ -195,7 +195,7 @@ def _predicted_start(curv: Curvature, prob: Problem, z0: np.ndarray, lo: np.ndar
     free = prob.free
     virtual = Point(z0, anchor.energy + float(anchor.ge @ d), ge[free], anchor.c + float(
         anchor.gl @ d), gl[free], ge, gl)  # fmt: skip
-    lam = float(virtual.a @ virtual.g) / float(virtual.a @ virtual.a)
+    lam = virtual.multiplier
     active = (z0 <= lo) | (z0 >= hi)
     step = _kkt_step(curv.lagrangian(lam), virtual, free, active, curv.radius)
     return np.clip(z0 + step.p, lo, hi)
@@ -225,7 +225,7 @@ def newton_minimise(
             prob.full(pt.z) - anchor.x,
             pt.ge - anchor.ge,
             pt.gl - anchor.gl,
-            float(pt.a @ pt.g) / float(pt.a @ pt.a),
+            pt.multiplier,
         )
     measured = not usable
     if measured:
@@ -233,7 +233,7 @@ def newton_minimise(
     assert curvature is not None
     radius, rho = max(curvature.radius, MIN_START_RADIUS), 1.0
     active = (pt.z <= lo) | (pt.z >= hi)
-    lam = float(pt.a @ pt.g) / float(pt.a @ pt.a)
+    lam = pt.multiplier
     probes, previous = 0, None
     for it in range(1, settings.maxiter + 1):
         b_full = curvature.lagrangian(lam)

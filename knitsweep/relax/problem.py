@@ -34,6 +34,11 @@ class Point:
     gl: np.ndarray
 
     @property
+    def multiplier(self) -> float:
+        """Least-squares Lagrange multiplier of the length constraint, g ≈ λ a."""
+        return float(self.a @ self.g) / float(self.a @ self.a)
+
+    @property
     def finite(self) -> bool:
         # a sum of squares is finite only if every entry is (or overflows, far beyond
         # any physical gradient)
@@ -93,12 +98,10 @@ class Problem:
         return self.evaluate(z).a
 
     def twist(self, z):
-        return math.cos(self.full(z)[IDX_TW]) - self.bound
+        return twist_margin(self.full(z), self.bound)
 
     def twist_grad(self, z):
-        g = np.zeros(N_STATE)
-        g[IDX_TW] = -math.sin(self.full(z)[IDX_TW])
-        return g[self.free]
+        return twist_gradient(self.full(z))[self.free]
 
     def bounds(self, x0: np.ndarray) -> list[tuple[float | None, float | None]]:
         """``state_bounds`` of the free entries, each widened to contain the start (SciPy's
@@ -120,6 +123,18 @@ class Problem:
             half = math.acos(self.bound)
             lo[i], hi[i] = centre - half, centre + half
         return lo, hi
+
+
+def twist_margin(x: np.ndarray, bound: float) -> float:
+    """The twist constraint cos(tw) - c_tw of state ``x`` (>= 0 where it holds)."""
+    return math.cos(x[IDX_TW]) - bound
+
+
+def twist_gradient(x: np.ndarray) -> np.ndarray:
+    """Gradient (30,) of the twist constraint at state ``x``."""
+    g = np.zeros(N_STATE)
+    g[IDX_TW] = -math.sin(x[IDX_TW])
+    return g
 
 
 @functools.lru_cache(maxsize=64)

@@ -19,7 +19,8 @@ import numpy as np
 from ..config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, SolverSettings
 from ..kernels.contact import CORE_EPS
 from ..model import CellModel
-from ..state import IDX_AX, IDX_AY, IDX_TW, N_STATE
+from ..state import IDX_AX, IDX_AY
+from .problem import twist_gradient, twist_margin
 
 TWIST_ACTIVE_TOL = 1e-8
 KKT_RTOL = 1e-6  # relative stationarity that counts as converged after a stalled line search
@@ -91,14 +92,12 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
         evaluated = model.energy_and_gradients(x)
         nev += 1
     e, ge, gl = evaluated
-    twist_margin = math.cos(x[IDX_TW]) - model.ip.twist_bound
-    twist_active = twist_margin <= TWIST_ACTIVE_TOL
+    margin = twist_margin(x, model.ip.twist_bound)
+    twist_active = margin <= TWIST_ACTIVE_TOL
     # Lagrange multipliers by least squares on the free entries: grad E = lam grad l (+ mu grad g)
     cols = [gl[free]]
     if twist_active:
-        g = np.zeros(N_STATE)
-        g[IDX_TW] = -math.sin(x[IDX_TW])
-        cols.append(g[free])
+        cols.append(twist_gradient(x)[free])
     a = np.column_stack(cols)
     coef = np.linalg.solve(a.T @ a, a.T @ ge[free])  # the normal equations: 1 or 2 columns
     kkt = float(np.max(np.abs(ge[free] - a @ coef)))
@@ -113,8 +112,8 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
         status, why = NOT_CONVERGED, f"non-finite energy: {message}"
     elif abs(residual) > settings.length_tol_mm:
         status, why = NOT_CONVERGED, f"length constraint missed by {residual:.3g} mm: {message}"
-    elif twist_margin < -TWIST_ACTIVE_TOL:
-        status, why = NOT_CONVERGED, f"twist bound violated by {-twist_margin:.3g}: {message}"
+    elif margin < -TWIST_ACTIVE_TOL:
+        status, why = NOT_CONVERGED, f"twist bound violated by {-margin:.3g}: {message}"
     elif success or stationary:
         status, why = CONVERGED, message
         if zeta < CORE_EPS:
@@ -132,7 +131,7 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
         iterations=int(nit),
         evaluations=int(nev),
         length_residual=float(residual),
-        twist_margin=float(twist_margin),
+        twist_margin=float(margin),
         twist_active=bool(twist_active),
         min_zeta=float(zeta),
         kkt_residual=kkt,
