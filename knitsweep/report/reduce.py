@@ -41,7 +41,7 @@ from ..errors import InputError
 from ..quantities import PARAM_SYMBOLS, SERIES_PARAMS
 from ..service.journal import Entry
 from ..service.results_format import POINTS, SWEEPS
-from ..service.results_read import choose_entries, iter_entries, read_root
+from ..service.results_read import read_files
 from ..state import IDX_AX, IDX_AY
 from .force_columns import PAIR_KEYS, force_columns, job_fidelity, pair_force_columns
 
@@ -373,27 +373,6 @@ def _partial_reasons(root: Mapping[str, Any], n_found: int) -> list[str]:
     return reasons
 
 
-def read_tasks(paths: Sequence[str | Path]) -> tuple[list[dict[str, Any]], list[Entry]]:
-    """Root attributes of each results file (with ``file`` and ``n_found``, the
-    number of its point and sweep tasks), and every finished task of all of them
-    (journals included), each task once: a result that is not 'failed' wins over a
-    failed one, the first file over later ones. Each entry's meta gets ``file``."""
-    roots, entries = [], []
-    seen = set()
-    for path in map(Path, paths):
-        key = path.resolve()
-        if key in seen:
-            raise InputError(f"{path}: given twice")
-        seen.add(key)
-        root = read_root(path) | {"file": str(path), "n_found": 0}
-        roots.append(root)
-        for e in iter_entries(path, with_data=True):
-            e.meta["file"] = str(path)
-            root["n_found"] += e.kind in (POINTS, SWEEPS)
-            entries.append(e)
-    return roots, list(choose_entries(entries).values())
-
-
 def reduce_results(
     paths: str | Path | Sequence[str | Path], threshold: float = GAP_THRESHOLD
 ) -> Reduction:
@@ -421,7 +400,7 @@ def reduce_results(
     if not (np.isfinite(threshold) and MIN_THRESHOLD <= threshold <= MAX_THRESHOLD):
         raise InputError(f"threshold = {threshold!r}: must be in [{MIN_THRESHOLD:g}, "
                          f"{MAX_THRESHOLD:g}] mJ")  # fmt: skip
-    roots, entries = read_tasks(paths)
+    roots, entries = read_files(paths)
     tasks = {POINTS: [], SWEEPS: []}
     for e in entries:
         if e.kind in tasks:  # other kinds (an adaptive job's /series) are read below

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import json
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +16,16 @@ import numpy as np
 from ..config import FAILED
 from ..errors import InputError
 from .journal import Entry, entry_path, read_entry_file, scan
-from .results_format import KINDS, READABLE_SCHEMAS, _h5, _read_group, journal_dir, progress_path
+from .results_format import (
+    KINDS,
+    POINTS,
+    READABLE_SCHEMAS,
+    SWEEPS,
+    _h5,
+    _read_group,
+    journal_dir,
+    progress_path,
+)
 
 
 @contextlib.contextmanager
@@ -83,6 +92,27 @@ def choose_entries(entries: Iterable[Entry]) -> dict[tuple[str, str], Entry]:
         if old is None or (old.meta.get("status") == FAILED != e.meta.get("status")):
             chosen[(e.kind, e.task_id)] = e
     return chosen
+
+
+def read_files(paths: Sequence[str | Path]) -> tuple[list[dict[str, Any]], list[Entry]]:
+    """Root attributes of each results file (with ``file`` and ``n_found``, the
+    number of its point and sweep tasks), and every finished task of all of them
+    (journals included), each task once: a result that is not 'failed' wins over a
+    failed one, the first file over later ones. Each entry's meta gets ``file``."""
+    roots, entries = [], []
+    seen = set()
+    for path in map(Path, paths):
+        key = path.resolve()
+        if key in seen:
+            raise InputError(f"{path}: given twice")
+        seen.add(key)
+        root = read_root(path) | {"file": str(path), "n_found": 0}
+        roots.append(root)
+        for e in iter_entries(path, with_data=True):
+            e.meta["file"] = str(path)
+            root["n_found"] += e.kind in (POINTS, SWEEPS)
+            entries.append(e)
+    return roots, list(choose_entries(entries).values())
 
 
 def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
