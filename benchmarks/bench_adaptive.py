@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from knitsweep.analysis import energy_gaps, transition
-from knitsweep.service.results_read import iter_entries, read_root
+from knitsweep.store.read import iter_entries, read_root
 
 ROOT = Path(__file__).resolve().parents[1]
 

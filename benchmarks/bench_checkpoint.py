@@ -29,8 +29,8 @@ import h5py
 import numpy as np
 
 from knitsweep.service.jobs import JobSpec
-from knitsweep.service.results_file import ResultWriter
-from knitsweep.service.results_format import _write_group
+from knitsweep.store.format import _write_group
+from knitsweep.store.writer import ResultWriter
 
 JOB = JobSpec(schema_version=1, name="bench", grid={"L_mm": 11.6})
 

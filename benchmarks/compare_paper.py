@@ -52,7 +52,7 @@ from knitsweep.config import StitchParams
 from knitsweep.model import CellModel
 from knitsweep.report.force_columns import fig6h_forces
 from knitsweep.report.reduce import Reduction, reduce_results
-from knitsweep.service.results_read import iter_entries
+from knitsweep.store.read import iter_entries
 
 SIGNS = {  # paper Table 2: direction of each class's force at zero strain
     ("self", "x"): "extend",

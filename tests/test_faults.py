@@ -18,9 +18,9 @@ from conftest import SHIPPED, TINY, assert_same_results
 
 from knitsweep import service
 from knitsweep.config import InputError
-from knitsweep.service.journal import Entry, Malformed, decode, encode, write_entry
-from knitsweep.service.results_format import journal_dir
-from knitsweep.service.results_read import iter_entries, read_entry, read_root
+from knitsweep.store.format import journal_dir
+from knitsweep.store.journal import Entry, Malformed, decode, encode, write_entry
+from knitsweep.store.read import iter_entries, read_entry, read_root
 
 
 def knitsweep(*args, timeout=600):
@@ -296,7 +296,7 @@ def test_checkpoints_append_in_place_and_never_touch_a_file_a_reader_holds(tmp_p
     """Each checkpoint publishes a whole file; the retired version becomes the next
     shadow only if no reader still has it open (then the shadow is copied afresh)."""
     from knitsweep.service.jobs import JobSpec
-    from knitsweep.service.results_file import ResultWriter
+    from knitsweep.store.writer import ResultWriter
 
     job = JobSpec(schema_version=1, name="c", grid={"L_mm": 11.6})
     out = tmp_path / "c.h5"

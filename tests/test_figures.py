@@ -126,7 +126,7 @@ def test_figures_use_agg_without_pyplot(synthetic_report):
 
 
 def test_render_point_and_sweep(tiny, tmp_path):
-    from knitsweep.service.results_read import iter_entries
+    from knitsweep.store.read import iter_entries
 
     entries = list(iter_entries(tiny))
     point = next(e.task_id for e in entries if e.kind == "points")

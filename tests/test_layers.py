@@ -20,6 +20,7 @@ LAYERS = [
     ["errors"],
     ["config", "kernels", "quantities"],
     ["analysis", "formats"],
+    ["store"],
     ["model"],
     ["relax"],
     ["zero_force"],

@@ -14,9 +14,9 @@ from knitsweep.config import InputError
 from knitsweep.quantities import SERIES_PARAMS
 from knitsweep.report import phase_diagram, reduce_results
 from knitsweep.report.tables import transitions_text
-from knitsweep.service.journal import Entry, write_entry
-from knitsweep.service.results_format import journal_dir
 from knitsweep.state import CONTACT_CLASSES
+from knitsweep.store.format import journal_dir
+from knitsweep.store.journal import Entry, write_entry
 
 
 def knitsweep(*args):

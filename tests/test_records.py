@@ -10,8 +10,8 @@ from conftest import TINY
 
 from knitsweep.config import Fidelity, SolverSettings, StartSettings, StitchParams
 from knitsweep.service.jobs import load_job, plan
-from knitsweep.service.results_format import POINTS, SWEEPS, _read_group, _write_group, split_record
-from knitsweep.service.results_read import read_entry
+from knitsweep.store.format import POINTS, SWEEPS, _read_group, _write_group, split_record
+from knitsweep.store.read import read_entry
 from knitsweep.strain_sweep import SweepResult, strain_sweep, strain_sweep_from_rest
 from knitsweep.zero_force import ZeroForce, zero_force
 

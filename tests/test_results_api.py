@@ -17,9 +17,9 @@ import knitsweep.report
 from knitsweep.config import InputError
 from knitsweep.quantities import COLUMN_QUANTITY, PARAMETERS, dataset_quantity
 from knitsweep.service.jobs import JobSpec, load_job
-from knitsweep.service.results_file import ResultWriter
-from knitsweep.service.results_format import POINTS, SWEEPS
-from knitsweep.service.results_read import read_entry
+from knitsweep.store.format import POINTS, SWEEPS
+from knitsweep.store.read import read_entry
+from knitsweep.store.writer import ResultWriter
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS = list(PARAMETERS)

@@ -20,7 +20,7 @@ from knitsweep.config import InputError
 from knitsweep.service.executors import SerialExecutor
 from knitsweep.service.jobs import load_job
 from knitsweep.service.master import run_job
-from knitsweep.service.results_format import RESULTS_SCHEMA_VERSION, journal_dir, lock_path
+from knitsweep.store.format import RESULTS_SCHEMA_VERSION, journal_dir, lock_path
 
 VENV_BIN = Path(sys.executable).parent
 MPIRUN = shutil.which("mpirun", path=str(VENV_BIN)) or shutil.which("mpirun")

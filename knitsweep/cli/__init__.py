@@ -27,7 +27,7 @@ def main() -> None:
         print(f"interrupted by {e}", file=sys.stderr, flush=True)
         rc = signals.EXIT_INTERRUPTED
     signals.quiet_exit()
-    results_file = sys.modules.get("knitsweep.service.results_file")
+    results_file = sys.modules.get("knitsweep.store.writer")
     if results_file is not None and results_file.hdf5_write_failed():
         import os
 

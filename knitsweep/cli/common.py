@@ -58,7 +58,7 @@ def user_errors():
     """Turn bad input, and outputs that cannot be written, into one line on stderr and
     exit code 2, never a traceback."""
     from ..errors import InputError, describe_validation_error
-    from ..service.journal import StorageError
+    from ..store.journal import StorageError
 
     try:
         yield

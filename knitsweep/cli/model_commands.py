@@ -129,8 +129,8 @@ def sweep(
     from ..config import Numerics, StartSettings
     from ..errors import InputError, check_seed
     from ..formats import check_writable
-    from ..report.sweep_table import sweep_table, write_sweep
     from ..service.progress import SweepProgress
+    from ..store.sweep_file import sweep_table, write_sweep
     from ..strain_sweep import NoRestState, strain_sweep_from_rest
 
     with user_errors():

@@ -1,7 +1,7 @@
 """Reduce a results file to the paper's tables (docs/model.md §9; paper Sections IV–VII).
 
-One pass over a results file (``knitsweep run``; schema in :mod:`knitsweep.service.results_file`),
-read through :func:`knitsweep.service.results_read.iter_entries`, so that results still in a
+One pass over a results file (``knitsweep run``; schema in :mod:`knitsweep.store.writer`),
+read through :func:`knitsweep.store.read.iter_entries`, so that results still in a
 running job's journal count too. Out come plain rows (dicts of str, float, int, bool
 or None), ready for CSV, printing and the figures of :mod:`.figures`:
 
@@ -39,10 +39,10 @@ from ..analysis.transitions import Transition, series_transitions
 from ..config import Fidelity, plain_value
 from ..errors import InputError
 from ..quantities import PARAM_SYMBOLS, SERIES_PARAMS
-from ..service.journal import Entry
-from ..service.results_format import POINTS, SWEEPS
-from ..service.results_read import read_files
 from ..state import IDX_AX, IDX_AY
+from ..store.format import POINTS, SWEEPS
+from ..store.journal import Entry
+from ..store.read import read_files
 from .force_columns import PAIR_KEYS, force_columns, job_fidelity, pair_force_columns
 
 MIN_THRESHOLD, MAX_THRESHOLD = 1e-12, 1.0

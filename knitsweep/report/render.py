@@ -294,7 +294,7 @@ def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> S
 
 
 def _find_task(results: Path, task: str) -> Any:
-    from ..service.results_read import iter_entries, read_root
+    from ..store.read import iter_entries, read_root
 
     read_root(results)
     matches = [e for e in iter_entries(results, with_data=True) if e.task_id.startswith(task)]
@@ -313,8 +313,8 @@ def stitch_from_results(results: str | Path, task: str, step: int | None = None)
     the sweep's stored ``states`` or ``control_points`` ([store] states or geometry).
     Ids may be abbreviated to a unique prefix.
     """
-    from ..service.results_format import POINTS
-    from ..service.results_read import iter_entries
+    from ..store.format import POINTS
+    from ..store.read import iter_entries
 
     results = Path(results)
     e = _find_task(results, task)

@@ -33,7 +33,7 @@ from ..quantities import (
     table_column,
     units_of_column,
 )
-from ..service.results_format import SWEEPS
+from ..store.format import SWEEPS
 from .reduce import Reduction, reduce_results
 
 if TYPE_CHECKING:

@@ -30,14 +30,14 @@ from typing import Any
 
 from ..config import DONE, FAILED
 from ..errors import InputError
+from ..store.format import POINTS, SERIES, SWEEPS, progress_path, split_record
+from ..store.journal import StorageError, atomic_write_bytes
+from ..store.read import iter_entries, read_entry
+from ..store.writer import ResultWriter
 from . import signals
 from .adaptive import Refiner
 from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, sweep_task
-from .journal import StorageError, atomic_write_bytes
 from .progress import RunProgress, task_line
-from .results_file import ResultWriter
-from .results_format import POINTS, SERIES, SWEEPS, progress_path, split_record
-from .results_read import iter_entries, read_entry
 from .signals import EXIT_INTERRUPTED, Interrupted
 from .worker import Reply
 

@@ -15,12 +15,12 @@ from typing import Any, Literal
 
 from ..config import DONE, FAILED
 from ..errors import InputError
+from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
+from ..store.journal import scan
+from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root
+from ..store.writer import writer_alive
 from . import signals
 from .jobs import JobSpec, load_job
-from .journal import scan
-from .results_file import writer_alive
-from .results_format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
-from .results_read import choose_entries, iter_entries, journal_problems, read_progress, read_root
 
 ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
 LARGE_GRID_TASKS = 20_000
@@ -233,9 +233,9 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     present in several inputs is taken once, a 'done' result winning over a
     failed one. Returns counts of what ``out`` holds.
     """
+    from ..store.format import SWEEPS
+    from ..store.writer import ResultWriter
     from .jobs import JobSpec, plan
-    from .results_file import ResultWriter
-    from .results_format import SWEEPS
 
     if not inputs:
         raise InputError("merge needs at least one input file")

@@ -5,20 +5,25 @@ from __future__ import annotations
 
 import io
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..config import StitchParams
 from ..quantities import STEP_QUANTITIES
-from ..strain_sweep import SweepResult
+
+if TYPE_CHECKING:
+    from ..config import StitchParams
 
 COLUMNS = ("strain", "a_x", "a_y", "stress", "stress_envelope", "bending_energy",
            "contact_energy", "total_energy", "thickness", "winner", "converged")  # fmt: skip
 """The per-step quantities of the CSV table, in order."""
 
 
-def sweep_table(result: SweepResult) -> str:
-    """CSV whose header names each column with its unit suffix (``stress_N_per_mm``)."""
+def sweep_table(result) -> str:
+    """CSV whose header names each column with its unit suffix (``stress_N_per_mm``).
+
+    ``result`` is a ``strain_sweep.SweepResult``: the store sits below the layer that
+    computes it and reads only its arrays."""
     buf = io.StringIO()
     buf.write(",".join(STEP_QUANTITIES[name].column for name in COLUMNS) + "\n")
     cols = [getattr(result, name) for name in COLUMNS]
@@ -35,7 +40,7 @@ def _fmt(v) -> str:
     return f"{float(v):.10g}"
 
 
-def write_sweep(path: str | Path, result: SweepResult, params: StitchParams) -> None:
+def write_sweep(path: str | Path, result, params: StitchParams) -> None:
     """Write one sweep to ``.csv`` (the table) or ``.h5`` (every per-step array)."""
     path = Path(path)
     if path.suffix == ".csv":
@@ -43,7 +48,7 @@ def write_sweep(path: str | Path, result: SweepResult, params: StitchParams) -> 
         return
     import h5py
 
-    from ..service.results_format import SWEEPS, describe_dataset
+    from .format import SWEEPS, describe_dataset
 
     with h5py.File(path, "w") as f:
         f.attrs["direction"] = result.direction

@@ -15,8 +15,7 @@ import numpy as np
 
 from ..config import FAILED
 from ..errors import InputError
-from .journal import Entry, entry_path, read_entry_file, scan
-from .results_format import (
+from .format import (
     KINDS,
     POINTS,
     READABLE_SCHEMAS,
@@ -26,6 +25,7 @@ from .results_format import (
     journal_dir,
     progress_path,
 )
+from .journal import Entry, entry_path, read_entry_file, scan
 
 
 @contextlib.contextmanager

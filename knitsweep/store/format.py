@@ -3,8 +3,8 @@ task's record becomes an HDF5 group and back (README, "The results file").
 
 A record's arrays become datasets, its scalars attributes of the task's group; every
 dataset carries ``units`` and ``long_name`` and labelled dimension scales
-(``knitsweep.quantities``). ``results_file`` writes files in this format,
-``results_read`` reads them.
+(``knitsweep.quantities``). ``store.writer`` writes files in this format,
+``store.read`` reads them.
 """
 
 from __future__ import annotations

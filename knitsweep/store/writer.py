@@ -56,6 +56,15 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from .format import (
+    KINDS,
+    RESULTS_SCHEMA_VERSION,
+    _h5,
+    _write_group,
+    journal_dir,
+    lock_path,
+    now,
+)
 from .journal import (
     Entry,
     StorageError,
@@ -67,16 +76,7 @@ from .journal import (
     write_entry,
 )
 from .provenance import environment_metadata
-from .results_format import (
-    KINDS,
-    RESULTS_SCHEMA_VERSION,
-    _h5,
-    _write_group,
-    journal_dir,
-    lock_path,
-    now,
-)
-from .results_read import read_root
+from .read import read_root
 
 __all__ = ["ResultWriter", "StorageError", "atomic_write_bytes", "check_compatible",
            "writer_alive"]  # fmt: skip
@@ -415,10 +415,8 @@ def check_compatible(path: Path, job, root: dict[str, Any] | None = None) -> str
         return None
     from pydantic import ValidationError
 
-    from .jobs import JobSpec
-
-    try:
-        theirs = JobSpec.model_validate_json(str(root["job_json"])).canonical()
+    try:  # the job's own class parses the file's spec: the store knows no job schema
+        theirs = type(job).model_validate_json(str(root["job_json"])).canonical()
     except ValidationError:
         raise InputError(
             f"{path} holds results of a job whose spec this knitsweep cannot read; choose "
