@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 
 from knitsweep.config import Fidelity, StitchParams
-from knitsweep.kernels.bending import SEGMENT_WEIGHTS, bending_and_length
+from knitsweep.kernels.bending import bending_and_length
 from knitsweep.kernels.bezier import basis_tables, gauss_legendre, midpoints
 from knitsweep.kernels.cell import cell_energy, cell_energy_listed
 from knitsweep.kernels.contact import (
@@ -45,9 +45,10 @@ from knitsweep.kernels.contact import (
     pair_potential,
     sample_path,
 )
-from knitsweep.kernels.geometry import IDX_AX, IDX_AY, N_STATE, state_to_control_points
 from knitsweep.kernels.neighbours import build_neighbour_list, contact_energy_listed
 from knitsweep.model import CellModel
+from knitsweep.stitches.stockinette.geometry import state_to_control_points
+from knitsweep.stitches.stockinette.layout import IDX_AX, IDX_AY, N_STATE, SEGMENT_WEIGHTS
 
 DATA = Path(__file__).resolve().parent.parent / "tests" / "data"
 MODES = {"cutoff": IMAGES_CUTOFF, "reference": IMAGES_REFERENCE}  # Fidelity.images -> kernel
@@ -163,9 +164,10 @@ def main() -> None:
         model = CellModel(params, fid)
         energies[mode] = model.energies(x)
 
-        def cell(with_grad, im=im):
-            return cell_energy(x, qtab, gw, ctab, SEGMENT_WEIGHTS, ip.bend, ip.reg, ip.r, ip.rc,
-                               ip.k, ip.p, im, with_grad, ge, gl)  # fmt: skip
+        def cell(with_grad, im=im):  # the stitch's geometry, then the generic composition
+            state_to_control_points(x, cp, jac)
+            return cell_energy(cp, jac, ax, ay, qtab, gw, ctab, SEGMENT_WEIGHTS, ip.bend, ip.reg,
+                               ip.r, ip.rc, ip.k, ip.p, im, with_grad, ge, gl)  # fmt: skip
 
         record("geometry: control points + Jacobian", mode,
                lambda: state_to_control_points(x, cp, jac))  # fmt: skip
@@ -189,9 +191,9 @@ def main() -> None:
                lambda im=im, nl=nlist: contact_energy_listed(cp, ctab, ax, ay, ip.r, ip.rc, ip.k,
                                                              ip.p, im, True, g3, gcell, *nl))  # fmt: skip
         record("neighbour list: E + grad E + grad l (b)", mode,
-               lambda im=im, nl=nlist: cell_energy_listed(
-                   x, qtab, gw, ctab, SEGMENT_WEIGHTS, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
-                   im, True, ge, gl, *nl))  # fmt: skip
+               lambda im=im, nl=nlist: (state_to_control_points(x, cp, jac), cell_energy_listed(
+                   cp, jac, ax, ay, qtab, gw, ctab, SEGMENT_WEIGHTS, ip.bend, ip.reg, ip.r, ip.rc,
+                   ip.k, ip.p, im, True, ge, gl, *nl)))  # fmt: skip
         if mode == "cutoff":
             n_contacts = len(find_contacts(cp, ctab, ax, ay, ip.r, im)[3])
     # the saving of culling, against the authors' fixed image box searched in full

@@ -38,7 +38,7 @@ from knitsweep.model import CellModel, compile_kernels
 from knitsweep.relax import Relaxer, free_entries, relax
 from knitsweep.relax.newton import measure_curvature
 from knitsweep.relax.problem import Problem
-from knitsweep.state import IDX_TW
+from knitsweep.stitches.stockinette.layout import IDX_TW
 from knitsweep.strain_sweep import strain_sweep
 from knitsweep.zero_force import zero_force
 
@@ -143,7 +143,7 @@ def sweep_figures(params: StitchParams) -> dict:
 def conditioning(params: StitchParams, zero, sweep, every: int) -> None:
     """The reduced Hessian's extreme eigenvalues at the winner of every ``every``-th step."""
     model = CellModel(params)
-    free = free_entries("x")
+    free = free_entries(model.stitch, "x")
     print("\nreduced Hessian of the Lagrangian along the x sweep (mJ/mm^2; state units)")
     print(f"{'step':>5}{'strain':>9}{'lowest':>11}{'lowest > 0':>12}{'highest':>10}"
           f"{'condition':>11}{'negative':>9}")  # fmt: skip

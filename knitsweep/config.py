@@ -31,9 +31,11 @@ from pydantic import (
     Field,
     ValidationInfo,
     field_validator,
+    model_serializer,
 )
 
 from .errors import InputError
+from .stitches import DEFAULT_STITCH, STITCH_NAMES
 
 _CONFIG = ConfigDict(
     frozen=True, extra="forbid", allow_inf_nan=False, validate_default=True, strict=True
@@ -111,6 +113,26 @@ class StitchParams(BaseModel):
     twist_bound: float = Field(
         0.9, description="bound c_tw on the crossover twist: cos(tw) >= c_tw"
     )
+    stitch: str = Field(
+        DEFAULT_STITCH, description=f"stitch pattern: one of {', '.join(STITCH_NAMES)}"
+    )
+
+    @field_validator("stitch")
+    @classmethod
+    def _known_stitch(cls, v: str) -> str:
+        if v not in STITCH_NAMES:
+            raise ValueError(f"must be one of {', '.join(STITCH_NAMES)}")
+        return v
+
+    @model_serializer(mode="wrap")
+    def _stockinette_as_before(self, handler) -> dict[str, Any]:
+        # The default stitch is left out of every dump (task ids, file attributes,
+        # tables), so that everything computed before stitches were a choice keeps
+        # its id and reads the same; any other stitch is written out.
+        out = handler(self)
+        if out.get("stitch") == DEFAULT_STITCH:
+            del out["stitch"]
+        return out
 
     @field_validator("p")
     @classmethod
@@ -143,8 +165,10 @@ class StitchParams(BaseModel):
     @classmethod
     def from_flat(cls, values: Mapping[str, Any]) -> StitchParams:
         """The parameters from a mapping that holds every field among other keys
-        (e.g. the attributes of a results-file group)."""
-        return cls(**{k: plain_value(values[k]) for k in cls.model_fields})
+        (e.g. the attributes of a results-file group; ``stitch`` may be absent: the
+        default stitch, as written before stitches were a choice)."""
+        return cls(**{k: plain_value(values[k]) for k in cls.model_fields
+                      if k != "stitch" or k in values})  # fmt: skip
 
     def internal(self) -> InternalParams:
         """Convert to the kernels' N/mm units once (mN -> N)."""

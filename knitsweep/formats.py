@@ -1,6 +1,6 @@
 """The authors' file formats (sabetta/jammed-knits), so their users can migrate.
 
-* Init files: the 30 numbers of a state, one per line (docs/model.md §2).
+* Init files: the numbers of a state, one per line (stockinette: 30, docs/model.md §2).
 * Config files: only lines starting with ``*`` count, as ``*key value [unit]``
   (docs/model.md §10). Their units are internal (N, mm, B/2); ``read_authors_config``
   converts them to knitsweep's user-facing ``StitchParams``.
@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +17,8 @@ from pydantic import ValidationError
 
 from .config import StitchParams
 from .errors import InputError, describe_validation_error, did_you_mean
-from .state import IDX_AX, IDX_AY, N_STATE
+from .stitches import DEFAULT_STITCH, Stitch, get_stitch
 
-SHIPPED_STATES = tuple(f"Init_{i}.dat" for i in range(1, 8))
 MAX_TEXT_BYTES = 1_000_000
 """State and config files are a few hundred bytes; anything past this is not one."""
 MAX_STATE_VALUE = 1e4
@@ -48,8 +46,11 @@ def read_text(path: str | Path, what: str, max_bytes: int = MAX_TEXT_BYTES, hint
     return text
 
 
-def read_state(path: str | Path) -> np.ndarray:
-    """Read a 30-line state file; errors name the file and the line."""
+def read_state(path: str | Path, stitch: Stitch | str = DEFAULT_STITCH) -> np.ndarray:
+    """Read a state file of ``stitch`` (one number per line: 30 for stockinette);
+    errors name the file and the line."""
+    stitch = get_stitch(stitch) if isinstance(stitch, str) else stitch
+    n = stitch.n_state
     path = Path(path)
     lines = read_text(path, "state file").splitlines()
     values = []
@@ -67,29 +68,28 @@ def read_state(path: str | Path) -> np.ndarray:
             raise InputError(f"state file {path} line {no}: {text!r}: |value| must be <= "
                              f"{MAX_STATE_VALUE:g} (mm or rad)")  # fmt: skip
         values.append(v)
-    if len(values) != N_STATE:
-        raise InputError(f"state file {path}: expected {N_STATE} numbers, found {len(values)}")
+    if len(values) != n:
+        raise InputError(f"state file {path}: expected {n} numbers for a {stitch.name} state, "
+                         f"found {len(values)}")  # fmt: skip
     x = np.array(values)
-    if x[IDX_AX] <= 0 or x[IDX_AY] <= 0:
-        raise InputError(f"state file {path}: the cell periods a_x, a_y (lines 29, 30) must be > 0")
+    if x[-2] <= 0 or x[-1] <= 0:
+        raise InputError(f"state file {path}: the cell periods a_x, a_y (lines {n - 1}, {n}) "
+                         "must be > 0")  # fmt: skip
     return x
 
 
 def write_state(path: str | Path, x: np.ndarray) -> None:
-    """Write a state as 30 lines, exactly round-tripping every float."""
+    """Write a state one number per line, exactly round-tripping every float."""
     x = np.asarray(x, dtype=float)
-    if x.shape != (N_STATE,):
-        raise ValueError(f"a state has {N_STATE} entries, got shape {x.shape}")
+    if x.ndim != 1 or x.size < 2:
+        raise ValueError(f"a state is a vector ending with the periods, got shape {x.shape}")
     Path(path).write_text("".join(f"{float(v)!r}\n" for v in x))
 
 
-def shipped_state(index: int = 1) -> np.ndarray:
-    """One of the authors' 7 starting states shipped with knitsweep (Init_1 … Init_7)."""
-    if not 1 <= index <= len(SHIPPED_STATES):
-        raise InputError(f"shipped state index = {index}: must be in 1..{len(SHIPPED_STATES)}")
-    ref = resources.files("knitsweep") / "data" / SHIPPED_STATES[index - 1]
-    with resources.as_file(ref) as p:
-        return read_state(p)
+def shipped_state(index: int = 1, stitch: str = DEFAULT_STITCH) -> np.ndarray:
+    """One of the starting states shipped with ``stitch`` (stockinette: the authors'
+    Init_1 … Init_7)."""
+    return get_stitch(stitch).start(index)
 
 
 @dataclass(frozen=True)

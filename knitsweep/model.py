@@ -1,8 +1,10 @@
 """The stitch-cell model: energies, length and exact gradients of a state vector.
 
-``CellModel`` binds validated parameters and a fidelity to the numba kernels
+``CellModel`` binds validated parameters, a fidelity and a stitch geometry
+(``knitsweep.stitches``, chosen by ``params.stitch``) to the numba kernels
 (docs/model.md §2–6, §9); it is what relaxation, sweeps and the CLI call. States
-are numpy arrays of shape (30,), laid out as in ``knitsweep.state``.
+are numpy arrays of shape (n,), laid out as the stitch says (stockinette: n = 30,
+``stitches.stockinette.layout``); their last two entries are the periods a_x, a_y.
 """
 
 from __future__ import annotations
@@ -14,16 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import Fidelity, InternalParams, StitchParams
-from .kernels.bending import SEGMENT_WEIGHTS
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
 from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
 from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
-from .kernels.geometry import state_to_control_points
 from .kernels.neighbours import build_neighbour_list
-from .state import CONTACT_CLASSES, IDX_AX, IDX_AY, N_STATE
+from .stitches import DEFAULT_STITCH, Stitch, get_stitch
 
 
 class NeighbourList:
@@ -35,9 +35,6 @@ class NeighbourList:
         self.skin = skin
         self.arrays: tuple = ()
         self.rebuilds = 0
-
-
-assert len(CONTACT_CLASSES) == N_CLASSES
 
 
 @dataclass(frozen=True)
@@ -62,11 +59,19 @@ class Energies:
 
 
 class CellModel:
-    """Energy of one periodic stockinette cell at given parameters and fidelity."""
+    """Energy of one periodic cell of the stitch ``params.stitch`` at given parameters
+    and fidelity."""
 
     def __init__(self, params: StitchParams, fidelity: Fidelity | None = None) -> None:
         self.params = params
         self.fidelity = fidelity or Fidelity()
+        self.stitch: Stitch = get_stitch(params.stitch)
+        if len(self.stitch.contact_classes) != N_CLASSES:
+            raise ValueError(f"stitch {self.stitch.name}: {len(self.stitch.contact_classes)} "
+                             f"contact classes, the contact kernel sorts into {N_CLASSES}")  # fmt: skip
+        self._geometry = self.stitch.control_points
+        self._seg_w = self.stitch.segment_weights
+        self._cp, self._jac = self.stitch.buffers()
         self.ip: InternalParams = params.internal()
         nodes, weights = gauss_legendre(self.fidelity.quadrature_nodes)
         self._qtab = basis_tables(nodes)
@@ -75,15 +80,22 @@ class CellModel:
             basis_tables(midpoints(self.fidelity.samples_per_segment))[:2]
         )
         self._mode = IMAGES_CUTOFF if self.fidelity.images == "cutoff" else IMAGES_REFERENCE
-        self._grad_e = np.empty(N_STATE)
-        self._grad_l = np.empty(N_STATE)
+        self._grad_e = np.empty(self.stitch.n_state)
+        self._grad_l = np.empty(self.stitch.n_state)
+
+    def _geometry_of(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The stitch's control points and Jacobian of state ``x``, in this model's
+        buffers (overwritten by the next call)."""
+        self._geometry(x, self._cp, self._jac)
+        return self._cp, self._jac
 
     def _call(self, x: np.ndarray, with_grad: bool) -> tuple[float, float, float]:
         ip = self.ip
-        x = _as_state(x)
+        x = self._as_state(x)
+        cp, jac = self._geometry_of(x)
         return cell_energy(
-            x, self._qtab, self._qw, self._ctab, SEGMENT_WEIGHTS, ip.bend, ip.reg, ip.r,
-            ip.rc, ip.k, ip.p, self._mode, with_grad, self._grad_e, self._grad_l,
+            cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
+            ip.reg, ip.r, ip.rc, ip.k, ip.p, self._mode, with_grad, self._grad_e, self._grad_l,
         )  # fmt: skip
 
     def energies(self, x: np.ndarray) -> Energies:
@@ -94,7 +106,7 @@ class CellModel:
     def energy_and_gradients(
         self, x: np.ndarray, neighbours: NeighbourList | None = None
     ) -> tuple[Energies, np.ndarray, np.ndarray]:
-        """Energies plus the exact gradients dE/dx and dl/dx, each shape (30,).
+        """Energies plus the exact gradients dE/dx and dl/dx, each shape (n,).
 
         With a ``NeighbourList`` (from ``neighbour_list``) the contact sum runs over
         its pairs: the same numbers, bit for bit, faster; the list rebuilds itself
@@ -103,56 +115,57 @@ class CellModel:
         if neighbours is None:
             eb, ec, length = self._call(x, True)
         else:
-            eb, ec, length = self._call_listed(_as_state(x), neighbours)
+            eb, ec, length = self._call_listed(self._as_state(x), neighbours)
         return Energies(eb, ec, length), self._grad_e.copy(), self._grad_l.copy()
 
     def neighbour_list(self, x: np.ndarray, skin: float = 0.1) -> NeighbourList:
         """A Verlet list of the contact candidates around state ``x`` (skin in mm)."""
         nl = NeighbourList(skin)
-        self._rebuild(_as_state(x), nl)
+        self._rebuild(self._as_state(x), nl)
         return nl
 
     def _rebuild(self, x: np.ndarray, nl: NeighbourList) -> None:
         cp = self.control_points(x)
-        nl.arrays = build_neighbour_list(cp, self._ctab, x[IDX_AX], x[IDX_AY], self.ip.r,
-                                         self._mode, nl.skin)  # fmt: skip
+        nl.arrays = build_neighbour_list(cp, self._ctab, x[-2], x[-1], self.ip.r, self._mode,
+                                         nl.skin)  # fmt: skip
         nl.rebuilds += 1
 
     def _call_listed(self, x: np.ndarray, nl: NeighbourList) -> tuple[float, float, float]:
         ip = self.ip
+        cp, jac = self._geometry_of(x)
         eb, ec, length, valid = cell_energy_listed(
-            x, self._qtab, self._qw, self._ctab, SEGMENT_WEIGHTS, ip.bend, ip.reg, ip.r,
-            ip.rc, ip.k, ip.p, self._mode, True, self._grad_e, self._grad_l, *nl.arrays,
+            cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
+            ip.reg, ip.r, ip.rc, ip.k, ip.p, self._mode, True, self._grad_e, self._grad_l,
+            *nl.arrays,
         )  # fmt: skip
         if not valid:  # the sums came from the full search; refresh the list here
             self._rebuild(x, nl)
         return eb, ec, length
 
     def control_points(self, x: np.ndarray) -> np.ndarray:
-        """The 8 segments' control points in path order, shape (8, 6, 3), mm."""
-        cp = np.empty((8, 6, 3))
-        state_to_control_points(_as_state(x), cp, np.empty((8, 6, 3, N_STATE)))
-        return cp
+        """The S segments' control points in path order, shape (S, 6, 3), mm (a new
+        array)."""
+        return self.control_points_and_jacobian(x)[0]
 
     def control_points_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Control points (8, 6, 3) and d(control points)/dx, shape (8, 6, 3, 30)."""
-        cp = np.empty((8, 6, 3))
-        jac = np.empty((8, 6, 3, N_STATE))
-        state_to_control_points(_as_state(x), cp, jac)
+        """Control points (S, 6, 3) and d(control points)/dx, shape (S, 6, 3, n) (new
+        arrays)."""
+        cp, jac = self.stitch.buffers()
+        self._geometry(self._as_state(x), cp, jac)
         return cp, jac
 
     def min_zeta(self, x: np.ndarray) -> float:
         """Smallest compression zeta over all counted contacts (1.0 if none);
         below 1e-5 the hard cores overlap (docs/model.md §6)."""
         ip = self.ip
-        x = _as_state(x)
-        return min_zeta(self.control_points(x), self._ctab, x[IDX_AX], x[IDX_AY], ip.r, ip.rc,
+        x = self._as_state(x)
+        return min_zeta(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
                         self._mode)  # fmt: skip
 
     def contact_forces_by_class(self, x: np.ndarray) -> np.ndarray:
         """Contact forces on the cell by class of image offset, shape (5, 3), N.
 
-        Rows: ``knitsweep.state.CONTACT_CLASSES`` (self, same row, nearest and
+        Rows: the stitch's ``contact_classes`` (stockinette: self, same row, nearest and
         next-nearest same column, other). Columns x, y: the class's generalised
         force on the cell period, F_a = -dE_c(class)/da at fixed shape parameters
         (positive: the contacts push the cell to extend along a; negative: they pull
@@ -168,12 +181,12 @@ class CellModel:
         """(forces (5, 3) N as in ``contact_forces_by_class``, energies (5,) mJ):
         the contact energy of each class; the five add up to E_c."""
         ip = self.ip
-        x = _as_state(x)
+        x = self._as_state(x)
         cp, jac = self.control_points_and_jacobian(x)
-        dcp = np.ascontiguousarray(jac[..., [IDX_AX, IDX_AY]])
+        dcp = np.ascontiguousarray(jac[..., -2:])
         forces = np.empty((N_CLASSES, 3))
         energies = np.empty(N_CLASSES)
-        _forces_by_class(cp, dcp, self._ctab, x[IDX_AX], x[IDX_AY], ip.r, ip.rc, ip.k, ip.p,
+        _forces_by_class(cp, dcp, self._ctab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
                          self._mode, forces, energies)  # fmt: skip
         return forces, energies
 
@@ -185,17 +198,20 @@ class CellModel:
         separation, on both of its samples, projected on x, y, z; positive extends
         the fabric (pushes the two stitches apart along an axis on which they are
         offset, else pushes the sample away from its own stitch's mid-plane).
-        Rows ``CONTACT_CLASSES``. Unweighted, the bare force between two samples,
+        Rows: the stitch's ``contact_classes``. Unweighted, the bare force between two samples,
         whose sums depend on the sampling (the paper's 10 samples per segment);
         ``weighted=True`` multiplies each pair by ds ds' as in E_c (N mm^2), the
         sampling-independent integral.
         """
         ip = self.ip
-        x = _as_state(x)
+        x = self._as_state(x)
         forces = np.empty((N_CLASSES, 3))
-        _pair_forces_by_class(self.control_points(x), self._ctab, x[IDX_AX], x[IDX_AY], ip.r,
-                              ip.rc, ip.k, ip.p, self._mode, weighted, forces)  # fmt: skip
+        _pair_forces_by_class(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
+                              ip.k, ip.p, self._mode, weighted, forces)  # fmt: skip
         return forces
+
+    def _as_state(self, x: np.ndarray) -> np.ndarray:
+        return as_state(x, self.stitch)
 
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
         """Cell thickness dz = z_max - z_min + 2r of the centre-line (paper SI S4), mm."""
@@ -213,33 +229,41 @@ def _thickness_basis(samples: int) -> np.ndarray:
 
 
 def compile_kernels(
-    fidelity: Fidelity | None = None, notice: Callable[[str], None] | None = None
+    fidelity: Fidelity | None = None,
+    notice: Callable[[str], None] | None = None,
+    stitches: tuple[str, ...] = (DEFAULT_STITCH,),
 ) -> None:
-    """Compile (or load from numba's cache) every kernel a task uses, once, before
-    work fans out to other processes. ``notice`` is told first when the kernels are
-    not cached yet, so that a user knows why the first run waits."""
+    """Compile (or load from numba's cache) every kernel a task of these ``stitches``
+    uses, once, before work fans out to other processes. ``notice`` is told first when
+    the kernels are not cached yet, so that a user knows why the first run waits."""
     from . import kernels
-    from .formats import shipped_state
     from .kernels.kkt import compile_solver
 
     message = kernels.compile_notice() if notice is not None else None
     if message:
         notice(message)
-    model = CellModel(StitchParams(), fidelity)
-    x = shipped_state(1)
+    for name in stitches:
+        _compile_stitch(CellModel(StitchParams(stitch=name), fidelity))
+    compile_solver()  # the Newton step of the relaxations
+
+
+def _compile_stitch(model: CellModel) -> None:
+    x = model.stitch.start(1)
     model.energy_and_gradients(x)
     model.energy_and_gradients(x, model.neighbour_list(x))
     model.min_zeta(x)
     model.thickness(x)
     model.contacts_by_class(x)
     model.contact_pair_forces_by_class(x)
-    compile_solver()  # the Newton step of the relaxations
 
 
-def _as_state(x: np.ndarray) -> np.ndarray:
+def as_state(x: np.ndarray, stitch: Stitch) -> np.ndarray:
+    """``x`` as a contiguous float64 state of ``stitch``; ValueError if it has the wrong
+    shape or a period that is not > 0."""
     x = np.ascontiguousarray(x, dtype=np.float64)
-    if x.shape != (N_STATE,):
-        raise ValueError(f"a state has {N_STATE} entries, got shape {x.shape}")
-    if x[IDX_AX] <= 0.0 or x[IDX_AY] <= 0.0:
-        raise ValueError(f"cell periods must be > 0, got a_x = {x[IDX_AX]}, a_y = {x[IDX_AY]}")
+    if x.shape != (stitch.n_state,):
+        raise ValueError(f"a {stitch.name} state has {stitch.n_state} entries, got shape "
+                         f"{x.shape}")  # fmt: skip
+    if x[-2] <= 0.0 or x[-1] <= 0.0:
+        raise ValueError(f"cell periods must be > 0, got a_x = {x[-2]}, a_y = {x[-1]}")
     return x

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .state import CONTACT_CLASSES, N_SEGMENTS, STATE_NAMES
+from .stitches import DEFAULT_STITCH, TRANSLATION_CLASSES, get_stitch
 
 
 @dataclass(frozen=True)
@@ -181,15 +181,25 @@ SWEEP_START_QUANTITIES = dict(
 """Per-start datasets of a sweep (their first dimension is ``start``, not ``step``)."""
 
 AXES = {
-    "state_entry": STATE_NAMES,
-    "segment": tuple(f"segment_{i}" for i in range(N_SEGMENTS)),
     "control_point": tuple(f"P{i}" for i in range(6)),
     "axis": ("x", "y", "z"),
-    "contact_class": CONTACT_CLASSES,
+    "contact_class": TRANSLATION_CLASSES,
     "component": ("x", "y", "z"),
     "period": ("a_x", "a_y"),
 }
-"""Labelled trailing dimensions of multi-dimensional datasets."""
+"""Labelled trailing dimensions of multi-dimensional datasets that every stitch shares
+(``axis_labels`` adds the stitch's own)."""
+
+
+def axis_labels(dim: str, stitch: str = DEFAULT_STITCH) -> tuple[str, ...] | None:
+    """Labels of a trailing dimension (None for a leading one: 0 … n-1): the state
+    entries and segments are the stitch's."""
+    if dim == "state_entry":
+        return get_stitch(stitch).state_names
+    if dim == "segment":
+        return tuple(f"segment_{i}" for i in range(get_stitch(stitch).n_segments))
+    return AXES.get(dim)
+
 
 TRAILING_DIMS = {
     "x": ("state_entry",),

@@ -30,10 +30,9 @@ from .config import (
     StitchParams,
     plain_value,
 )
-from .formats import SHIPPED_STATES, shipped_state
 from .model import CellModel
 from .relax import Relaxation, single_threaded, walk_starts
-from .state import N_SHAPE
+from .stitches import DEFAULT_STITCH
 
 # the parameters the shipped Init files were made for (the authors' k = 0.1 mN/mm^2
 # study, paper Table 1 otherwise); their length is measured, not assumed
@@ -49,22 +48,33 @@ class Start:
     params: StitchParams
 
 
+def shipped_source(stitch: str = DEFAULT_STITCH) -> StitchParams:
+    """The parameters a stitch's shipped starts were made for (``SHIPPED_SOURCE``)."""
+    return SHIPPED_SOURCE.model_copy(update={"stitch": stitch})
+
+
 def start_states(
-    settings: StartSettings, seed: int, fidelity: Fidelity | None = None
+    settings: StartSettings,
+    seed: int,
+    fidelity: Fidelity | None = None,
+    stitch: str = DEFAULT_STITCH,
 ) -> list[Start]:
-    """The ``settings.count`` starting states for one point, reproducible from ``seed``."""
+    """The ``settings.count`` starting states of ``stitch`` for one point, reproducible
+    from ``seed``: its shipped starts in turn, then (or, with ``source = "perturbed"``,
+    always) the first one with seeded noise on the shape parameters."""
     fidelity = fidelity or Fidelity()
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(settings.count)]
-    model = CellModel(SHIPPED_SOURCE, fidelity)
+    model = CellModel(shipped_source(stitch), fidelity)
+    geometry = model.stitch
     starts = []
     for i in range(settings.count):
-        shipped = i % len(SHIPPED_STATES) if settings.source == "shipped" else 0
-        x = shipped_state(shipped + 1)
-        label = f"Init_{shipped + 1}"
-        if settings.source == "perturbed" or i >= len(SHIPPED_STATES):
-            noise = settings.perturbation * rngs[i].standard_normal(N_SHAPE)
+        shipped = i % geometry.n_starts if settings.source == "shipped" else 0
+        x = geometry.start(shipped + 1)
+        label = geometry.starts[shipped].removesuffix(".dat")
+        if settings.source == "perturbed" or i >= geometry.n_starts:
+            noise = settings.perturbation * rngs[i].standard_normal(geometry.n_shape)
             x = x.copy()
-            x[:N_SHAPE] *= 1.0 + noise
+            x[: geometry.n_shape] *= 1.0 + noise
             label += f"+noise[{i}]"
         starts.append(_at_own_length(label, x, model))
     return starts
@@ -72,9 +82,9 @@ def start_states(
 
 def _at_own_length(label: str, x: np.ndarray, shipped: CellModel) -> Start:
     """A start from state ``x``: the shipped states' parameters at ``x``'s own yarn
-    length (``shipped`` is the model of ``SHIPPED_SOURCE``)."""
+    length (``shipped`` is the model of ``shipped_source``)."""
     length = shipped.energies(x).length
-    return Start(label, x, SHIPPED_SOURCE.model_copy(update={"L_mm": length}))
+    return Start(label, x, shipped.params.model_copy(update={"L_mm": length}))
 
 
 # per-start arrays of a stored zero-force record: record name -> Relaxation field
@@ -193,16 +203,17 @@ def zero_force(
     """Relax the zero-force state (both periods free) from every start, walking
     from each start's parameters to ``params``; keep the lowest energy.
 
-    ``initial``: one given state (30,) to start from instead of ``starts`` (walked
+    ``initial``: one given state (n,) of the stitch to start from instead of ``starts`` (walked
     from the shipped states' parameters at its own yarn length).
     """
     fidelity = fidelity or Fidelity()
     solver = solver or SolverSettings()
     starts = starts or StartSettings()
     if initial is None:
-        begin = start_states(starts, seed, fidelity)
+        begin = start_states(starts, seed, fidelity, params.stitch)
     else:
-        begin = [_at_own_length("initial", initial, CellModel(SHIPPED_SOURCE, fidelity))]
+        source = CellModel(shipped_source(params.stitch), fidelity)
+        begin = [_at_own_length("initial", initial, source)]
     with single_threaded():
         walked, merged_into, merged_at = walk_starts(
             params, fidelity, [(s.x, s.params) for s in begin], solver, starts.merge_tolerance_mJ

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 DATA = Path(__file__).parent / "data"
-SHIPPED = Path(__file__).resolve().parents[1] / "knitsweep" / "data"  # the authors' Init_*.dat
+SHIPPED = (Path(__file__).resolve().parents[1] / "knitsweep" / "stitches" / "stockinette"
+           / "data")  # the authors' Init_*.dat  # fmt: skip
 TINY = DATA / "jobs" / "tiny.toml"  # 2 points, 4 sweeps, coarse numerics: ~2 s serially
 VOLATILE = {"seconds", "relax_seconds", "wall_seconds", "rank", "host"}
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import golden_cases, golden_params
 
-from knitsweep.kernels.bending import SEGMENT_WEIGHTS, bending_and_length
+from knitsweep.kernels.bending import bending_and_length
 from knitsweep.kernels.bezier import basis_tables, gauss_legendre, midpoints
 from knitsweep.kernels.contact import (
     EXCLUSION_FACTOR,
@@ -24,6 +24,7 @@ from knitsweep.kernels.contact import (
     sample_path,
 )
 from knitsweep.model import CellModel
+from knitsweep.stitches.stockinette.layout import SEGMENT_WEIGHTS
 
 CASES = golden_cases()
 

@@ -14,7 +14,8 @@ from knitsweep.kernels.forces import contact_class, contact_forces_by_class
 from knitsweep.model import CellModel
 from knitsweep.relax import relax
 from knitsweep.report.force_columns import fig6h_forces
-from knitsweep.state import CONTACT_CLASSES, IDX_AX, IDX_AY
+from knitsweep.stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
+from knitsweep.stitches.stockinette.layout import IDX_AX, IDX_AY
 from knitsweep.zero_force import zero_force
 
 H = 1e-6

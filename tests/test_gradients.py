@@ -7,10 +7,11 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from knitsweep.config import Fidelity
-from knitsweep.kernels.bending import SEGMENT_WEIGHTS, bending_and_length
+from knitsweep.kernels.bending import bending_and_length
 from knitsweep.kernels.bezier import basis_tables, gauss_legendre, midpoints
 from knitsweep.kernels.contact import contact_energy
 from knitsweep.model import CellModel
+from knitsweep.stitches.stockinette.layout import SEGMENT_WEIGHTS
 
 SMOOTH = [c for c in golden_cases() if c["contact_energy"] < 1.0]  # not in the core branch
 H = 1e-6

@@ -14,21 +14,46 @@ import pytest
 
 PKG = Path(__file__).resolve().parents[1] / "knitsweep"
 
-# bottom to top; a module belongs to the first entry that is a prefix of its name
+# bottom to top, one package (or top-level module) a layer; a module belongs to the
+# first entry that is a prefix of its name
 LAYERS = [
-    ["state"],
     ["errors"],
-    ["config", "kernels", "quantities"],
-    ["analysis", "formats"],
-    ["store"],
+    ["kernels"],  # generic numba: knows no stitch, no settings
+    ["stitches"],  # geometries behind one interface; their kernels call down into kernels
+    ["config"],
+    ["quantities"],
+    ["analysis"],
+    ["formats"],
+    ["store"],  # the results store: below both service and report
     ["model"],
     ["relax"],
     ["zero_force"],
     ["strain_sweep"],
-    ["service", "studies"],
+    ["studies"],
+    ["service"],
     ["report"],
-    ["cli", "__main__"],
+    ["cli"],
+    ["__main__"],
 ]
+
+# inside each subpackage, its modules bottom to top (a module may import those before it);
+# the package's __init__ sits on top of its modules
+MODULE_ORDER = {
+    "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
+                "forces", "cell", "kkt"],
+    "stitches": ["base", "stockinette"],
+    "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
+    "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper"],
+    "store": ["format", "journal", "provenance", "read", "writer", "sweep_file"],
+    "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],
+    "strain_sweep": ["result", "schedule", "sweep"],
+    "studies": ["accuracy"],
+    "service": ["signals", "grid", "jobs", "progress", "worker", "adaptive", "executors",
+                "slurm", "master", "runs"],
+    "report": ["force_columns", "reduce", "results", "tables", "plotting", "fig_energy",
+               "fig_mechanics", "figures", "html", "render"],
+    "cli": ["common", "model_commands", "run_commands", "analysis_commands", "app"],
+}  # fmt: skip
 
 
 def _layer(module: str) -> int:
@@ -36,6 +61,17 @@ def _layer(module: str) -> int:
         if any(module == n or module.startswith(n + ".") for n in names):
             return i
     raise AssertionError(f"module knitsweep.{module} is in no layer of this test")
+
+
+def _rank(package: str, module: str) -> int:
+    """Position of ``module`` (relative name, e.g. ``kernels.cell``) in its package's
+    order; the package's own __init__ ranks above every module of it."""
+    if module == package:
+        return len(MODULE_ORDER[package])
+    child = module.removeprefix(package + ".").split(".")[0]
+    order = MODULE_ORDER[package]
+    assert child in order, f"knitsweep.{module} is not in MODULE_ORDER[{package!r}]"
+    return order.index(child)
 
 
 def _imports(path: Path) -> list[tuple[int, str]]:
@@ -66,17 +102,47 @@ def _imports(path: Path) -> list[tuple[int, str]]:
 MODULES = sorted(p for p in PKG.rglob("*.py"))
 
 
+def _name(path: Path) -> str:
+    return ".".join(path.relative_to(PKG).with_suffix("").parts).removesuffix(".__init__")
+
+
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PKG)))
 def test_imports_only_go_down(path):
-    here = ".".join(path.relative_to(PKG).with_suffix("").parts).removesuffix(".__init__")
-    if here == "__init__":
+    here = _name(path)
+    if here == "__init__":  # the root: only the version and, lazily, the top (load)
+        for line, target in _imports(path):
+            assert target.split(".")[0] in ("report", "analysis"), (
+                f"__init__.py:{line} imports {target}: the root imports only what load() needs"
+            )
         return
     mine = _layer(here)
     for line, target in _imports(path):
-        top = target.split(".")[0]
-        if top in ("__version__",):
+        if target == "__version__":  # the root's constant, defined before any import
             continue
-        assert _layer(target) <= mine, f"{path.relative_to(PKG)}:{line} imports {target} (upwards)"
+        there = _layer(target)
+        where = f"{path.relative_to(PKG)}:{line} imports {target}"
+        assert there <= mine, f"{where} (a layer up)"
+        if there == mine:  # inside one package: only modules before this one
+            package = next(p for p in sorted(MODULE_ORDER, key=len, reverse=True)
+                           if here.startswith(p + ".") or here == p
+                           if target.startswith(p + ".") or target == p)  # fmt: skip
+            assert _rank(package, target) <= _rank(package, here), f"{where} (up its package)"
+
+
+def test_every_module_has_a_place():
+    """Every module of a subpackage is in MODULE_ORDER, so the order test sees it."""
+    for path in MODULES:
+        here = _name(path)
+        package = next((p for p in sorted(MODULE_ORDER, key=len, reverse=True)
+                        if here.startswith(p + ".")), None)  # fmt: skip
+        if package is not None:
+            _rank(package, here)
+
+
+def test_kernels_know_no_settings_and_no_stitch():
+    for path in (PKG / "kernels").rglob("*.py"):
+        for line, target in _imports(path):
+            assert target.startswith("kernels"), f"kernels/{path.name}:{line} imports {target}"
 
 
 def _imported_modules(args: list[str], cwd: Path) -> set[str]:
@@ -91,7 +157,7 @@ def _imported_modules(args: list[str], cwd: Path) -> set[str]:
 
 
 def test_config_floor_loads_neither_numba_nor_scipy(tmp_path):
-    names = _imported_modules(["-c", "import knitsweep.config, knitsweep.state"], tmp_path)
+    names = _imported_modules(["-c", "import knitsweep.config, knitsweep.stitches"], tmp_path)
     assert "knitsweep.config" in names
     assert not {n for n in names if n.split(".")[0] in ("numba", "scipy", "h5py")}
 

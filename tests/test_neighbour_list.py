@@ -95,9 +95,9 @@ def test_list_holds_every_pair_a_skin_away():
 
 
 def test_cell_energy_with_a_list_is_cell_energy():
-    from knitsweep.kernels.bending import SEGMENT_WEIGHTS
     from knitsweep.kernels.bezier import gauss_legendre
     from knitsweep.kernels.cell import cell_energy, cell_energy_listed
+    from knitsweep.stitches.stockinette.layout import SEGMENT_WEIGHTS
 
     case = CASES[0]
     p, tab, model = _setup(case)
@@ -109,8 +109,9 @@ def test_cell_energy_with_a_list_is_cell_energy():
     rng = np.random.default_rng(11)
     for scale in [0.0, 1e-5, 1e-4]:
         x = x0 * (1.0 + scale * rng.standard_normal(30))
-        args = (x, qtab, gw, tab, SEGMENT_WEIGHTS, p["bend"], p["reg"], p["r"], p["rc"], p["k"],
-                p["p"], IMAGES_CUTOFF, True)  # fmt: skip
+        cp, jac = model.control_points_and_jacobian(x)
+        args = (cp, jac, x[28], x[29], qtab, gw, tab, SEGMENT_WEIGHTS, p["bend"], p["reg"],
+                p["r"], p["rc"], p["k"], p["p"], IMAGES_CUTOFF, True)  # fmt: skip
         ge1, gl1, ge2, gl2 = np.empty(30), np.empty(30), np.empty(30), np.empty(30)
         want = cell_energy(*args, ge1, gl1)
         *got, valid = cell_energy_listed(*args, ge2, gl2, *nlist)

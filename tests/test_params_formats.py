@@ -18,6 +18,15 @@ def _message(**kw):
     return describe_validation_error(e.value)
 
 
+def test_the_default_stitch_leaves_every_dump_as_before():
+    """Stockinette parameters dump (and so hash, store and tabulate) without a stitch
+    field, as before stitches were a choice; from_flat reads such a dump back."""
+    p = StitchParams(L_mm=11.0)
+    assert "stitch" not in p.model_dump() and '"stitch"' not in p.model_dump_json()
+    assert StitchParams.from_flat(p.model_dump()) == p
+    assert p.stitch == "stockinette"
+
+
 def test_defaults_are_the_papers_table_1():
     ip = StitchParams().internal()
     assert ip.bend == pytest.approx(0.045)  # B/2 with B = 90 mN mm^2
@@ -62,7 +71,9 @@ def test_defaults_are_the_papers_table_1():
             "regularization_mN_mm4 = -1.0: must be a finite number in [0, 10000] mN mm^4",
         ),
         ({"twist_bound": 1.0}, "twist_bound = 1.0: must be in [-1, 1)"),
-        ({"stitch": 1.0}, "stitch: unknown field"),
+        ({"pattern": 1.0}, "pattern: unknown field"),
+        ({"stitch": "garter"}, "stitch = 'garter': must be one of stockinette"),
+        ({"stitch": 1.0}, "stitch = 1.0: Input should be a valid string"),
     ],
 )
 def test_validation_names_field_value_and_range(kw, expected):
@@ -123,7 +134,7 @@ def test_shipped_states_are_the_authors():
 @pytest.mark.parametrize(
     ("text", "fragment"),
     [
-        ("1\n2\n", "expected 30 numbers, found 2"),
+        ("1\n2\n", "expected 30 numbers for a stockinette state, found 2"),
         ("1\n" * 29 + "abc\n", "line 30: 'abc' is not a number"),
         ("1\n" * 29 + "nan\n", "line 30: 'nan' is not finite"),
         ("1\n" * 29 + "-2\n", "must be > 0"),

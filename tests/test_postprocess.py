@@ -14,7 +14,7 @@ from knitsweep.config import InputError
 from knitsweep.quantities import SERIES_PARAMS
 from knitsweep.report import phase_diagram, reduce_results
 from knitsweep.report.tables import transitions_text
-from knitsweep.state import CONTACT_CLASSES
+from knitsweep.stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from knitsweep.store.format import journal_dir
 from knitsweep.store.journal import Entry, write_entry
 

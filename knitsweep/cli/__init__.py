@@ -20,7 +20,7 @@ def main() -> None:
 
     signals.install(interruptible=True)
     try:
-        from .common import main as run_cli
+        from .app import main as run_cli
 
         rc = run_cli()
     except signals.Interrupted as e:  # during start-up, before typer took over
@@ -39,7 +39,7 @@ def main() -> None:
 
 def __getattr__(name: str):
     if name == "app":
-        from .common import build_app
+        from .app import build_app
 
         return build_app()
     raise AttributeError(name)

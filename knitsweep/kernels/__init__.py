@@ -1,10 +1,12 @@
-"""Numba kernels: plain ndarrays and scalars in and out, nothing above numpy/numba.
+"""Generic numba kernels: plain ndarrays and scalars in and out, nothing above
+numpy/numba, and nothing that knows which stitch it computes (a stitch's geometry
+kernel, state -> control points + Jacobian, lives in ``knitsweep.stitches``).
 
-Pipeline: bezier (basis tables) -> crossover, geometry (state -> control points
-+ Jacobian) -> bending, contact (energies + gradients; contact's candidate search
-in partition, its vectorisable pow in elementary, an optional Verlet list in
-neighbours) -> cell (their composition); forces (by contact class); kkt (the
-trust-region Newton step of the relaxations, on plain arrays).
+Pipeline: bezier (basis tables) -> bending, contact (energies + gradients on control
+points; contact's candidate search in partition, its vectorisable pow in elementary,
+an optional Verlet list in neighbours) -> cell (their composition with a stitch's
+Jacobian); forces (by contact class); kkt (the trust-region Newton step of the
+relaxations, on plain arrays).
 
 Compiled kernels are cached on disk (``cache=True``). Numba keys a cached
 function on its own source file only, so a kernel that inlines another would
@@ -24,8 +26,12 @@ import numba
 
 def _cache_dir() -> str:
     digest = hashlib.sha256(f"{numba.__version__} {platform.python_version()}".encode())
-    for src in sorted(Path(__file__).parent.glob("*.py")):
-        digest.update(src.name.encode())
+    package = Path(__file__).parent.parent
+    # every compiled source: these generic kernels and the stitches' geometry kernels
+    # (which import this package first, so that their cache lands here too)
+    sources = [*Path(__file__).parent.glob("*.py"), *(package / "stitches").rglob("*.py")]
+    for src in sorted(sources):
+        digest.update(str(src.relative_to(package)).encode())
         digest.update(src.read_bytes())
     tag = digest.hexdigest()[:16]
     if os.environ.get("NUMBA_CACHE_DIR"):

@@ -17,12 +17,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-# weights of the segments (path order) in the cell sums of docs/model.md §5:
-# E_b = 2E(C1.A) + 2E(C1.B) + 2E(cc11) + E(cc12) + E(cc21); C2 and cc22 enter
-# through the symmetry of the cell, exactly as in the reference code.
-SEGMENT_WEIGHTS = np.array([2.0, 2.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0])
-
-
 _N_ROWS = 15  # per-node outputs of _nodes
 
 
@@ -123,10 +117,11 @@ def _nodes(cp, s, tab, gl_w, ws, bend, reg, out):
 def bending_and_length(cp, seg_w, tab, gl_w, bend, reg, grad_e, grad_l):
     """Bending energy E_b (N mm) and yarn length l (mm) of the cell.
 
-    cp: (8, 6, 3) control points; seg_w: (8,) segment weights; tab: (4, nq, 6)
-    Bernstein tables at the Gauss–Legendre nodes; gl_w: (nq,) weights on [0, 1];
-    bend = B/2 (N mm^2); reg (N mm^4). ``grad_e`` and ``grad_l`` (8, 6, 3) are
-    overwritten with dE_b/dcp and dl/dcp.
+    cp: (S, 6, 3) control points; seg_w: (S,) segment weights (the stitch's: a
+    segment counted w times, 0 for one that a symmetry already counts); tab:
+    (4, nq, 6) Bernstein tables at the Gauss–Legendre nodes; gl_w: (nq,) weights on
+    [0, 1]; bend = B/2 (N mm^2); reg (N mm^4). ``grad_e`` and ``grad_l`` (S, 6, 3)
+    are overwritten with dE_b/dcp and dl/dcp.
 
     The node formulas run as one branch-free loop per segment (``_nodes``); the
     sums over nodes then run in node order into local accumulators, the same

@@ -1,9 +1,11 @@
-"""Energy, yarn length and their exact gradients for a state vector.
+"""Energy, yarn length and their exact gradients for a stitch's control points.
 
-Composes geometry (state -> control points, Jacobian) with the bending and
-contact kernels: grad_x E = J^T dE/dcp + (explicit dE_c/d(a_x, a_y)).
-``cell_energy_listed`` is the same with the optional neighbour list of
-``neighbours`` (docs/model.md §6) for callers that evaluate many nearby states.
+Composes the bending and contact kernels with the Jacobian of the stitch's geometry
+(``knitsweep.stitches``: state -> control points cp (S, 6, 3) and J = dcp/dx
+(S, 6, 3, n)): grad_x E = J^T dE/dcp + (explicit dE_c/d(a_x, a_y)), the periods
+being the state's last two entries. ``cell_energy_listed`` is the same with the
+optional neighbour list of ``neighbours`` (docs/model.md §6) for callers that
+evaluate many nearby states.
 """
 
 from __future__ import annotations
@@ -11,20 +13,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..state import IDX_AX, IDX_AY, N_STATE
 from .bending import bending_and_length
 from .contact import contact_energy
-from .geometry import state_to_control_points
 from .neighbours import contact_energy_listed
 
 
 @njit(cache=True)
 def _jt_dot2(jac, g1, g2, out1, out2):
-    """out1 += J^T g1 and out2 += J^T g2 for J (8, 6, 3, 30), g (8, 6, 3), in one
+    """out1 += J^T g1 and out2 += J^T g2 for J (S, 6, 3, n), g (S, 6, 3), in one
     pass over J, row by row (each out[k] adds the same terms in the same order as
-    two separate passes). The trip count is read from the array, not the constant
-    N_STATE, so that LLVM vectorises the k loops instead of unrolling them into
-    scalar code (measured 2.9 -> 1.5 us)."""
+    two separate passes). The trip count is read from the array, so that LLVM
+    vectorises the k loops instead of unrolling them into scalar code (measured
+    2.9 -> 1.5 us)."""
     nk = jac.shape[3]
     for s in range(jac.shape[0]):
         for i in range(6):
@@ -41,60 +41,58 @@ def _jt_dot2(jac, g1, g2, out1, out2):
 
 
 @njit(cache=True)
-def cell_energy(x, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, mode, with_grad,
-                grad_e, grad_l):  # fmt: skip
-    """Bending energy, contact energy (N mm) and yarn length (mm) of state ``x``.
+def cell_energy(cp, jac, ax, ay, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, mode,
+                with_grad, grad_e, grad_l):  # fmt: skip
+    """Bending energy, contact energy (N mm) and yarn length (mm) of the cell whose
+    control points are ``cp`` (S, 6, 3), periods ``ax``, ``ay`` (mm).
 
     qtab (4, nq, 6) / qw (nq,): Gauss–Legendre tables; ctab (2, N, 6): contact
-    sample tables; seg_w (8,): bending segment weights. With ``with_grad`` the
-    gradients of E = E_b + E_c and of the length are written to ``grad_e`` and
-    ``grad_l`` (30,). Returns (E_b, E_c, length).
+    sample tables; seg_w (S,): bending segment weights. With ``with_grad`` the
+    gradients of E = E_b + E_c and of the length with respect to the state are
+    written to ``grad_e`` and ``grad_l`` (n,), through ``jac`` (S, 6, 3, n).
+    Returns (E_b, E_c, length).
     """
-    cp = np.empty((8, 6, 3))
-    jac = np.empty((8, 6, 3, N_STATE))
-    state_to_control_points(x, cp, jac)
-    ge = np.empty((8, 6, 3))
-    gl = np.empty((8, 6, 3))
-    gc = np.empty((8, 6, 3))
-    gcell = np.zeros(2)
+    ge, gl, gc, gcell = _scratch(cp)
     eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
-    ec = contact_energy(cp, ctab, x[IDX_AX], x[IDX_AY], r, rc, k, p, mode, with_grad, gc, gcell)
+    ec = contact_energy(cp, ctab, ax, ay, r, rc, k, p, mode, with_grad, gc, gcell)
     if with_grad:
         _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
     return eb, ec, length
 
 
 @njit(cache=True)
+def cell_energy_listed(cp, jac, ax, ay, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, mode,
+                       with_grad, grad_e, grad_l, rows, ref_pos, meta):  # fmt: skip
+    """``cell_energy`` with the contact sum over a neighbour list
+    (``neighbours.build_neighbour_list``, built from these control points or nearby
+    ones). Returns (E_b, E_c, length, valid): the same numbers as ``cell_energy``, bit
+    for bit; ``valid`` False means the list no longer covered the state (the contact
+    sum then came from the full search) and should be rebuilt.
+    """
+    ge, gl, gc, gcell = _scratch(cp)
+    eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
+    ec, valid = contact_energy_listed(cp, ctab, ax, ay, r, rc, k, p, mode, with_grad, gc,
+                                      gcell, rows, ref_pos, meta)  # fmt: skip
+    if with_grad:
+        _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
+    return eb, ec, length, valid
+
+
+@njit(cache=True)
+def _scratch(cp):
+    """dE_b/dcp, dl/dcp, dE_c/dcp (each shaped like ``cp``) and dE_c/d(a_x, a_y) (2,)."""
+    return np.empty_like(cp), np.empty_like(cp), np.empty_like(cp), np.zeros(2)
+
+
+@njit(cache=True)
 def _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l):
     """grad_x E = J^T (dE_b/dcp + dE_c/dcp) + explicit dE_c/d(a_x, a_y), and
-    grad_x l = J^T dl/dcp, into ``grad_e``, ``grad_l`` (30,)."""
+    grad_x l = J^T dl/dcp, into ``grad_e``, ``grad_l`` (n,); the periods are the
+    state's last two entries."""
     grad_e[:] = 0.0
     grad_l[:] = 0.0
     ge += gc
     _jt_dot2(jac, ge, gl, grad_e, grad_l)
-    grad_e[IDX_AX] += gcell[0]
-    grad_e[IDX_AY] += gcell[1]
-
-
-@njit(cache=True)
-def cell_energy_listed(x, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, mode, with_grad,
-                       grad_e, grad_l, rows, ref_pos, meta):  # fmt: skip
-    """``cell_energy`` with the contact sum over a neighbour list
-    (``neighbours.build_neighbour_list``, built from this state's control points or
-    a nearby one). Returns (E_b, E_c, length, valid): the same numbers as
-    ``cell_energy``, bit for bit; ``valid`` False means the list no longer covered
-    the state (the contact sum then came from the full search) and should be rebuilt.
-    """
-    cp = np.empty((8, 6, 3))
-    jac = np.empty((8, 6, 3, N_STATE))
-    state_to_control_points(x, cp, jac)
-    ge = np.empty((8, 6, 3))
-    gl = np.empty((8, 6, 3))
-    gc = np.empty((8, 6, 3))
-    gcell = np.zeros(2)
-    eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
-    ec, valid = contact_energy_listed(cp, ctab, x[IDX_AX], x[IDX_AY], r, rc, k, p, mode,
-                                      with_grad, gc, gcell, rows, ref_pos, meta)  # fmt: skip
-    if with_grad:
-        _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
-    return eb, ec, length, valid
+    n = grad_e.shape[0]
+    grad_e[n - 2] += gcell[0]
+    grad_e[n - 1] += gcell[1]

@@ -59,8 +59,8 @@ def pair_potential(dist, r, rc, k, p):
 
 @njit(cache=True)
 def sample_path(cp, tab, pts, r1, speed):
-    """Samples of the 8 segments (path order): positions ``pts`` (8N, 3),
-    derivatives ``r1`` (8N, 3) and speeds ``speed`` (8N,); tab: (2, N, 6)."""
+    """Samples of the S segments (path order): positions ``pts`` (SN, 3),
+    derivatives ``r1`` (SN, 3) and speeds ``speed`` (SN,); tab: (2, N, 6)."""
     n = tab.shape[1]
     for s in range(cp.shape[0]):
         for j in range(n):
@@ -117,7 +117,7 @@ def image_list(pts, ax, ay, r, mode):
 @njit(cache=True)
 def _samples(cp, tab):
     """Samples of the path: positions (3, 8N) structure-of-arrays, derivatives
-    (8N, 3), speeds (8N,), midpoint arclengths (8N,) and the total arclength."""
+    (SN, 3), speeds (SN,), midpoint arclengths (SN,) and the total arclength."""
     nseg = cp.shape[0]
     n = tab.shape[1]
     ns = nseg * n
@@ -187,7 +187,7 @@ def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
 def find_contacts(cp, tab, ax, ay, r, mode):
     """Every counted contact of the cell, each unordered pair once (docs/model.md §6).
 
-    Returns (pts (8N, 3), r1 (8N, 3), speed (8N,), idx (c, 4) = (i, j, m, n),
+    Returns (pts (SN, 3), r1 (SN, 3), speed (SN,), idx (c, 4) = (i, j, m, n),
     sep (c, 4) = (dx, dy, dz, R)), where d = p_i - p_j - m t_c - n t_w and R = |d| < 2r,
     excluding same-row pairs closer than 2.1 r along the yarn. Contacts are listed
     in (image, segment a, segment b, i, j) order (``collect_pairs``).
@@ -261,7 +261,7 @@ def _accumulate(ib, fb, nb, speed, dt2, r, rc, k, p, with_grad, work, g, energy,
     """Add the first ``nb`` buffered pairs, in buffer order, to the running sums
     ``energy``, ``gax``, ``gay`` (E and the explicit dE/da_x, dE/da_y through the
     image offsets; returned) and, with ``with_grad``, to the gradient ``g``
-    (8N, 4): columns 0-2 dE/dp_i, column 3 dE/dv_i. Each unordered pair stands for
+    (SN, 4): columns 0-2 dE/dp_i, column 3 dE/dv_i. Each unordered pair stands for
     two ordered ones: weight w = 2 v_i v_j dt^2. ``work`` (4, cap) is scratch.
     Running sums make the result independent of where the buffer was flushed.
     """
@@ -298,8 +298,8 @@ def _accumulate(ib, fb, nb, speed, dt2, r, rc, k, p, with_grad, work, g, energy,
 def contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_cell):
     """Contact energy E_c (N mm) of the cell and, if ``with_grad``, its gradient.
 
-    cp: (8, 6, 3) control points; tab: (2, N, 6) Bernstein values and first
-    derivatives at the N sample parameters. ``grad_cp`` (8, 6, 3) receives
+    cp: (S, 6, 3) control points; tab: (2, N, 6) Bernstein values and first
+    derivatives at the N sample parameters. ``grad_cp`` (S, 6, 3) receives
     dE_c/dcp at fixed periods and ``grad_cell`` (2,) the explicit dE_c/d(a_x, a_y)
     through the image offsets.
 
@@ -357,7 +357,7 @@ def contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_
 
 @njit(cache=True)
 def project_gradient(g, speed, r1, tab, grad_cp):
-    """dE/dcp (8, 6, 3) from dE/dp_i and dE/dv_i (``g`` (8N, 4)) at the samples:
+    """dE/dcp (S, 6, 3) from dE/dp_i and dE/dv_i (``g`` (SN, 4)) at the samples:
     p_i = sum_c B_c(t_j) P_c and v_i = |r'(t_j)|, so dv_i/dr' = r'/v_i."""
     nseg = grad_cp.shape[0]
     n = tab.shape[1]

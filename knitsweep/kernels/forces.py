@@ -3,7 +3,8 @@ Forces", Table S3), on the contact kernel's own pair potential and pair list.
 
 A contact's class is set by the image offset (m, n) of its pair: self (0, 0), same
 row (n = 0, m != 0), nearest and next-nearest same column (m = 0, |n| = 1, 2) and
-other (diagonal or farther images); the order is ``knitsweep.state.CONTACT_CLASSES``.
+other (diagonal or farther images), for a fabric of translated cells; a stitch names
+the rows in this order (``Stitch.contact_classes``).
 
 Two kinds of force per class:
 
@@ -41,8 +42,8 @@ def contact_class(m, n):
 def contact_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, mode, forces, energies):
     """Each class's generalised forces on the cell periods and its contact energy.
 
-    cp (8, 6, 3): control points (mm); dcp (8, 6, 3, 2): their derivatives with
-    respect to (a_x, a_y) at fixed shape parameters (columns 28 and 29 of the state
+    cp (S, 6, 3): control points (mm); dcp (S, 6, 3, 2): their derivatives with
+    respect to (a_x, a_y) at fixed shape parameters (the last two columns of the state
     Jacobian); tab (2, N, 6): contact sample tables; periods, radii, k and p as in
     ``contact.contact_energy``. Writes
 
@@ -121,7 +122,7 @@ def contact_pair_forces_by_class(cp, tab, ax, ay, r, rc, k, p, mode, weighted, f
     """Each class's pair forces between sampled yarn points, projected on x, y, z
     (docs/model.md §9; paper SI "Contact Forces", Fig. S11, Table S3, Fig. 6h).
 
-    cp (8, 6, 3): control points (mm); tab (2, N, 6): contact sample tables; periods,
+    cp (S, 6, 3): control points (mm); tab (2, N, 6): contact sample tables; periods,
     radii, k and p as in ``contact.contact_energy``; ``weighted``: multiply each pair
     force by ds ds' = v_i v_j dt^2 (mm^2) as in E_c, else the bare pair force (the
     paper's Table S3 magnitudes; then the sums grow with N^2). Writes ``forces``

@@ -1,6 +1,6 @@
 """The trust-region SQP step of ``newton``, compiled (numba on plain arrays).
 
-One step of the Newton–KKT iteration on n <= 30 unknowns costs a few dozen small dense
+One step of the Newton–KKT iteration on a few dozen unknowns costs a few dozen small dense
 operations; run from numpy they took ~5x the energy evaluation they serve, compiled
 they take a fraction of it. Same algorithm as documented in ``newton``: a normal step
 onto the linearised length constraint (at most ``normal_share`` of the radius), a
@@ -134,7 +134,7 @@ def tangential_step(hz, rz, radius, flat_mode, u, negative):
 def kkt_step(b_full, free, held, g, a, c, radius, normal_share, flat_mode, p, kappa, negative):
     """The trust-region SQP step over the free entries with the ``held`` bounds fixed.
 
-    b_full (30, 30): the Lagrangian's Hessian; free (n,): the free state entries; held
+    b_full (n_state, n_state): the Lagrangian's Hessian; free (n,): the free state entries; held
     (n,) bool; g, a (n,): ∇E and ∇ℓ over them; c = ℓ − L. Writes the step p (n,), the
     multipliers of the held bounds kappa = (∇E + B p − λ∇ℓ) (n,) and, if the reduced
     Hessian has a negative mode, its direction (n,) into ``negative``. Returns
@@ -216,7 +216,7 @@ def sr1_update(h, s, y, skip):
 def compile_solver() -> None:
     """Compile (or load from numba's cache) these kernels, once, before work fans out."""
     n = 3
-    b = np.eye(30)
+    b = np.eye(n + 1)  # any size: numba compiles for the types
     free = np.arange(n)
     g, a = np.ones(n), np.array([1.0, 0.5, 0.25])
     out = [np.empty(n) for _ in range(3)]

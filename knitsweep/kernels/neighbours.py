@@ -44,7 +44,7 @@ _META = 7
 def build_neighbour_list(cp, tab, ax, ay, r, mode, skin):
     """Every sample pair closer than 2r + ``skin`` (mm), each unordered pair once.
 
-    cp (8, 6, 3), tab (2, N, 6), periods a_x, a_y (mm), yarn radius r, image
+    cp (S, 6, 3), tab (2, N, 6), periods a_x, a_y (mm), yarn radius r, image
     ``mode`` as in ``contact_energy``. Returns (rows (k, 5) int64 =
     (i, j_lo, j_hi, m, n), ref_pos (3, 8N) sample positions, meta (7,) float64);
     pass all three to ``contact_energy_listed``.

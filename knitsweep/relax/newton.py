@@ -1,7 +1,7 @@
 """Newton–KKT relaxation: trust-region SQP steps on the exact gradients (docs/model.md §7).
 
 The problem is min E(z) subject to ℓ(z) = L and lo <= z <= hi, z the free entries of
-the state (29 in a strain step, 30 at zero force); the twist bound cos(tw) >= c_tw is
+the state (n - 1 in a strain step, all n at zero force; stockinette n = 30); the twist bound cos(tw) >= c_tw is
 one of the bounds (``Problem.box``). Each iteration solves the quadratic model
 
     min_p (∇E)ᵀp + ½ pᵀ B p   subject to   ℓ − L + (∇ℓ)ᵀp = 0,  ‖p‖ <= Δ,  active bounds held,
@@ -17,7 +17,7 @@ Soft modes. The reduced Hessian's eigenvalues span ~1e-4 … 1e2 mJ/mm² at a
 zero-force state, and along the soft modes the energy is far from quadratic: moving
 1e-3 mm along one turns its curvature from +7e-5 to −6e-4 mJ/mm² (measured at
 L = 11.0 mm, k = 0.1 mN/mm²). A Hessian measured a little away therefore misjudges
-exactly the soft modes. What works: ∇²E and ∇²ℓ (``Curvature``, full 30 × 30) from
+exactly the soft modes. What works: ∇²E and ∇²ℓ (``Curvature``, full n × n) from
 differences of the exact gradients, measured once per chain and carried from one
 relaxation to the next, corrected by a symmetric rank-one update from every accepted
 step (the steps that matter point along the soft modes, so these updates repair what
@@ -50,7 +50,6 @@ import numpy as np
 
 from ..config import SolverSettings
 from ..kernels.kkt import kkt_step, sr1_update
-from ..state import N_STATE
 from .problem import Point, Problem
 
 FD_STEP = 1e-7
@@ -86,7 +85,7 @@ one's final, noise-level steps would cost a dozen doublings."""
 
 @dataclass(frozen=True)
 class Anchor:
-    """A chain's last converged point: the full state (30,), ∇E, ∇ℓ (30,), ℓ − L (mm)."""
+    """A chain's last converged point: the full state (n,), ∇E, ∇ℓ (n,), ℓ − L (mm)."""
 
     x: np.ndarray
     ge: np.ndarray
@@ -97,7 +96,7 @@ class Anchor:
 
 @dataclass
 class Curvature:
-    """∇²E (mJ) and ∇²ℓ (mm) per state unit squared, shape (30, 30), at a recent point
+    """∇²E (mJ) and ∇²ℓ (mm) per state unit squared, shape (n, n), at a recent point
     of a chain, the trust radius Δ that last worked, and the chain's last converged
     point. ``known[i]``: column i was measured (a strain step never measures its fixed
     period's column; its row comes with the others' columns)."""
@@ -109,13 +108,13 @@ class Curvature:
     anchor: Anchor | None = None
 
     def lagrangian(self, lam: float) -> np.ndarray:
-        """B = ∇²E − λ∇²ℓ, (30, 30)."""
+        """B = ∇²E − λ∇²ℓ, (n, n)."""
         return self.energy - lam * self.length
 
     def update(self, s: np.ndarray, y_e: np.ndarray, y_l: np.ndarray, lam: float,
                probe: bool = False) -> None:  # fmt: skip
         """A symmetric rank-one update of the Lagrangian's Hessian B = ∇²E − λ∇²ℓ from a
-        step s (30,) of the full state and the changes y_e, y_l (30,) of ∇E and ∇ℓ, so
+        step s (n,) of the full state and the changes y_e, y_l (n,) of ∇E and ∇ℓ, so
         that B s = y_e − λ y_l afterwards (∇²ℓ is updated by its own secant first, ∇²E
         then carries the rest). Skipped when ill-defined and, unless ``probe`` (a step
         taken to measure the curvature), when the secant curvature sᵀ(y_e − λ y_l) is
@@ -130,18 +129,19 @@ class Curvature:
 
 def measure_curvature(prob: Problem, pt: Point, radius: float = FIRST_RADIUS) -> Curvature:
     """∇²E and ∇²ℓ at ``pt`` by forward differences of the exact gradients (n
-    evaluations). Column j holds the derivatives of all 30 gradient entries, so a fixed
+    evaluations). Column j holds the derivatives of all n gradient entries, so a fixed
     period's row is filled too, and its column by symmetry."""
     free = prob.free
-    he = np.zeros((N_STATE, N_STATE))
-    hl = np.zeros((N_STATE, N_STATE))
+    n_state = prob.x.size
+    he = np.zeros((n_state, n_state))
+    hl = np.zeros((n_state, n_state))
     for j, col in enumerate(free):
         zj = pt.z.copy()
         zj[j] += FD_STEP
         q = prob.evaluate(zj)
         he[:, col] = (q.ge - pt.ge) / FD_STEP
         hl[:, col] = (q.gl - pt.gl) / FD_STEP
-    known = np.zeros(N_STATE, dtype=bool)
+    known = np.zeros(n_state, dtype=bool)
     known[free] = True
     ff, fixed = np.ix_(free, free), ~known
     for h in (he, hl):
@@ -162,7 +162,7 @@ class _Step:
 def _kkt_step(b_full: np.ndarray, pt: Point, free: np.ndarray, active: np.ndarray,
               radius: float) -> _Step:  # fmt: skip
     """The trust-region SQP step at ``pt`` with the bounds in ``active`` held;
-    ``b_full`` (30, 30) is the Lagrangian's Hessian, ``free`` the free entries
+    ``b_full`` (n, n) is the Lagrangian's Hessian, ``free`` the free entries
     (compiled: ``kernels.kkt.kkt_step``)."""
     n = free.size
     p, kappa, negative = np.empty(n), np.empty(n), np.empty(n)
@@ -259,7 +259,7 @@ def newton_minimise(
             # evaluation) and let the update correct the model there
             probes += 1
             q = prob.evaluate(pt.z + FD_STEP * step.negative)
-            s_full = np.zeros(N_STATE)
+            s_full = np.zeros(prob.x.size)
             s_full[free] = q.z - pt.z
             curvature.update(s_full, q.ge - pt.ge, q.gl - pt.gl, lam, probe=True)
             continue
@@ -270,7 +270,7 @@ def newton_minimise(
         # period components of ∇L are the period forces, an output): ∇L along a mode of
         # curvature SOFTEST leaves at most ftol to gain
         g_tol = math.sqrt(2.0 * SOFTEST * settings.ftol)
-        stationary = prob.free.size < N_STATE or g_tol >= float(
+        stationary = prob.free.size < prob.x.size or g_tol >= float(
             np.max(np.abs(np.where(active, 0.0, pt.g - lam * pt.a)))
         )
         if (abs(pt.c) <= c_tol and step.decrement <= settings.ftol and step.negative is None
@@ -296,7 +296,7 @@ def newton_minimise(
         trial = prob.evaluate(np.clip(pt.z + alpha * p, lo, hi) if alpha < 1.0 else pt.z + p)
         s = trial.z - pt.z
         # the augmented Lagrangian merit and the decrease the model predicts for it
-        s_full = np.zeros(N_STATE)
+        s_full = np.zeros(prob.x.size)
         s_full[free] = s
         c_new = pt.c + float(pt.a @ s)
         model = float((pt.g - lam * pt.a) @ s) + 0.5 * float(s_full @ b_full @ s_full)

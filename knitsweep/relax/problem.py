@@ -1,10 +1,10 @@
 """One relaxation's problem: the energy and the length constraint over the free entries.
 
-docs/model.md §7: the state x (30,) splits into free entries z and, in a strain step,
+docs/model.md §7: the state x (n,) splits into free entries z and, in a strain step,
 the one fixed period. ``Problem`` evaluates E, ∇E, ℓ and ∇ℓ at z in one kernel call
 (caching the last point, so that a solver asking for E, then ∇E, then ℓ pays once) and
-counts the calls. The bounds are ``state.state_bounds`` widened to contain the start,
-plus the twist bound cos(tw) >= c_tw written as a bound on tw itself.
+counts the calls. The bounds are the stitch's (``Stitch.bounds``) widened to contain
+the start, plus the twist bound cos(tw) >= c_tw written as a bound on tw itself.
 """
 
 from __future__ import annotations
@@ -16,14 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import CellModel, NeighbourList
-from ..state import IDX_TW, N_STATE, state_bounds
+from ..stitches import Stitch
 
 
 @dataclass(frozen=True)
 class Point:
     """One evaluation over the free entries: z (n,), total energy E (mJ), its gradient
     g (n,) (mJ per state unit), the length residual c = ℓ - L (mm) and ∇ℓ a (n,);
-    ge and gl are ∇E and ∇ℓ over the whole state (30,)."""
+    ge and gl are ∇E and ∇ℓ over the whole state (n,)."""
 
     z: np.ndarray
     energy: float
@@ -57,10 +57,11 @@ class Problem:
         self.neighbours = neighbours if neighbours is not None else model.neighbour_list(self.x)
         self.free = free
         self.L = model.ip.L
-        self.bound = model.ip.twist_bound
+        self.stitch = model.stitch
+        self.bound = model.ip.twist_bound if self.stitch.twist_index is not None else -1.0
         self.evaluations = 0
         self._last: Point | None = None
-        self.last_full: tuple | None = None  # (Energies, grad E (30,), grad l (30,)) at _last
+        self.last_full: tuple | None = None  # (Energies, grad E (n,), grad l (n,)) at _last
 
     @property
     def last_point(self) -> Point | None:
@@ -98,15 +99,15 @@ class Problem:
         return self.evaluate(z).a
 
     def twist(self, z):
-        return twist_margin(self.full(z), self.bound)
+        return twist_margin(self.full(z), self.bound, self.stitch)
 
     def twist_grad(self, z):
-        return twist_gradient(self.full(z))[self.free]
+        return twist_gradient(self.full(z), self.stitch)[self.free]
 
     def bounds(self, x0: np.ndarray) -> list[tuple[float | None, float | None]]:
-        """``state_bounds`` of the free entries, each widened to contain the start (SciPy's
-        format: None where unbounded)."""
-        lo, hi = _widened(self.model.ip.L, self.model.ip.r, x0, self.free)
+        """The stitch's bounds of the free entries, each widened to contain the start
+        (SciPy's format: None where unbounded)."""
+        lo, hi = _widened(self.stitch, self.model.ip.L, self.model.ip.r, x0, self.free)
         return [(None if math.isinf(a) else float(a), None if math.isinf(b) else float(b))
                 for a, b in zip(lo, hi, strict=True)]  # fmt: skip
 
@@ -115,40 +116,43 @@ class Problem:
         the twist bound included as |tw - 2 pi k| <= arccos(c_tw) around the start's
         branch k (equivalent to cos(tw) >= c_tw there; not widened: a start beyond it
         is to be moved onto it)."""
-        lo, hi = _widened(self.model.ip.L, self.model.ip.r, x0, self.free)
+        lo, hi = _widened(self.stitch, self.model.ip.L, self.model.ip.r, x0, self.free)
         if self.bound > -1.0:
-            i = int(np.flatnonzero(self.free == IDX_TW)[0])
-            tw = float(x0[IDX_TW])
+            itw = self.stitch.twist_index
+            i = int(np.flatnonzero(self.free == itw)[0])
+            tw = float(x0[itw])
             centre = 2.0 * math.pi * round(tw / (2.0 * math.pi))
             half = math.acos(self.bound)
             lo[i], hi[i] = centre - half, centre + half
         return lo, hi
 
 
-def twist_margin(x: np.ndarray, bound: float) -> float:
-    """The twist constraint cos(tw) - c_tw of state ``x`` (>= 0 where it holds)."""
-    return math.cos(x[IDX_TW]) - bound
+def twist_margin(x: np.ndarray, bound: float, stitch: Stitch) -> float:
+    """The twist constraint cos(tw) - c_tw of state ``x`` (>= 0 where it holds; 1 - c_tw
+    for a stitch without one)."""
+    itw = stitch.twist_index
+    return (math.cos(x[itw]) if itw is not None else 1.0) - bound
 
 
-def twist_gradient(x: np.ndarray) -> np.ndarray:
-    """Gradient (30,) of the twist constraint at state ``x``."""
-    g = np.zeros(N_STATE)
-    g[IDX_TW] = -math.sin(x[IDX_TW])
+def twist_gradient(x: np.ndarray, stitch: Stitch) -> np.ndarray:
+    """Gradient (n,) of the twist constraint at state ``x``."""
+    g = np.zeros(stitch.n_state)
+    itw = stitch.twist_index
+    if itw is not None:
+        g[itw] = -math.sin(x[itw])
     return g
 
 
 @functools.lru_cache(maxsize=64)
-def _state_box(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
-    """``state_bounds(L, r)`` as arrays (30,) with ±inf where unbounded, made once."""
-    b = state_bounds(L, r)
-    lo = np.array([-np.inf if v[0] is None else v[0] for v in b])
-    hi = np.array([np.inf if v[1] is None else v[1] for v in b])
+def _state_box(stitch: Stitch, L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """``stitch.bounds(L, r)``, read-only, made once."""
+    lo, hi = stitch.bounds(L, r)
     lo.setflags(write=False)
     hi.setflags(write=False)
     return lo, hi
 
 
-def _widened(L: float, r: float, x0: np.ndarray, free: np.ndarray):
+def _widened(stitch: Stitch, L: float, r: float, x0: np.ndarray, free: np.ndarray):
     """The free entries' bounds, widened so that they never exclude the start x0."""
-    lo, hi = _state_box(L, r)
+    lo, hi = _state_box(stitch, L, r)
     return np.minimum(lo[free], x0[free]), np.maximum(hi[free], x0[free])

@@ -23,7 +23,7 @@ from threadpoolctl import ThreadpoolController
 
 from ..config import Direction, SolverSettings
 from ..model import CellModel, NeighbourList
-from ..state import N_STATE, PERIOD_INDEX
+from ..stitches import Stitch
 from .newton import Curvature, newton_minimise
 from .problem import Problem
 from .result import Relaxation, assess
@@ -52,9 +52,11 @@ def single_threaded():
             _DEPTH[0] -= 1
 
 
-def free_entries(fixed: Direction | None) -> np.ndarray:
-    """Indices of the free state entries: all 30, or all but the pulled period."""
-    return np.array([i for i in range(N_STATE) if fixed is None or i != PERIOD_INDEX[fixed]])
+def free_entries(stitch: Stitch, fixed: Direction | None) -> np.ndarray:
+    """Indices of the free entries of a ``stitch`` state: all, or all but the pulled
+    period."""
+    held = None if fixed is None else stitch.period_index(fixed)
+    return np.array([i for i in range(stitch.n_state) if i != held])
 
 
 class Relaxer:
@@ -77,7 +79,7 @@ class Relaxer:
         settings = settings or self.settings
         t0 = time.perf_counter()
         x0 = np.asarray(x0, dtype=float)
-        free = free_entries(fixed)
+        free = free_entries(model.stitch, fixed)
         with single_threaded():  # the unrecorded sub-steps too
             walked = self._walk(model, x0, fixed, settings)
             if walked is not None:
@@ -113,8 +115,8 @@ class Relaxer:
         anchor = self.curvature.anchor if self.curvature is not None else None
         if settings.method != "newton" or fixed is None or anchor is None:
             return None
-        i = PERIOD_INDEX[fixed]
-        free = free_entries(fixed)
+        i = model.stitch.period_index(fixed)
+        free = free_entries(model.stitch, fixed)
         change = float(x0[i] - anchor.x[i])
         n = math.ceil(abs(change) / settings.substep_mm - 1e-9)
         if n <= 1 or not np.array_equal(anchor.x[free], x0[free]):

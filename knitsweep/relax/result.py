@@ -19,7 +19,6 @@ import numpy as np
 from ..config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, SolverSettings
 from ..kernels.contact import CORE_EPS
 from ..model import CellModel
-from ..state import IDX_AX, IDX_AY
 from .problem import twist_gradient, twist_margin
 
 TWIST_ACTIVE_TOL = 1e-8
@@ -57,11 +56,13 @@ class Relaxation:
 
     @property
     def a_x(self) -> float:
-        return float(self.x[IDX_AX])
+        """The course period (mm): a state's next-to-last entry."""
+        return float(self.x[-2])
 
     @property
     def a_y(self) -> float:
-        return float(self.x[IDX_AY])
+        """The wale period (mm): a state's last entry."""
+        return float(self.x[-1])
 
 
 def with_status(r: Relaxation, status: str, message: str) -> Relaxation:
@@ -69,7 +70,7 @@ def with_status(r: Relaxation, status: str, message: str) -> Relaxation:
 
 
 def _finite_state(model: CellModel, x: np.ndarray) -> bool:
-    if not (np.all(np.isfinite(x)) and x[IDX_AX] > 0 and x[IDX_AY] > 0):
+    if not (np.all(np.isfinite(x)) and x[-2] > 0 and x[-1] > 0):
         return False
     e = model.energies(x)
     return all(map(math.isfinite, (e.bending_energy, e.contact_energy, e.length)))
@@ -80,7 +81,7 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
            evaluated: tuple | None = None) -> Relaxation:  # fmt: skip
     """Measure the end state ``x`` and give it a truthful status.
 
-    ``evaluated``: (Energies, ∇E (30,), ∇ℓ (30,)) already computed at ``x`` (by the
+    ``evaluated``: (Energies, ∇E (n,), ∇ℓ (n,)) already computed at ``x`` (by the
     minimiser's last call), saving one evaluation; ``nev`` counts the minimiser's.
     """
     if evaluated is None or not math.isfinite(evaluated[0].total_energy):
@@ -92,17 +93,17 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
         evaluated = model.energy_and_gradients(x)
         nev += 1
     e, ge, gl = evaluated
-    margin = twist_margin(x, model.ip.twist_bound)
+    margin = twist_margin(x, model.ip.twist_bound, model.stitch)
     twist_active = margin <= TWIST_ACTIVE_TOL
     # Lagrange multipliers by least squares on the free entries: grad E = lam grad l (+ mu grad g)
     cols = [gl[free]]
     if twist_active:
-        cols.append(twist_gradient(x)[free])
+        cols.append(twist_gradient(x, model.stitch)[free])
     a = np.column_stack(cols)
     coef = np.linalg.solve(a.T @ a, a.T @ ge[free])  # the normal equations: 1 or 2 columns
     kkt = float(np.max(np.abs(ge[free] - a @ coef)))
     lam = float(coef[0])
-    forces = (float(ge[IDX_AX] - lam * gl[IDX_AX]), float(ge[IDX_AY] - lam * gl[IDX_AY]))
+    forces = (float(ge[-2] - lam * gl[-2]), float(ge[-1] - lam * gl[-1]))  # on a_x, a_y
     residual = e.length - model.ip.L
     zeta = model.min_zeta(x)
     finite = all(map(math.isfinite, (e.bending_energy, e.contact_energy, e.length, kkt)))

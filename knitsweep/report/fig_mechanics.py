@@ -17,7 +17,7 @@ import numpy as np
 from ..analysis.paper import TABLE_S3, at_table_1
 from ..analysis.stress_strain import SECANT_STRAIN
 from ..quantities import SERIES_PARAMS
-from ..state import CONTACT_CLASSES
+from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from .plotting import (
     DIRECTION_COLOUR,
     L_OVER_R,

@@ -1,7 +1,7 @@
 """Contact-force columns of the post-processor's tables (docs/model.md §9; paper SI
 "Contact Forces", Table 2, Table S3, Fig. 6h).
 
-Two kinds, both in N, rows :data:`~knitsweep.state.CONTACT_CLASSES`:
+Two kinds, both in N, rows :data:`~knitsweep.stitches.TRANSLATION_CLASSES`:
 
 * ``F_<class>_<axis>_N``: the generalised forces on the cell periods that a job stores
   with ``[store] contact_forces = true`` (``CellModel.contact_forces_by_class``);
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..config import Fidelity, StitchParams
-from ..state import CONTACT_CLASSES
+from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 
 CONTACT_COLUMNS = tuple(f"F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
 """Columns of a stored ``contact_forces`` (5, 3) array (generalised forces on the

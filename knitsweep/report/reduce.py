@@ -39,7 +39,6 @@ from ..analysis.transitions import Transition, series_transitions
 from ..config import Fidelity, plain_value
 from ..errors import InputError
 from ..quantities import PARAM_SYMBOLS, SERIES_PARAMS
-from ..state import IDX_AX, IDX_AY
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
 from ..store.read import read_files
@@ -160,7 +159,7 @@ def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dic
     best = None
     if x is not None and np.ndim(x) == 2 and row["status"] == "done":
         best = np.asarray(x[winner], dtype=float)
-        a_x0, a_y0 = float(best[IDX_AX]), float(best[IDX_AY])
+        a_x0, a_y0 = float(best[-2]), float(best[-1])  # a state ends with its periods
         row |= {
             "a_x0_mm": a_x0,
             "a_y0_mm": a_y0,

@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from ..stitches import DEFAULT_STITCH
+
 RESULTS_SCHEMA_VERSION = 2
 """The results-file format this knitsweep writes."""
 READABLE_SCHEMAS = (1, 2)
@@ -97,7 +99,7 @@ _LEADING_DIM = {"start": "start of the zero-force relaxation",
 def describe_dataset(group, kind: str, name: str) -> None:
     """``units``, ``long_name`` and dimension scales of dataset ``name`` (xarray and
     netCDF readers then see named dimensions and coordinates)."""
-    from ..quantities import AXES, TRAILING_DIMS, dataset_quantity, leading_dimension
+    from ..quantities import TRAILING_DIMS, axis_labels, dataset_quantity, leading_dimension
 
     ds = group[name]
     q = dataset_quantity(kind, name)
@@ -112,7 +114,7 @@ def describe_dataset(group, kind: str, name: str) -> None:
     for axis, dim in enumerate(dims):
         scale = group.get(dim)
         if scale is None:
-            labels = AXES.get(dim)
+            labels = axis_labels(dim, str(group.attrs.get("stitch", DEFAULT_STITCH)))
             if labels is None:  # the leading dimension: 0 … n-1
                 scale = group.create_dataset(dim, data=np.arange(ds.shape[axis]))
                 scale.attrs["long_name"] = _LEADING_DIM[dim]

@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from ..analysis.metrics import EnergyGaps, energy_gaps
-from ..state import N_STATE
 
 
 def first_grid_value(a0: float, h: float, sign: float) -> float:
@@ -66,7 +65,7 @@ class SweepResult:
     length_residual: np.ndarray = field(default_factory=lambda: np.empty(0))
     kkt_residual: np.ndarray = field(default_factory=lambda: np.empty(0))
     relax_seconds: np.ndarray = field(default_factory=lambda: np.empty(0))
-    states: np.ndarray = field(default_factory=lambda: np.empty((0, N_STATE)))
+    states: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
     carried: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool))
     merged_into: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     merged_at: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
@@ -115,7 +114,7 @@ class SweepResult:
     @classmethod
     def from_record(cls, rec: dict[str, Any]) -> SweepResult:
         """The inverse of ``to_record`` (extra keys are ignored; a record stored
-        without ``states`` gets an empty (0, 30) array; one written before starts could
+        without ``states`` gets an empty (0, 0) array; one written before starts could
         merge or sweeps could stop early gets empty per-start arrays and empty
         ``stopped_by``/0 total evaluations)."""
         arrays = {k: np.asarray(rec[k]) for k in (*_STEP_ARRAYS, *_START_ARRAYS) if k in rec}

@@ -29,7 +29,6 @@ from ..config import (
 )
 from ..model import CellModel
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
-from ..state import IDX_AX, IDX_AY, PERIOD_INDEX
 from ..zero_force import ZeroForce, pick_lowest, zero_force
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
@@ -56,7 +55,9 @@ def strain_sweep(
 def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> SweepResult:
     t_start = time.perf_counter()
     model = CellModel(params, fidelity)
-    idx, other = (IDX_AX, IDX_AY) if direction == "x" else (IDX_AY, IDX_AX)
+    idx = model.stitch.period_index(direction)
+    other = model.stitch.period_index("y" if direction == "x" else "x")
+    along = 0 if direction == "x" else 1  # the period force along the pull
     best = zero.best
     a0, a_perp0 = float(best.x[idx]), float(best.x[other])
     sign = 1.0 if protocol.mode == "tension" else -1.0
@@ -97,7 +98,7 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
         winners.append(chains[w].start)
         a_values.append(a_next)
         strains.append((a_next - a0) / a0)
-        envelope.append(win.period_forces[0 if idx == IDX_AX else 1] / a_perp0)
+        envelope.append(win.period_forces[along] / a_perp0)
         eb.append(win.bending_energy)
         ec.append(win.contact_energy)
         i = len(steps) - 1
@@ -144,11 +145,11 @@ def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettin
 
 def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
               stopped_by, n_relax, n_eval, starts, wall) -> SweepResult:  # fmt: skip
-    idx = PERIOD_INDEX[direction]
+    along = 0 if direction == "x" else 1
     a = np.array(a_values)
     eb = np.array([s.bending_energy for s in steps])
     ec = np.array([s.contact_energy for s in steps])
-    forces = np.array([s.period_forces[0 if idx == IDX_AX else 1] for s in steps])
+    forces = np.array([s.period_forces[along] for s in steps])
     carried, merged_into, merged_at = starts
     return SweepResult(
         direction=direction,

@@ -1,10 +1,15 @@
-"""The state vector's layout and its physical bounds (docs/model.md §2); no numba.
+"""The stockinette state vector's layout and its physical bounds (docs/model.md §2);
+no numba.
 
-A state is x = (q_0 … q_27, a_x, a_y): 28 shape parameters and the two cell periods
-(mm). Everything that indexes a state names its entries from here, kernels included.
+A stockinette state is x = (q_0 … q_27, a_x, a_y): the paper's 28 shape parameters
+of one stitch (two crossovers built around one shared construction, four connectors)
+and the two cell periods (mm). Everything that indexes a stockinette state names its
+entries from here, its geometry kernel included.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 N_STATE = 30
 """Entries of a state vector."""
@@ -17,8 +22,6 @@ IDX_Z = 3  # crossover half-height z (mm)
 IDX_TW = 23  # twist between the two ends of a crossover (rad)
 IDX_AX = 28  # cell period along the course, a_x (mm)
 IDX_AY = 29  # cell period along the wale, a_y (mm)
-PERIOD_INDEX = {"x": IDX_AX, "y": IDX_AY}
-"""The period a pull in each direction fixes."""
 
 # the three end conditions S1, S2, S3 start at these indices (psi1, psi2, alpha, kappa, nu, beta)
 S1, S2, S3 = 5, 11, 17
@@ -37,14 +40,20 @@ STATE_NAMES = (
 )  # fmt: skip
 """Name of every state entry, in order (docs/model.md §2)."""
 
-CONTACT_CLASSES = ("self", "same_row", "nn_column", "nnn_column", "other")
-"""Contact classes by image offset (m, n): self (0, 0), same row (n = 0, m != 0),
-nearest and next-nearest same column (m = 0, |n| = 1, 2), other (docs/model.md §9)."""
+SEGMENT_WEIGHTS = np.array([2.0, 2.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0])
+"""Weights of the segments (path order 0 C1.B, 1 cc11, 2 C1.A, 3 cc12, 4 C2.A, 5 cc22,
+6 C2.B, 7 cc21) in the cell's bending sum (docs/model.md §5): E_b = 2E(C1.A) +
+2E(C1.B) + 2E(cc11) + E(cc12) + E(cc21); C2 and cc22 enter through the mirror symmetry
+of the cell, exactly as in the reference code."""
+SEGMENT_WEIGHTS.setflags(write=False)
+
+STARTS = tuple(f"Init_{i}.dat" for i in range(1, 8))
+"""The authors' starting states, shipped in ``data/`` beside this module."""
 
 
-def state_bounds(L: float, r: float) -> list[tuple[float | None, float | None]]:
-    """Generous physical bounds on the 30 state entries for yarn length L and radius r
-    (mm); angles are free.
+def state_bounds(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """Generous physical bounds (lower, upper), each (30,), on the state entries for
+    yarn length L and radius r (mm); ±inf where free (angles).
 
     They exclude only shapes no stitch can have: a negative or longer-than-half-the-
     yarn end speed, a radius of curvature below r/10, control-arm offsets or a
@@ -52,13 +61,15 @@ def state_bounds(L: float, r: float) -> list[tuple[float | None, float | None]]:
     r/2 or above L. A minimiser that honours bounds at every trial point then cannot
     fling the yarn kilometres away on a poor quasi-Newton step.
     """
-    b: list[tuple[float | None, float | None]] = [(None, None)] * N_STATE
+    lo = np.full(N_STATE, -np.inf)
+    hi = np.full(N_STATE, np.inf)
     for i in SPEEDS:
-        b[i] = (1e-3 * L, 0.5 * L)
+        lo[i], hi[i] = 1e-3 * L, 0.5 * L
     for i in CURVATURES:
-        b[i] = (-10.0 / r, 10.0 / r)
+        lo[i], hi[i] = -10.0 / r, 10.0 / r
     for i in OFFSETS:
-        b[i] = (-0.25 * L, 0.25 * L)
-    b[IDX_Z] = (-0.5 * L, 0.5 * L)
-    b[IDX_AX] = b[IDX_AY] = (0.5 * r, L)
-    return b
+        lo[i], hi[i] = -0.25 * L, 0.25 * L
+    lo[IDX_Z], hi[IDX_Z] = -0.5 * L, 0.5 * L
+    lo[IDX_AX] = lo[IDX_AY] = 0.5 * r
+    hi[IDX_AX] = hi[IDX_AY] = L
+    return lo, hi

@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ... import kernels  # noqa: F401  (first: it points numba's cache at this version's)
+
 # local column layout of one crossover curve
 L_POS, L_G, L_TW, L_Z, L_PHI, L_C0, L_C1, N_LOCAL = 0, 1, 4, 5, 6, 7, 13, 19
 

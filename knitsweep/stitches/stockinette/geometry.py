@@ -1,4 +1,4 @@
-"""State vector -> the 8 quintic Bézier segments of one stitch cell, with Jacobian.
+"""Stockinette state -> the 8 quintic Bézier segments of one stitch cell, with Jacobian.
 
 Implements docs/model.md §2–4: the two crossovers come from ``crossover`` (§3), the
 four connectors and the path order from here (§4). The Jacobian is exact: every
@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..state import IDX_AX, IDX_AY, IDX_TW, N_STATE, S1, S2, S3
+from ... import kernels  # noqa: F401  (first: it points numba's cache at this version's)
 from .crossover import (  # noqa: F401  (re-exported: the public kernel names)
     L_C0,
     L_C1,
@@ -40,6 +40,7 @@ from .crossover import (  # noqa: F401  (re-exported: the public kernel names)
     crossover_curve_into,
     crossover_frame,
 )
+from .layout import IDX_AX, IDX_AY, IDX_TW, N_STATE, S1, S2, S3
 
 # path slots of the crossover curves and connectors (docs/model.md §4)
 _SEG_C1B, _SEG_CC11, _SEG_C1A, _SEG_CC12, _SEG_C2A, _SEG_CC22, _SEG_C2B, _SEG_CC21 = range(8)

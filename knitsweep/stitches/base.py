@@ -1,0 +1,137 @@
+"""The stitch interface: one geometry as a bundle of plain arrays and functions.
+
+In the spirit of a JAX-MD ``space``: a ``Stitch`` is what the generic kernels and
+every layer above them consume, so that a new stitch pattern is a new bundle, not a
+change to the kernels, the relaxation, the sweeps, the store or the renderer
+(docs/adding-a-stitch.md). Its contract:
+
+* **state layout**: a state ``x`` is a float64 vector (``n_state``,); its last two
+  entries are the cell periods ``a_x`` (along the course) and ``a_y`` (along the
+  wale), mm; the others are shape parameters named by ``state_names``.
+* **geometry**: ``control_points(x, cp, jac)`` (a numba function) fills the control
+  points ``cp`` (``n_segments``, 6, 3), mm, of the cell's quintic Bézier segments in
+  path order, and their exact Jacobian ``jac`` (``n_segments``, 6, 3, ``n_state``),
+  ``jac[s, i, c, k] = d cp[s, i, c] / d x[k]``. Consecutive segments join with C2
+  continuity; the last one ends where the first starts, shifted by the periods in
+  ``closing_shift``.
+* **bending**: ``segment_weights`` (``n_segments``,): how many times each segment's
+  elastica energy counts in the cell (symmetric copies counted once, weighted).
+* **images**: ``images`` names the operations that generate the fabric from the
+  cell. ``"translations"``: images at m t_c + n t_w (t_c = (a_x, 0, 0),
+  t_w = (0, a_y, 0)) for all integers m, n, which the contact kernel enumerates;
+  patterns with reflections (purl stitches: z -> -z plus a shift) declare others.
+* **contact classes**: ``contact_classes`` names the rows of the contact forces by
+  class, in the contact kernel's order of image offsets.
+* **starts**: ``start(i)`` is the i-th shipped starting state (1-based) of the
+  ``n_starts``; ``bounds(L, r)`` gives generous physical (lower, upper) arrays
+  (``n_state``,), ±inf where free; ``twist_index`` is the entry bounded by the
+  twist constraint cos(x[i]) >= c_tw (None: no such constraint).
+* **drawing**: the renderer draws the segments in ``path_order`` as one yarn and
+  repeats it by ``closing_shift`` (in periods) along a row.
+
+Geometry kernels load on first use (``control_points``), so that reading a stitch's
+layout (the store's dimension labels, ``knitsweep status``) imports no numba.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Literal
+
+import numpy as np
+
+from ..errors import InputError
+
+ImageGroup = Literal["translations"]
+"""The symmetry operations that generate the fabric from one cell."""
+
+TRANSLATION_CLASSES = ("self", "same_row", "nn_column", "nnn_column", "other")
+"""Contact classes of a fabric of translated cells, by image offset (m, n): self (0, 0),
+same row (n = 0, m != 0), nearest and next-nearest same column (m = 0, |n| = 1, 2),
+other; the contact kernel's order (``kernels.forces.contact_class``, docs/model.md §9)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Stitch:
+    """One stitch geometry (the module docstring states the contract)."""
+
+    name: str
+    description: str
+    state_names: tuple[str, ...]
+    n_segments: int
+    segment_weights: np.ndarray
+    bounds: Callable[[float, float], tuple[np.ndarray, np.ndarray]]
+    twist_index: int | None
+    starts: tuple[str, ...]
+    data_package: str
+    geometry_module: str
+    images: ImageGroup = "translations"
+    contact_classes: tuple[str, ...] = TRANSLATION_CLASSES
+    path_order: tuple[int, ...] = ()
+    closing_shift: tuple[int, int] = (1, 0)
+    _kernels: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        if len(self.segment_weights) != self.n_segments:
+            raise ValueError(f"{self.name}: {len(self.segment_weights)} segment weights for "
+                             f"{self.n_segments} segments")  # fmt: skip
+        if self.state_names[-2:] != ("a_x", "a_y"):
+            raise ValueError(f"{self.name}: a state must end with the periods a_x, a_y")
+        if not self.path_order:
+            object.__setattr__(self, "path_order", tuple(range(self.n_segments)))
+
+    # ---- layout -------------------------------------------------------------------
+    @property
+    def n_state(self) -> int:
+        """Entries of a state vector."""
+        return len(self.state_names)
+
+    @property
+    def n_shape(self) -> int:
+        """Shape parameters: every entry but the two periods."""
+        return self.n_state - 2
+
+    @property
+    def idx_ax(self) -> int:
+        return self.n_state - 2
+
+    @property
+    def idx_ay(self) -> int:
+        return self.n_state - 1
+
+    def period_index(self, direction: str) -> int:
+        """The state entry of the period a pull in ``direction`` ('x' or 'y') fixes."""
+        return {"x": self.idx_ax, "y": self.idx_ay}[direction]
+
+    # ---- geometry -----------------------------------------------------------------
+    @property
+    def control_points(self) -> Callable[[np.ndarray, np.ndarray, np.ndarray], None]:
+        """The compiled ``control_points(x, cp, jac)`` kernel (imported on first use)."""
+        fn = self._kernels.get("control_points")
+        if fn is None:
+            fn = importlib.import_module(self.geometry_module).state_to_control_points
+            self._kernels["control_points"] = fn
+        return fn
+
+    def buffers(self) -> tuple[np.ndarray, np.ndarray]:
+        """Fresh (cp, jac) arrays of this stitch's shapes, for ``control_points``."""
+        return (np.empty((self.n_segments, 6, 3)),
+                np.empty((self.n_segments, 6, 3, self.n_state)))  # fmt: skip
+
+    # ---- starts -------------------------------------------------------------------
+    @property
+    def n_starts(self) -> int:
+        return len(self.starts)
+
+    def start(self, index: int = 1) -> np.ndarray:
+        """The ``index``-th shipped starting state (1-based), shape (``n_state``,)."""
+        if not 1 <= index <= self.n_starts:
+            raise InputError(f"shipped state index = {index}: must be in 1..{self.n_starts}")
+        text = (resources.files(self.data_package) / self.starts[index - 1]).read_text()
+        x = np.array([float(v) for v in text.split()])  # as formats.read_state parses
+        if x.shape != (self.n_state,):
+            raise ValueError(f"{self.name} start {index}: {x.size} numbers, not {self.n_state}")
+        return x
