@@ -18,6 +18,7 @@ from .common import (
     RcOpt,
     RegOpt,
     ROpt,
+    StitchOpt,
     app,
     check_range,
     compile_notice,
@@ -123,10 +124,10 @@ def render(
         int | None, typer.Option("--step", help="strain step of a sweep [0: the zero-force state]")
     ] = None,
     state: Annotated[
-        Path | None, typer.Option("--state", help="a 30-line state (Init) file instead")
+        Path | None, typer.Option("--state", help="a state (Init) file instead")
     ] = None,
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
-    r_core: RcOpt = None, config: ConfigOpt = None,
+    r_core: RcOpt = None, stitch: StitchOpt = None, config: ConfigOpt = None,
     radius: Annotated[
         float | None,
         typer.Option("--radius", help="tube radius to draw, mm [0.68 r: the paper's 0.5 mm "
@@ -148,11 +149,12 @@ def render(
 
     with user_errors():
         params = None
-        flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core}
+        flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core, "stitch": stitch}
         if state is not None:
             params, _ = stitch_inputs(config, **flags)
         elif config is not None or any(v is not None for v in flags.values()):
-            raise InputError("--L, --B, --k, --p, --r, --r-core and --config apply to --state; "
+            raise InputError("--L, --B, --k, --p, --r, --r-core, --stitch and --config apply to "
+                             "--state; "
                              "a results file holds its own parameters")  # fmt: skip
         path, stitch = rendering.render(
             out, results=results, task=task, step=step, state=state, params=params,

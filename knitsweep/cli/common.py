@@ -46,6 +46,10 @@ ImagesOpt = Annotated[
     str | None,
     typer.Option("--images", help="periodic images: 'cutoff' (all that touch) or 'reference'"),
 ]
+StitchOpt = Annotated[
+    str | None,
+    typer.Option("--stitch", help="stitch pattern (knitsweep.stitches.STITCH_NAMES) [stockinette]"),
+]
 ConfigOpt = Annotated[
     Path | None,
     typer.Option("--config", help="an authors' *key value config file (jammed-knits format)"),
@@ -104,7 +108,7 @@ def stitch_inputs(config, **flags):
 
     names = {
         "L": "L_mm", "B": "B_mN_mm2", "k": "k_mN_per_mm2", "p": "p", "r": "r_mm",
-        "r_core": "r_core_mm", "regularization": "regularization_mN_mm4",
+        "r_core": "r_core_mm", "regularization": "regularization_mN_mm4", "stitch": "stitch",
     }  # fmt: skip
     phys: dict = {}
     fid: dict = {}

@@ -21,6 +21,7 @@ from .common import (
     RegOpt,
     ROpt,
     SamplesOpt,
+    StitchOpt,
     _print_result,
     app,
     compile_notice,
@@ -31,9 +32,10 @@ from .common import (
 
 @app.command()
 def energy(
-    state: Annotated[Path, typer.Option("--state", help="a 30-line state (Init) file")],
+    state: Annotated[Path, typer.Option("--state", help="a state (Init) file: one number a line, 30 for stockinette")],
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
-    r_core: RcOpt = None, regularization: RegOpt = None, samples: SamplesOpt = None,
+    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
+    samples: SamplesOpt = None,
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
@@ -44,9 +46,9 @@ def energy(
     with user_errors():
         params, fidelity = stitch_inputs(
             config, L=L, B=B, k=k, p=p, r=r, r_core=r_core, regularization=regularization,
-            samples=samples, quadrature_nodes=quadrature_nodes, images=images,
+            stitch=stitch, samples=samples, quadrature_nodes=quadrature_nodes, images=images,
         )  # fmt: skip
-        x = read_state(state)
+        x = read_state(state, params.stitch)
         compile_notice(energy_only=True)
         result = CellModel(params, fidelity).energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
@@ -55,7 +57,7 @@ def energy(
 
 StateOpt = Annotated[
     Path | None,
-    typer.Option("--state", help="starting state (30-line Init file) [the shipped starts]"),
+    typer.Option("--state", help="starting state (an Init file) [the stitch's shipped starts]"),
 ]
 StartsOpt = Annotated[int | None, typer.Option("--starts", help="starts per point [4]")]
 SeedOpt = Annotated[int, typer.Option("--seed", help="seed of the perturbed starts")]
@@ -69,7 +71,8 @@ FtolOpt = Annotated[float | None, typer.Option("--ftol", help="SLSQP energy tole
 def relax(
     state: StateOpt = None,
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
-    r_core: RcOpt = None, regularization: RegOpt = None, samples: SamplesOpt = None,
+    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
+    samples: SamplesOpt = None,
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     preset: PresetOpt = None, ftol: FtolOpt = None, starts: StartsOpt = None, seed: SeedOpt = 0,
     as_json: JsonOpt = False,
@@ -85,11 +88,11 @@ def relax(
     with user_errors():
         check_seed(seed)
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
-                                  regularization=regularization)  # fmt: skip
+                                  regularization=regularization, stitch=stitch)  # fmt: skip
         n = Numerics.from_preset(preset, ftol=ftol, samples_per_segment=samples,
                                  quadrature_nodes=quadrature_nodes, images=images)  # fmt: skip
         settings = StartSettings() if starts is None else StartSettings(count=starts)
-        x0 = None if state is None else read_state(state)
+        x0 = None if state is None else read_state(state, params.stitch)
         compile_notice()
         t0 = time.perf_counter()
         best = zero_force(params, n.fidelity, n.solver, settings, seed, initial=x0).best
@@ -110,7 +113,8 @@ def relax(
 def sweep(
     direction: Annotated[str, typer.Option("--direction", help="pull along x or y")],
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
-    r_core: RcOpt = None, regularization: RegOpt = None, samples: SamplesOpt = None,
+    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
+    samples: SamplesOpt = None,
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     preset: PresetOpt = None, ftol: FtolOpt = None, starts: StartsOpt = None, seed: SeedOpt = 0,
     step: Annotated[float | None, typer.Option("--step", help="small step h (mm) [0.001]")] = None,
@@ -142,7 +146,7 @@ def sweep(
         if out is not None:
             check_writable(out, "--out")  # before the sweep, not after
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
-                                  regularization=regularization)  # fmt: skip
+                                  regularization=regularization, stitch=stitch)  # fmt: skip
         n = Numerics.from_preset(
             preset, ftol=ftol, samples_per_segment=samples, quadrature_nodes=quadrature_nodes,
             images=images, step_mm=step, stop_stress_N_per_mm=stop_stress, max_strain=max_strain,

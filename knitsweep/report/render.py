@@ -1,10 +1,11 @@
 """Pictures of a relaxed stitch: a patch of fabric like the paper's Fig. 1a.
 
-The yarn centre-line of one cell is the 8 quintic Bézier segments of
-:meth:`knitsweep.model.CellModel.control_points` (docs/model.md §3–4), in path order;
-segment 7 ends where segment 0 starts, shifted by the course period t_c = (a_x, 0, 0),
-so one row's yarn is the cell's path repeated along x, and the rows repeat along
-the wale period t_w = (0, a_y, 0). Each row is drawn as a tube of radius r around
+The yarn centre-line of one cell is the quintic Bézier segments of
+:meth:`knitsweep.model.CellModel.control_points` (docs/model.md §3–4) in the stitch's
+drawing order (``Stitch.path_order``); the last segment ends where the first starts,
+shifted by the stitch's ``closing_shift`` in periods (stockinette: the course period
+t_c = (a_x, 0, 0)), so one row's yarn is the cell's path repeated by that shift, and
+the rows repeat along the wale period t_w = (0, a_y, 0). Each row is drawn as a tube of radius r around
 its centre-line, seen along a tilted direction in orthographic projection, shaded
 (Lambert + specular) and depth-sorted face by face (painter's algorithm), so that
 interlocking loops hide each other correctly. Lengths in mm.
@@ -36,24 +37,31 @@ one (a white background made the small holes at the cell corners look like defec
 
 @dataclass(frozen=True)
 class Stitch:
-    """What is drawn: the cell's control points (8, 6, 3), mm, its periods a_x, a_y
-    (mm), the yarn radius r (mm) and a one-line description."""
+    """What is drawn: the cell's control points (S, 6, 3) in drawing order, mm, its
+    periods a_x, a_y (mm), the yarn radius r (mm), a one-line description and the
+    shift in periods (course, wale) after which the path repeats along its row."""
 
     control_points: np.ndarray
     a_x: float
     a_y: float
     r_mm: float
     label: str
+    closing_shift: tuple[int, int] = (1, 0)
+
+    @property
+    def t_c(self) -> np.ndarray:
+        """The vector by which one cell's path repeats along its row, mm."""
+        return np.array([self.closing_shift[0] * self.a_x, self.closing_shift[1] * self.a_y, 0.0])
 
 
 def cell_path(control_points: np.ndarray, samples: int = 24) -> np.ndarray:
-    """The cell's yarn centre-line, shape (8·samples + 1, 3), mm: each segment sampled
+    """The cell's yarn centre-line, shape (S·samples + 1, 3), mm: each segment sampled
     at ``samples`` + 1 equally spaced t, joins not repeated."""
     cp = np.asarray(control_points, dtype=float)
-    if cp.shape != (8, 6, 3):
-        raise ValueError(f"control points: expected shape (8, 6, 3), got {cp.shape}")
+    if cp.ndim != 3 or cp.shape[1:] != (6, 3):
+        raise ValueError(f"control points: expected shape (S, 6, 3), got {cp.shape}")
     basis = basis_tables(np.linspace(0.0, 1.0, samples + 1))[0]  # (samples + 1, 6)
-    pts = np.einsum("ti,sik->stk", basis, cp)  # (8, samples + 1, 3)
+    pts = np.einsum("ti,sik->stk", basis, cp)  # (S, samples + 1, 3)
     return np.concatenate([pts[:, :-1].reshape(-1, 3), pts[-1, -1:]], axis=0)
 
 
@@ -151,7 +159,7 @@ def window(stitch: Stitch, cells: int, view: np.ndarray) -> np.ndarray:
     """Screen box (x_lo, x_hi, y_lo, y_hi), mm, of ``cells`` × ``cells`` cell periods
     centred on the patch."""
     mid = cell_path(stitch.control_points, 8).mean(axis=0)
-    t_c = np.array([stitch.a_x, 0.0, 0.0])
+    t_c = stitch.t_c
     t_w = np.array([0.0, stitch.a_y, 0.0])
     corners = np.array([mid + (i - 0.5) * t_c + (j - 0.5) * t_w
                         for i in (0, cells) for j in (0, cells)]) @ view.T  # fmt: skip
@@ -178,7 +186,7 @@ def rasterize(stitch: Stitch, cells: int, radius: float, view: np.ndarray, box: 
     eye = view[2]  # unit vector towards the viewer, fabric coordinates
     offsets = np.linspace(-0.56 * np.pi, 0.56 * np.pi, int(np.ceil(1.12 * np.pi * radius / step)))
     centre = (cells // 2, cells // 2) if highlight else None
-    t_c = np.array([stitch.a_x, 0.0, 0.0])
+    t_c = stitch.t_c
     t_w = np.array([0.0, stitch.a_y, 0.0])
     reach = radius + 2.0 * px
     for row in range(-1, cells + 1):
@@ -285,12 +293,23 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
 
 
 def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> Stitch:
-    """The stitch of a 30-entry state vector (docs/model.md §2) at the given parameters."""
+    """The picture of a state vector of the stitch ``params.stitch`` (docs/model.md §2)."""
     from ..model import CellModel
 
-    cp = CellModel(params).control_points(x)
-    text = label or f"L = {params.L_mm:g} mm, r = {params.r_mm:g} mm"
-    return Stitch(cp, float(x[-2]), float(x[-1]), params.r_mm, text)
+    model = CellModel(params)
+    return drawn(model.control_points(x), float(x[-2]), float(x[-1]), params,
+                 label or f"L = {params.L_mm:g} mm, r = {params.r_mm:g} mm")  # fmt: skip
+
+
+def drawn(cp: np.ndarray, a_x: float, a_y: float, params: StitchParams, label: str) -> Stitch:
+    """The picture of control points (S, 6, 3) of the stitch ``params.stitch``, in its
+    drawing order."""
+    from ..stitches import get_stitch
+
+    geometry = get_stitch(params.stitch)
+    order = list(geometry.path_order)
+    return Stitch(np.asarray(cp, dtype=float)[order], a_x, a_y, params.r_mm, label,
+                  geometry.closing_shift)  # fmt: skip
 
 
 def _find_task(results: Path, task: str) -> Any:
@@ -336,7 +355,7 @@ def stitch_from_results(results: str | Path, task: str, step: int | None = None)
              f"{what}")  # fmt: skip
     if "control_points" in rec:
         cp = np.asarray(rec["control_points"][step], dtype=float)
-        return Stitch(cp, float(rec["a_x"][step]), float(rec["a_y"][step]), params.r_mm, label)
+        return drawn(cp, float(rec["a_x"][step]), float(rec["a_y"][step]), params, label)
     if "states" in rec:
         return stitch_from_state(np.asarray(rec["states"][step], dtype=float), params, label)
     if step == 0:
@@ -401,8 +420,9 @@ def render(
 
         if step is not None:
             raise InputError("--step applies to a sweep of a results file, not to --state")
-        x = read_state(state)
-        stitch = stitch_from_state(x, params or StitchParams(), f"state {Path(state).name}")
+        params = params or StitchParams()
+        x = read_state(state, params.stitch)
+        stitch = stitch_from_state(x, params, f"state {Path(state).name}")
     path = draw_stitch(stitch, out, cells, radius, elevation_deg=elevation_deg, side=side,
                        width_px=width_px, highlight=highlight)  # fmt: skip
     return path, stitch

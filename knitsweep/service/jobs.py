@@ -43,6 +43,7 @@ from ..config import (
 )
 from ..errors import MAX_SEED, describe_validation_error
 from ..formats import read_text
+from ..stitches import DEFAULT_STITCH, STITCH_NAMES
 from .grid import MAX_POINTS, Grid
 
 if sys.version_info >= (3, 11):
@@ -136,6 +137,10 @@ class JobSpec(BaseModel):
     seed: int = Field(0, ge=0, lt=MAX_SEED)
     directions: list[Literal["x", "y"]] = Field(default_factory=lambda: ["x", "y"], min_length=1)
     preset: str = DEFAULT_PRESET
+    stitch: str = Field(
+        DEFAULT_STITCH,
+        description=f"stitch pattern of every point: one of {', '.join(STITCH_NAMES)}",
+    )
     mode: Literal["grid", "adaptive"] = Field(
         "grid", description="'grid': every grid point; 'adaptive': bisect each L series' transition"
     )
@@ -185,6 +190,13 @@ class JobSpec(BaseModel):
             raise ValueError(f"must be one of {', '.join(PRESETS)}")
         return v
 
+    @field_validator("stitch")
+    @classmethod
+    def _known_stitch(cls, v: str) -> str:
+        if v not in STITCH_NAMES:
+            raise ValueError(f"must be one of {', '.join(STITCH_NAMES)}")
+        return v
+
     @field_validator("directions")
     @classmethod
     def _unique_directions(cls, v: list[str]) -> list[str]:
@@ -223,7 +235,8 @@ class JobSpec(BaseModel):
         out = []
         for values in self.grid.combinations(order):
             try:
-                out.append(StitchParams(twist_bound=self.grid.twist_bound, **values))
+                out.append(StitchParams(twist_bound=self.grid.twist_bound, stitch=self.stitch,
+                                        **values))  # fmt: skip
             except ValidationError as e:
                 where = ", ".join(f"{k}={v}" for k, v in values.items())
                 raise ValueError(f"grid point ({where}): {describe_validation_error(e)}") from None
@@ -233,6 +246,8 @@ class JobSpec(BaseModel):
         """Everything that determines the results (name, description and run
         settings excluded), with effective settings after the preset."""
         d = self.model_dump(mode="json", exclude={"name", "description", "run", "preset"})
+        if d["stitch"] == DEFAULT_STITCH:  # (absent: the hashes of stockinette jobs stay)
+            del d["stitch"]
         d["grid"] = self.grid.axes() | {"twist_bound": self.grid.twist_bound}
         ties = {n: str(tie) for n, tie in self.grid.ties().items()}
         if ties:  # (absent when empty: the hashes of plain grids stay what they were)

@@ -62,7 +62,7 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> None:
     ``notice`` hears first if that means compiling (see ``compile_kernels``)."""
     from ..model import compile_kernels
 
-    compile_kernels(job.fidelity, notice)
+    compile_kernels(job.fidelity, notice, (job.stitch,))
 
 
 def stderr_notice(message: str) -> None:
