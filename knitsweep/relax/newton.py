@@ -50,7 +50,7 @@ import numpy as np
 
 from ..config import SolverSettings
 from ..kernels.kkt import kkt_step, sr1_update
-from .problem import Point, Problem
+from .problem import Minimum, Point, Problem
 
 FD_STEP = 1e-7
 """Forward-difference step of the Hessian columns (state units: mm or rad): the
@@ -208,9 +208,9 @@ def newton_minimise(
     hi: np.ndarray,
     settings: SolverSettings,
     curvature: Curvature | None = None,
-) -> tuple[np.ndarray, bool, str, int, Curvature | None]:
-    """Minimise from z0 within [lo, hi]; returns (z, success, message, iterations,
-    the curvature to carry on). z is the best point reached, also on failure."""
+) -> Minimum:
+    """Minimise from z0 within [lo, hi], warm-started by ``curvature`` (carried on in
+    the result). z is the best point reached, also on failure."""
     free = prob.free
     z0 = np.clip(z0, lo, hi)  # only the twist can lie outside its bound: onto it
     usable = curvature is not None and bool(np.all(curvature.known[free]))
@@ -218,7 +218,7 @@ def newton_minimise(
         z0 = _predicted_start(curvature, prob, z0, lo, hi)
     pt = prob.evaluate(_snap(z0, lo, hi))
     if not pt.finite:
-        return pt.z, False, "non-finite energy at the start", 0, curvature
+        return Minimum(pt.z, False, "non-finite energy at the start", 0, curvature)
     if usable and curvature.anchor is not None:  # the secant from the last solution
         anchor = curvature.anchor
         curvature.update(
@@ -277,13 +277,8 @@ def newton_minimise(
                 and stationary):  # fmt: skip
             curvature.radius = radius
             curvature.anchor = Anchor(prob.full(pt.z), pt.ge, pt.gl, pt.c, pt.energy)
-            return (
-                pt.z,
-                True,
-                f"Newton converged (decrement {step.decrement:.2g} mJ)",
-                it,
-                curvature,
-            )
+            message = f"Newton converged (decrement {step.decrement:.2g} mJ)"
+            return Minimum(pt.z, True, message, it, curvature)
         p = step.p
         # stay inside the box: shorten the step to the first bound it meets
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -322,8 +317,8 @@ def newton_minimise(
         else:
             radius = 0.25 * (norm if alpha == 1.0 else radius)
         if radius < MIN_RADIUS:
-            return pt.z, False, "Newton: trust region collapsed", it, curvature
+            return Minimum(pt.z, False, "Newton: trust region collapsed", it, curvature)
         if it >= REMEASURE_AFTER and not measured:
             curvature = measure_curvature(prob, pt, radius)
             measured = True
-    return pt.z, False, "Newton: iteration limit reached", settings.maxiter, curvature
+    return Minimum(pt.z, False, "Newton: iteration limit reached", settings.maxiter, curvature)

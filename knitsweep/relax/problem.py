@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +44,20 @@ class Point:
         # a sum of squares is finite only if every entry is (or overflows, far beyond
         # any physical gradient)
         return math.isfinite(self.energy + self.c + float(self.ge @ self.ge + self.gl @ self.gl))
+
+
+@dataclass(frozen=True)
+class Minimum:
+    """What every minimiser returns: the best point ``z`` (n,) it reached (also on
+    failure), whether it ``converged``, its ``message``, its ``iterations``, and what it
+    carries to the next relaxation of a chain (Newton: its ``newton.Curvature``; None
+    for a minimiser that carries nothing)."""
+
+    z: np.ndarray
+    converged: bool
+    message: str
+    iterations: int
+    carried: Any = None
 
 
 class Problem:

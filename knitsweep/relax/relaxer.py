@@ -5,9 +5,10 @@ relaxations that follow one another (the strain steps of one chain, the stages o
 continuation): it keeps one Verlet neighbour list per model and, for the Newton solver,
 the curvature (``newton.Curvature``) from one relaxation to the next.
 
-``SolverSettings.method`` picks the minimiser: ``newton`` (Newton–KKT with a trust
-region, falling back to SLSQP from wherever it stopped if it cannot finish) or
-``slsqp``. A relaxation runs its BLAS/LAPACK calls on one thread: with more, OpenBLAS
+``SolverSettings.method`` picks the minimiser from ``SOLVERS``: ``newton`` (Newton–KKT
+with a trust region, falling back to SLSQP from wherever it stopped if it cannot finish)
+or ``slsqp``. Every minimiser has one signature and returns one typed result
+(``problem.Minimum``). A relaxation runs its BLAS/LAPACK calls on one thread: with more, OpenBLAS
 sums in another order and the same relaxation ends ~1e-13 elsewhere, depending on
 what the process did before.
 """
@@ -17,6 +18,8 @@ from __future__ import annotations
 import contextlib
 import math
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
@@ -25,7 +28,7 @@ from ..config import Direction, SolverSettings
 from ..model import CellModel, NeighbourList
 from ..stitches import Stitch
 from .newton import Curvature, newton_minimise
-from .problem import Problem
+from .problem import Minimum, Problem
 from .result import Relaxation, assess
 from .slsqp import slsqp_minimise
 
@@ -59,6 +62,42 @@ def free_entries(stitch: Stitch, fixed: Direction | None) -> np.ndarray:
     return np.array([i for i in range(stitch.n_state) if i != held])
 
 
+Minimiser = Callable[[Problem, np.ndarray, SolverSettings, object], Minimum]
+"""``minimise(problem, x0, settings, carried) -> Minimum``: from the full start state
+``x0`` over ``problem.free``, with what the chain's last relaxation carried."""
+
+
+@dataclass(frozen=True)
+class Solver:
+    """A minimiser by name; ``walks`` says whether a large change of the fixed period
+    is walked in sub-steps from the chain's last solution (worth it only for a
+    minimiser that carries the curvature there)."""
+
+    name: str
+    minimise: Minimiser
+    walks: bool
+
+
+def _slsqp(prob: Problem, x0: np.ndarray, settings: SolverSettings, carried) -> Minimum:
+    return slsqp_minimise(prob, x0[prob.free], prob.bounds(x0), settings)
+
+
+def _newton(prob: Problem, x0: np.ndarray, settings: SolverSettings, carried) -> Minimum:
+    lo, hi = prob.box(x0)
+    got = newton_minimise(prob, x0[prob.free], lo, hi, settings, carried)
+    if got.converged:
+        return got
+    # the Newton iteration could not finish: SLSQP from the best point it reached
+    more = slsqp_minimise(prob, got.z, prob.bounds(x0), settings)
+    return Minimum(more.z, more.converged, f"{got.message}; SLSQP from there: {more.message}",
+                   got.iterations + more.iterations, None)  # fmt: skip
+
+
+SOLVERS = {s.name: s for s in (Solver("newton", _newton, walks=True),
+                               Solver("slsqp", _slsqp, walks=False))}  # fmt: skip
+"""The minimisers ``SolverSettings.method`` names."""
+
+
 class Relaxer:
     """Relaxations in sequence, each warm-started by the caller, sharing a neighbour
     list and (Newton) the measured curvature."""
@@ -88,8 +127,13 @@ class Relaxer:
                 iterations = evaluations = 0
             prob = self.problem(model, x0, free)
             try:
-                z, success, message, nit = self._minimise(prob, x0, settings)
-                x = prob.full(z)
+                got = self._minimise(prob, x0, settings)
+                x, success, message, nit = (
+                    prob.full(got.z),
+                    got.converged,
+                    got.message,
+                    got.iterations,
+                )
             except (ValueError, FloatingPointError, ZeroDivisionError) as e:
                 x, success, message, nit = x0.copy(), False, f"minimiser failed: {e}", 0
             last = prob.last_point
@@ -113,7 +157,7 @@ class Relaxer:
         recorded); returns (the last sub-step's state with x0's fixed period, their
         iterations, evaluations), or None if there is nothing to walk."""
         anchor = self.curvature.anchor if self.curvature is not None else None
-        if settings.method != "newton" or fixed is None or anchor is None:
+        if not SOLVERS[settings.method].walks or fixed is None or anchor is None:
             return None
         i = model.stitch.period_index(fixed)
         free = free_entries(model.stitch, fixed)
@@ -127,28 +171,18 @@ class Relaxer:
             x[i] = anchor.x[i] + change * k / n
             # the minimiser alone: a sub-step is not recorded, so not assessed either
             prob = self.problem(model, x, free)
-            z, success, _, nit = self._minimise(prob, x, loose)
-            iterations, evaluations = iterations + nit, evaluations + prob.evaluations
-            if not (success and np.all(np.isfinite(z))):
+            got = self._minimise(prob, x, loose)
+            iterations, evaluations = iterations + got.iterations, evaluations + prob.evaluations
+            if not (got.converged and np.all(np.isfinite(got.z))):
                 break
-            x = prob.full(z)
+            x = prob.full(got.z)
         x[i] = x0[i]
         return x, iterations, evaluations
 
-    def _minimise(self, prob: Problem, x0: np.ndarray, settings: SolverSettings):
-        z0 = x0[prob.free]
-        if settings.method == "slsqp":
-            return slsqp_minimise(prob, z0, prob.bounds(x0), settings)
-        lo, hi = prob.box(x0)
-        z, success, message, nit, self.curvature = newton_minimise(
-            prob, z0, lo, hi, settings, self.curvature
-        )
-        if success:
-            return z, success, message, nit
-        # the Newton iteration could not finish: SLSQP from the best point it reached
-        self.curvature = None
-        z, success, fallback, more = slsqp_minimise(prob, z, prob.bounds(x0), settings)
-        return z, success, f"{message}; SLSQP from there: {fallback}", nit + more
+    def _minimise(self, prob: Problem, x0: np.ndarray, settings: SolverSettings) -> Minimum:
+        got = SOLVERS[settings.method].minimise(prob, x0, settings, self.curvature)
+        self.curvature = got.carried
+        return got
 
 
 def relax(

@@ -11,14 +11,14 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ..config import SolverSettings
-from .problem import Problem
+from .problem import Minimum, Problem
 
 
 def slsqp_minimise(
     prob: Problem, z0: np.ndarray, bounds: list, settings: SolverSettings
-) -> tuple[np.ndarray, bool, str, int]:
-    """Minimise from z0 within ``bounds`` (SciPy's format); returns (z, success,
-    message, iterations). Raises what SLSQP raises on non-finite trial points."""
+) -> Minimum:
+    """Minimise from z0 within ``bounds`` (SciPy's format). Raises what SLSQP raises on
+    non-finite trial points."""
     constraints = [
         {"type": "eq", "fun": prob.length, "jac": prob.length_grad},
         {"type": "ineq", "fun": prob.twist, "jac": prob.twist_grad},
@@ -33,4 +33,5 @@ def slsqp_minimise(
             constraints=constraints,
             options={"ftol": settings.ftol, "maxiter": settings.maxiter},
         )
-    return np.asarray(res.x, dtype=float), bool(res.success), str(res.message), int(res.nit)
+    return Minimum(np.asarray(res.x, dtype=float), bool(res.success), str(res.message),
+                   int(res.nit))  # fmt: skip
