@@ -115,7 +115,7 @@ def image_list(pts, ax, ay, r, mode):
 
 
 @njit(cache=True)
-def _samples(cp, tab):
+def sample_cell(cp, tab):
     """Samples of the path: positions (3, 8N) structure-of-arrays, derivatives
     (SN, 3), speeds (SN,), midpoint arclengths (SN,) and the total arclength."""
     nseg = cp.shape[0]
@@ -144,25 +144,22 @@ def _grow(a, size):
 
 
 @njit(cache=True)
-def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
-    """The candidate search (``knitsweep.kernels.partition``): every sample pair
-    (i, j, m, n) closer than ``reach``, each unordered pair once, in (image, segment
-    a, segment b, i, j) order, leaving out same-row pairs within ``s_excl`` along
-    the yarn (none if ``s_excl`` < 0).
+def candidate_blocks(pts, box, ax, ay, reach, mode):
+    """The candidate search's one loop (``knitsweep.kernels.partition``): every
+    (image, segment a, segment b) whose sample boxes come within ``reach``, each
+    unordered pair of segments once in the image (0, 0), in search order. Returns
+    (k, 3) int64 rows (image, sa, sb) and the images (q, 2) = (m, n) they index;
+    image -1 is (0, 0).
 
-    Samples as from ``_samples``; images as in ``image_list`` for the reach. Returns
-    ``ib`` (4, cap) int64 = (i, j, m, n), ``fb`` (4, cap) = (dx, dy, dz, R^2) with
-    d = p_i - p_j - m t_c - n t_w, and the count c of filled columns.
+    ``pts`` (SN, 3) and ``box`` (6, S) of the samples; images as in ``image_list``
+    for half the reach.
     """
-    nseg = pts.shape[0] // n
-    box = segment_boxes_soa(pos, nseg, n)
+    nseg = box.shape[1]
     images = image_list(pts, ax, ay, 0.5 * reach, mode)
     reach2 = reach * reach
     gaps = np.empty(nseg)
-    cap = 4 * nseg * n * n
-    ib = np.empty((4, cap), dtype=np.int64)
-    fb = np.empty((4, cap))
-    c = 0
+    out = np.empty(((images.shape[0] + 1) * nseg * nseg, 3), dtype=np.int64)
+    k = 0
     for im in range(-1, images.shape[0]):
         m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
         ox = m * ax
@@ -172,14 +169,41 @@ def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
         for sa in range(nseg):
             segment_gaps(box, sa, ox, oy, gaps)
             for sb in range(sa if im < 0 else 0, nseg):
-                if not gaps[sb] < reach2:
-                    continue
-                if c + n * n > cap:
-                    cap *= 2
-                    ib = _grow(ib, cap)
-                    fb = _grow(fb, cap)
-                c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, ox, oy, m * s_tot,
-                                 reach2, s_excl, ib, fb, c)  # fmt: skip
+                if gaps[sb] < reach2:
+                    out[k, 0] = im
+                    out[k, 1] = sa
+                    out[k, 2] = sb
+                    k += 1
+    return out[:k], images
+
+
+@njit(cache=True)
+def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
+    """Every sample pair (i, j, m, n) closer than ``reach``, each unordered pair once,
+    in (image, segment a, segment b, i, j) order (``candidate_blocks``), leaving out
+    same-row pairs within ``s_excl`` along the yarn (none if ``s_excl`` < 0).
+
+    Samples as from ``sample_cell``. Returns ``ib`` (4, cap) int64 = (i, j, m, n),
+    ``fb`` (4, cap) = (dx, dy, dz, R^2) with d = p_i - p_j - m t_c - n t_w, and the
+    count c of filled columns.
+    """
+    nseg = pts.shape[0] // n
+    box = segment_boxes_soa(pos, nseg, n)
+    blocks, images = candidate_blocks(pts, box, ax, ay, reach, mode)
+    reach2 = reach * reach
+    cap = 4 * nseg * n * n
+    ib = np.empty((4, cap), dtype=np.int64)
+    fb = np.empty((4, cap))
+    c = 0
+    for q in range(blocks.shape[0]):
+        im, sa, sb = blocks[q, 0], blocks[q, 1], blocks[q, 2]
+        m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
+        if c + n * n > cap:
+            cap *= 2
+            ib = _grow(ib, cap)
+            fb = _grow(fb, cap)
+        c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, m * ax, nn * ay, m * s_tot,
+                         reach2, s_excl, ib, fb, c)  # fmt: skip
     return ib, fb, c
 
 
@@ -193,7 +217,7 @@ def find_contacts(cp, tab, ax, ay, r, mode):
     in (image, segment a, segment b, i, j) order (``collect_pairs``).
     """
     n = tab.shape[1]
-    pts, pos, r1, speed, s_mid, s_tot = _samples(cp, tab)
+    pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
     ib, fb, c = collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, 2.0 * r, EXCLUSION_FACTOR * r,
                               mode)  # fmt: skip
     idx = np.ascontiguousarray(ib[:, :c].T)
@@ -257,7 +281,8 @@ def _soft_shell(rr, nb, r, rc, k, p, with_grad, dist, zeta, v, dv):
 
 
 @njit(cache=True)
-def _accumulate(ib, fb, nb, speed, dt2, r, rc, k, p, with_grad, work, g, energy, gax, gay):
+def accumulate_pairs(ib, fb, nb, speed, dt2, r, rc, k, p, with_grad, work, g, energy, gax,
+                     gay):  # fmt: skip
     """Add the first ``nb`` buffered pairs, in buffer order, to the running sums
     ``energy``, ``gax``, ``gay`` (E and the explicit dE/da_x, dE/da_y through the
     image offsets; returned) and, with ``with_grad``, to the gradient ``g``
@@ -303,51 +328,59 @@ def contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_
     dE_c/dcp at fixed periods and ``grad_cell`` (2,) the explicit dE_c/d(a_x, a_y)
     through the image offsets.
 
-    The pairs found by the search (``knitsweep.kernels.partition``) go through a
-    buffer: a vectorised pass evaluates the potential of a batch, a scalar pass
-    adds it up in search order. This is ``collect_pairs``'s loop with a buffer of
-    fixed size that is flushed instead of grown: collecting every pair first
-    (one growing buffer, then one sum) measured ~10 % slower here and ~70 % slower
-    on the neighbour-list path, from allocating and copying the larger buffers.
+    The pairs found by the search (``candidate_blocks``) go through a buffer: a
+    vectorised pass evaluates the potential of a batch, a scalar pass adds it up in
+    search order. This is ``collect_pairs`` with a buffer of fixed size that is
+    flushed instead of grown: collecting every pair first (one growing buffer, then
+    one sum) measured ~10 % slower here and ~70 % slower on the neighbour-list path,
+    from allocating and copying the larger buffers.
     """
     nseg = cp.shape[0]
     n = tab.shape[1]
     dt2 = 1.0 / (n * n)
-    pts, pos, r1, speed, s_mid, s_tot = _samples(cp, tab)
-    ns = speed.shape[0]
+    pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
     box = segment_boxes_soa(pos, nseg, n)
-    images = image_list(pts, ax, ay, r, mode)
     cut = 2.0 * r
+    blocks, images = candidate_blocks(pts, box, ax, ay, cut, mode)
     s_excl = EXCLUSION_FACTOR * r
-    gaps = np.empty(nseg)
-    cap = max(2048, 2 * n * n)
-    ib = np.empty((4, cap), dtype=np.int64)
-    fb = np.empty((4, cap))
-    work = np.empty((4, cap))
-    g = np.zeros((ns, 4))
+    ib, fb, work, g = pair_buffers(n, speed.shape[0])
     energy = 0.0
     gax = 0.0
     gay = 0.0
     c = 0
-    for im in range(-1, images.shape[0]):
+    for q in range(blocks.shape[0]):
+        im, sa, sb = blocks[q, 0], blocks[q, 1], blocks[q, 2]
         m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
-        ox = m * ax
-        oy = nn * ay
-        if im >= 0 and not image_reaches(box, ox, oy, cut):
-            continue
-        for sa in range(nseg):
-            segment_gaps(box, sa, ox, oy, gaps)
-            for sb in range(sa if im < 0 else 0, nseg):
-                if not gaps[sb] < cut * cut:
-                    continue
-                if c + n * n > cap:
-                    energy, gax, gay = _accumulate(ib, fb, c, speed, dt2, r, rc, k, p, with_grad,
-                                                   work, g, energy, gax, gay)  # fmt: skip
-                    c = 0
-                c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, ox, oy, m * s_tot,
-                                 cut * cut, s_excl, ib, fb, c)  # fmt: skip
-    energy, gax, gay = _accumulate(ib, fb, c, speed, dt2, r, rc, k, p, with_grad, work, g,
-                                   energy, gax, gay)  # fmt: skip
+        if c + n * n > ib.shape[1]:
+            energy, gax, gay = accumulate_pairs(ib, fb, c, speed, dt2, r, rc, k, p, with_grad,
+                                                work, g, energy, gax, gay)  # fmt: skip
+            c = 0
+        c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, m * ax, nn * ay, m * s_tot,
+                         cut * cut, s_excl, ib, fb, c)  # fmt: skip
+    return finish_pairs(ib, fb, c, speed, r1, tab, dt2, r, rc, k, p, with_grad, work, g, energy,
+                        gax, gay, grad_cp, grad_cell)  # fmt: skip
+
+
+@njit(cache=True)
+def pair_buffers(n, ns):
+    """The pair buffers of a contact sum with N = ``n`` samples per segment and ``ns``
+    samples in all: ``ib`` (4, cap) int64, ``fb`` and ``work`` (4, cap), and the
+    sample gradient ``g`` (ns, 4), zeroed."""
+    cap = max(2048, 2 * n * n)
+    ib = np.empty((4, cap), dtype=np.int64)
+    fb = np.empty((4, cap))
+    work = np.empty((4, cap))
+    return ib, fb, work, np.zeros((ns, 4))
+
+
+@njit(cache=True)
+def finish_pairs(ib, fb, c, speed, r1, tab, dt2, r, rc, k, p, with_grad, work, g, energy, gax,
+                 gay, grad_cp, grad_cell):  # fmt: skip
+    """The end of every contact sum: add the last ``c`` buffered pairs, then project
+    the sample gradient onto the control points (``grad_cp``) and store the explicit
+    period derivatives (``grad_cell``). Returns E_c."""
+    energy, gax, gay = accumulate_pairs(ib, fb, c, speed, dt2, r, rc, k, p, with_grad, work, g,
+                                        energy, gax, gay)  # fmt: skip
     if with_grad:
         project_gradient(g, speed, r1, tab, grad_cp)
         grad_cell[0] = gax

@@ -28,11 +28,12 @@ from numba import njit
 
 from .contact import (
     EXCLUSION_FACTOR,
-    _accumulate,
-    _samples,
+    accumulate_pairs,
     collect_pairs,
     contact_energy,
-    project_gradient,
+    finish_pairs,
+    pair_buffers,
+    sample_cell,
 )
 from .partition import search_row
 
@@ -50,7 +51,7 @@ def build_neighbour_list(cp, tab, ax, ay, r, mode, skin):
     pass all three to ``contact_energy_listed``.
     """
     n = tab.shape[1]
-    pts, pos, _, _, s_mid, s_tot = _samples(cp, tab)
+    pts, pos, _, _, s_mid, s_tot = sample_cell(cp, tab)
     # s_excl < 0: no pair is excluded here, the exclusion is tested per call
     ib, _, c = collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, 2.0 * r + skin, -1.0, mode)
     # runs of one i against one segment in one image (consecutive in search order)
@@ -108,34 +109,25 @@ def contact_energy_listed(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp
     """
     n = tab.shape[1]
     dt2 = 1.0 / (n * n)
-    _, pos, r1, speed, s_mid, s_tot = _samples(cp, tab)
+    _, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
     if not neighbour_list_valid(pos, ax, ay, r, mode, ref_pos, meta):
         e = contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_cell)
         return e, False
-    ns = speed.shape[0]
     cut2 = (2.0 * r) * (2.0 * r)
     s_excl = EXCLUSION_FACTOR * r
-    cap = max(2048, 2 * n * n)
-    ib = np.empty((4, cap), dtype=np.int64)
-    fb = np.empty((4, cap))
-    work = np.empty((4, cap))
-    g = np.zeros((ns, 4))
+    ib, fb, work, g = pair_buffers(n, speed.shape[0])
     energy = 0.0
     gax = 0.0
     gay = 0.0
     c = 0
     for q in range(rows.shape[0]):
         i, j0, j1, m, nn = rows[q, 0], rows[q, 1], rows[q, 2], rows[q, 3], rows[q, 4]
-        if c + n > cap:
-            energy, gax, gay = _accumulate(ib, fb, c, speed, dt2, r, rc, k, p, with_grad, work, g,
-                                           energy, gax, gay)  # fmt: skip
+        if c + n > ib.shape[1]:
+            energy, gax, gay = accumulate_pairs(ib, fb, c, speed, dt2, r, rc, k, p, with_grad,
+                                                work, g, energy, gax, gay)  # fmt: skip
             c = 0
         c = search_row(pos, s_mid, i, j0, j1, m, nn, m * ax, nn * ay, m * s_tot, cut2, s_excl,
                        ib, fb, c)  # fmt: skip
-    energy, gax, gay = _accumulate(ib, fb, c, speed, dt2, r, rc, k, p, with_grad, work, g,
-                                   energy, gax, gay)  # fmt: skip
-    if with_grad:
-        project_gradient(g, speed, r1, tab, grad_cp)
-        grad_cell[0] = gax
-        grad_cell[1] = gay
+    energy = finish_pairs(ib, fb, c, speed, r1, tab, dt2, r, rc, k, p, with_grad, work, g, energy,
+                          gax, gay, grad_cp, grad_cell)  # fmt: skip
     return energy, True
