@@ -214,7 +214,6 @@ SCALARS = dict(
     (
         _q("delta_E_b", "mJ", "bending-energy gap E_b(zero force) - min E_b"),
         _q("delta_E_c", "mJ", "contact-energy gap E_c(zero force) - min E_c"),
-        _q("energy_gap", "mJ", "the pulling direction's jamming gap (x: delta_E_c, y: delta_E_b)"),
         _q("jamming_gap", "mJ", "the pulling direction's jamming gap (x: delta_E_c, y: delta_E_b)"),
         _q("E_b_rest", "mJ", "bending energy at zero force"),
         _q("E_c_rest", "mJ", "contact energy at zero force"),

@@ -122,7 +122,7 @@ def test_adaptive_job_writes_brackets(adaptive_run):
     with h5py.File(adaptive_run) as f:
         for s in series.values():
             assert s["status"] == "done" and s["hi_mm"] - s["lo_mm"] <= 0.02 + 1e-9
-            gaps = {g.attrs["L_mm"]: g.attrs["energy_gap"] for g in f["sweeps"].values()
+            gaps = {g.attrs["L_mm"]: g.attrs["jamming_gap"] for g in f["sweeps"].values()
                     if g.attrs["direction"] == s["direction"]}  # fmt: skip
             assert gaps[s["lo_mm"]] >= 5e-5 > gaps[s["hi_mm"]]
             assert all(g < 5e-5 for L, g in gaps.items() if L > s["hi_mm"])

@@ -60,7 +60,7 @@ def test_sweep_result_round_trips_every_field(zero, tmp_path):
     protocol = SweepProtocol(step_mm=0.02, switch_strain=0.04, stop_stress_N_per_mm=0.03)
     sweep = strain_sweep(PARAMS, zero, "x", protocol, FIDELITY, SOLVER)
     record = sweep.to_record()
-    assert record["delta_E_c"] == sweep.energy_gaps.delta_E_c == record["energy_gap"]
+    assert record["delta_E_c"] == sweep.energy_gaps.delta_E_c == record["jamming_gap"]
     back = SweepResult.from_record(_through_hdf5(tmp_path, record))
     _assert_same(sweep, back)
 
@@ -83,3 +83,20 @@ def test_run_and_sweep_paths_give_the_same_sweep(tiny_reference):
     assert stored.record["stress_envelope"][0] == sweep.stress_envelope[0] == force / a_perp0
     for name in ("strain", "stress", "stress_envelope", "bending_energy", "contact_energy"):
         np.testing.assert_array_equal(stored.record[name], getattr(sweep, name), err_msg=name)
+
+
+def test_records_of_earlier_versions_read_under_todays_names(tmp_path):
+    """A sweep stored as earlier versions stored it (``energy_gap``, since renamed
+    ``jamming_gap``) reads with today's name, from a file and from a journal entry."""
+    import h5py
+
+    from knitsweep.store.format import _read_group
+    from knitsweep.store.journal import Entry, decode, encode
+
+    with h5py.File(tmp_path / "old.h5", "w") as f:
+        g = f.create_group("sweeps/abc")
+        g.attrs["energy_gap"] = 1.5e-4
+        attrs, _ = _read_group(g)
+    assert attrs["jamming_gap"] == 1.5e-4 and "energy_gap" not in attrs
+    entry = decode(encode(Entry("sweeps", "abc", {"energy_gap": 2e-4}, {"status": "done"})))
+    assert entry.record == {"jamming_gap": 2e-4}

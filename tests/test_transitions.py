@@ -364,9 +364,13 @@ def test_group_series_groups_sorts_and_picks_the_jamming_gap():
         assert sx.params == (("k", k), ("B", 90.0), ("r_core", 0.325), ("r", R), ("p", 2.4))
         np.testing.assert_array_equal(sx.L_over_r, L / R)
         np.testing.assert_array_equal(sy.L_over_r, L / R)
-        np.testing.assert_array_equal(sx.gap, np.maximum(INTERCEPT + SLOPE_L * (L - 0.3 * k), 0))
-        np.testing.assert_array_equal(sy.gap, np.maximum(INTERCEPT + SLOPE_L * (L - 0.6 * k), 0))
-        assert not sx.L_over_r.flags.writeable and not sx.gap.flags.writeable
+        np.testing.assert_array_equal(
+            sx.jamming_gap, np.maximum(INTERCEPT + SLOPE_L * (L - 0.3 * k), 0)
+        )
+        np.testing.assert_array_equal(
+            sy.jamming_gap, np.maximum(INTERCEPT + SLOPE_L * (L - 0.6 * k), 0)
+        )
+        assert not sx.L_over_r.flags.writeable and not sx.jamming_gap.flags.writeable
     assert_plain(sx.as_dict())
 
 
@@ -375,7 +379,7 @@ def test_series_transitions_reduce_records():
     out = series_transitions(recs)
     for key, s in group_series(recs).items():
         assert isinstance(out[key], Transition)
-        assert out[key] == transition(s.L_over_r, s.gap)
+        assert out[key] == transition(s.L_over_r, s.jamming_gap)
     # Larger k jams to larger L (paper Fig. 4c), y beyond x.
     t = {key: v.L_over_r_trans for key, v in out.items()}
     base = (90.0, 0.325, R, 2.4)
@@ -384,12 +388,12 @@ def test_series_transitions_reduce_records():
 
 def test_group_series_explicit_gap_and_custom_keys():
     recs = [
-        {"k": 0.1, "direction": "x", "L_over_r": 15.1, "gap": 0.0, "delta_E_c": 9.0},
-        {"k": 0.1, "direction": "x", "L_over_r": 15.0, "gap": 1e-3},
+        {"k": 0.1, "direction": "x", "L_over_r": 15.1, "jamming_gap": 0.0, "delta_E_c": 9.0},
+        {"k": 0.1, "direction": "x", "L_over_r": 15.0, "jamming_gap": 1e-3},
     ]
     (s,) = group_series(recs, keys=("k",)).values()
     np.testing.assert_array_equal(s.L_over_r, [15.0, 15.1])
-    np.testing.assert_array_equal(s.gap, [1e-3, 0.0])
+    np.testing.assert_array_equal(s.jamming_gap, [1e-3, 0.0])
 
 
 @pytest.mark.parametrize(
@@ -414,7 +418,7 @@ def test_group_series_bad_record(bad, match):
 
 def test_group_series_missing_fields_and_duplicates():
     good = {"k": 0.1, "B": 90.0, "r_core": 0.325, "r": R, "p": 2.4, "direction": "y"}
-    with pytest.raises(ValueError, match=r"records\[0\]: needs 'gap' or 'delta_E_b'"):
+    with pytest.raises(ValueError, match=r"records\[0\]: needs 'jamming_gap' or 'delta_E_b'"):
         group_series([{**good, "L_over_r": 15.0, "delta_E_c": 1e-3}])
     with pytest.raises(ValueError, match=r"records\[0\]: needs 'L_over_r'"):
         group_series([{**good, "delta_E_b": 1e-3}])

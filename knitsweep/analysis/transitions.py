@@ -112,23 +112,23 @@ class GapSeries(PlainDict):
         params: the fixed parameters as ((name, value), ...) in the order of ``keys``.
         direction: 'x' or 'y'.
         L_over_r: shape (n,), strictly increasing (read-only).
-        gap: shape (n,), N·mm, the jamming gap at each L/r (read-only).
+        jamming_gap: shape (n,), N·mm, the jamming gap at each L/r (read-only).
     """
 
     params: tuple[tuple[str, Any], ...]
     direction: str
     L_over_r: np.ndarray
-    gap: np.ndarray
+    jamming_gap: np.ndarray
 
 
-def _series(L_over_r: Any, gap: Any) -> tuple[np.ndarray, np.ndarray]:
+def _series(L_over_r: Any, jamming_gap: Any) -> tuple[np.ndarray, np.ndarray]:
     """Checked copies of a series, sorted by L/r; duplicates and negative gaps refused."""
     x = check_array("L_over_r", L_over_r)
-    g = check_array("gap", gap, allow_inf=True)
-    check_same_length(L_over_r=x, gap=g)
+    g = check_array("jamming_gap", jamming_gap, allow_inf=True)
+    check_same_length(L_over_r=x, jamming_gap=g)
     if np.any(g < 0.0):
         i = int(np.flatnonzero(g < 0.0)[0])
-        raise ValueError(f"gap: entry {i} is {float(g[i])!r}; energy gaps are >= 0")
+        raise ValueError(f"jamming_gap: entry {i} is {float(g[i])!r}; energy gaps are >= 0")
     order = np.argsort(x, kind="stable")
     x, g = x[order], g[order]
     same = np.flatnonzero(np.diff(x) == 0.0)
@@ -137,7 +137,7 @@ def _series(L_over_r: Any, gap: Any) -> tuple[np.ndarray, np.ndarray]:
     return x, g
 
 
-def linear_jammed_run(L_over_r: Any, gap: Any, tolerance: float = GAP_THRESHOLD) -> slice:
+def linear_jammed_run(L_over_r: Any, jamming_gap: Any, tolerance: float = GAP_THRESHOLD) -> slice:
     """Which jammed points the Table S4 line is fitted to: the linear jammed regime.
 
     The rule, deterministic and on the gaps alone: start at the dense end, the
@@ -151,7 +151,7 @@ def linear_jammed_run(L_over_r: Any, gap: Any, tolerance: float = GAP_THRESHOLD)
 
     Args:
         L_over_r: shape (n,), strictly increasing (the jammed points of a series).
-        gap: shape (n,), N·mm, ≥ 0 (+inf allowed).
+        jamming_gap: shape (n,), N·mm, ≥ 0 (+inf allowed).
         tolerance: N·mm, > 0.
 
     Returns:
@@ -159,7 +159,7 @@ def linear_jammed_run(L_over_r: Any, gap: Any, tolerance: float = GAP_THRESHOLD)
         the series.
     """
     tolerance = check_scalar("tolerance", tolerance, positive=True)
-    x, g = _series(L_over_r, gap)
+    x, g = _series(L_over_r, jamming_gap)
     finite = np.flatnonzero(np.isfinite(g))
     if finite.size < 2:
         return slice(0, 0)
@@ -221,7 +221,7 @@ def _result(
     )
 
 
-def transition(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> Transition:
+def transition(L_over_r: Any, jamming_gap: Any, threshold: float = GAP_THRESHOLD) -> Transition:
     """(L/r)_trans, its bracket, the jammed-regime fit and ΔL/r of one series.
 
     Paper "Energy Markers for Jamming": (L/r)_trans is "the first stitch length with
@@ -236,7 +236,7 @@ def transition(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> Tra
     Args:
         L_over_r: shape (n,), n ≥ 1, distinct; sorted here if unsorted (the gap
             follows). Passing L in mm instead gives the same results in mm.
-        gap: shape (n,), N·mm, ≥ 0 (ΔE_c for x, ΔE_b for y).
+        jamming_gap: shape (n,), N·mm, ≥ 0 (ΔE_c for x, ΔE_b for y).
         threshold: N·mm, > 0 (paper: :data:`GAP_THRESHOLD`). A point is unjammed when gap < threshold.
 
     Returns:
@@ -247,7 +247,7 @@ def transition(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> Tra
             naming the argument; threshold ≤ 0.
     """
     threshold = check_scalar("threshold", threshold, positive=True)
-    x, g = _series(L_over_r, gap)
+    x, g = _series(L_over_r, jamming_gap)
     below = np.flatnonzero(g < threshold)
     if below.size == 0:
         return _result("jammed_throughout", None, float(x[-1]), x, g, x.size, threshold, "grid")
@@ -257,15 +257,17 @@ def transition(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> Tra
     return _result("transition", float(x[i]), float(x[i - 1]), x, g, i, threshold, "grid")
 
 
-def threshold_crossing(L_over_r: Any, gap: Any, threshold: float = GAP_THRESHOLD) -> float | None:
+def threshold_crossing(
+    L_over_r: Any, jamming_gap: Any, threshold: float = GAP_THRESHOLD
+) -> float | None:
     """Where the gap crosses the threshold inside the transition bracket, linearly
     interpolated between the last jammed and the first unjammed point: a continuous
     (L/r)_trans (same units as ``L_over_r``) whose error a study can measure. None
     unless the series has a transition with a finite gap on its jammed side."""
-    t = transition(L_over_r, gap, threshold)
+    t = transition(L_over_r, jamming_gap, threshold)
     if t.status != "transition":
         return None
-    x, g = _series(L_over_r, gap)
+    x, g = _series(L_over_r, jamming_gap)
     i = int(np.searchsorted(x, t.L_over_r_trans))
     if not math.isfinite(g[i - 1]):
         return None
@@ -277,7 +279,7 @@ def transition_from_bracket(
     lo: float,
     hi: float,
     L_over_r: Any = None,
-    gap: Any = None,
+    jamming_gap: Any = None,
     threshold: float = GAP_THRESHOLD,
 ) -> Transition:
     """A transition found by bisection: (L/r)_trans = ``hi``, bracket (``lo``, ``hi``).
@@ -292,14 +294,14 @@ def transition_from_bracket(
 
     Args:
         lo, hi: the bracket, lo < hi (L/r, dimensionless).
-        L_over_r, gap: optional sampled series, shape (n,) each (see :func:`transition`).
+        L_over_r, jamming_gap: optional sampled series, shape (n,) each (see :func:`transition`).
         threshold: N·mm, > 0.
 
     Returns:
         :class:`Transition` with ``status='transition'`` and ``source='bracket'``.
 
     Raises:
-        ValueError: lo ≥ hi, only one of L_over_r/gap given, or a series inconsistent
+        ValueError: lo ≥ hi, only one of L_over_r/jamming_gap given, or a series inconsistent
             with the bracket (a point below hi under the threshold, a point at hi at or
             above it, a point at lo below it).
     """
@@ -308,12 +310,12 @@ def transition_from_bracket(
     threshold = check_scalar("threshold", threshold, positive=True)
     if not lo < hi:
         raise ValueError(f"bracket (lo, hi) = ({lo!r}, {hi!r}): needs lo < hi")
-    if (L_over_r is None) != (gap is None):
-        raise ValueError("L_over_r and gap: give both or neither")
+    if (L_over_r is None) != (jamming_gap is None):
+        raise ValueError("L_over_r and jamming_gap: give both or neither")
     if L_over_r is None:
         empty = np.zeros(0)
         return _result("transition", hi, lo, empty, empty, 0, threshold, "bracket")
-    x, g = _series(L_over_r, gap)
+    x, g = _series(L_over_r, jamming_gap)
     before = x < hi
     if np.any(before & (g < threshold)):
         bad = float(x[np.flatnonzero(before & (g < threshold))[0]])
@@ -377,9 +379,11 @@ def _record_L_over_r(i: int, rec: Mapping[str, Any]) -> float:
 
 
 def _record_gap(i: int, rec: Mapping[str, Any], direction: str) -> float:
-    name = "gap" if "gap" in rec else JAMMING_GAP[direction]
+    name = "jamming_gap" if "jamming_gap" in rec else JAMMING_GAP[direction]
     if name not in rec:
-        raise ValueError(f"records[{i}]: needs 'gap' or '{name}' for direction {direction!r}")
+        raise ValueError(
+            f"records[{i}]: needs 'jamming_gap' or '{name}' for direction {direction!r}"
+        )
     return check_scalar(f"records[{i}][{name!r}]", rec[name])
 
 
@@ -389,7 +393,7 @@ def group_series(
     """Group per-sweep records into series for :func:`transition`.
 
     Each record is a flat mapping with 'direction' ('x' or 'y'), every name in
-    ``keys``, 'L_over_r' (or 'L' and 'r', mm, giving L/r = L/r), and the gap: 'gap'
+    ``keys``, 'L_over_r' (or 'L' and 'r', mm, giving L/r = L/r), and the gap: 'jamming_gap'
     if present, else the direction's jamming gap, 'delta_E_c' for x and 'delta_E_b'
     for y (the names of :class:`~knitsweep.analysis.metrics.EnergyGaps`). Other fields
     are ignored. Parameter values are grouped by equality, so give each the same
@@ -442,6 +446,6 @@ def series_transitions(
 ) -> dict[tuple[tuple[Any, ...], str], Transition]:
     """:func:`transition` of every series of :func:`group_series` (same keys and order)."""
     return {
-        key: transition(s.L_over_r, s.gap, threshold)
+        key: transition(s.L_over_r, s.jamming_gap, threshold)
         for key, s in group_series(records, keys).items()
     }

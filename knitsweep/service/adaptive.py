@@ -163,7 +163,7 @@ class Refiner:
             return
         status = str(sweep_meta.get("status"))
         if status == DONE:
-            gap = float(sweep_meta["energy_gap"])
+            gap = float(sweep_meta["jamming_gap"])
         elif status == NOT_KNITTABLE:
             gap = JAMMED_GAP
         else:

@@ -63,6 +63,18 @@ def split_record(record: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]
     return arrays, {k: v for k, v in record.items() if k not in arrays}
 
 
+RENAMED = {"energy_gap": "jamming_gap"}
+"""Record names that files and journal entries of earlier versions used: old -> new."""
+
+
+def renamed(values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` (a record or its attributes, as read) under today's names."""
+    for old, new in RENAMED.items():
+        if old in values and new not in values:
+            values[new] = values.pop(old)
+    return values
+
+
 def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
     """A task's record as datasets (arrays) and attributes (scalars) of ``group``;
     every dataset gets ``units`` and ``long_name`` and labelled dimension scales
@@ -138,4 +150,4 @@ def _read_group(group) -> tuple[dict[str, Any], dict[str, Any]]:
         if ds.dtype.kind == "O":
             v = np.array([s.decode() if isinstance(s, bytes) else s for s in v], dtype=object)
         data[k] = v
-    return attrs, data
+    return renamed(attrs), data

@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from .format import renamed
+
 MAGIC = b"KSJ1"
 ENTRY_FORMAT = 1
 SUFFIX = ".entry"
@@ -180,7 +182,7 @@ def decode(data: bytes, with_data: bool = True) -> Entry:
         raise Malformed(f"unreadable ({type(e).__name__})") from None
     if not (isinstance(kind, str) and isinstance(task_id, str)):
         raise Malformed("kind or task id is not a string")
-    return Entry(kind, task_id, record, meta)
+    return Entry(kind, task_id, renamed(record), renamed(meta))
 
 
 # ---- the journal directory ------------------------------------------------------

@@ -34,7 +34,8 @@ they cannot be resumed or merged into.
   (``ZeroForce.to_record``: every field of every start);
 * ``/sweeps/<id>``: one strain sweep (``SweepResult.to_record``: arrays over steps,
   step 0 = zero force), with its energy gaps ``delta_E_b``, ``delta_E_c`` and
-  ``energy_gap`` (the direction's jamming gap: ΔE_c in x, ΔE_b in y) as attributes;
+  ``jamming_gap`` (the direction's jamming gap: ΔE_c in x, ΔE_b in y; ``energy_gap`` in
+  files of earlier versions, read under the new name) as attributes;
 * ``/series/<id>`` (adaptive jobs): one L series' final transition bracket.
 Each task group has attributes ``status`` (done | failed | not_knittable),
 ``message``, the stitch parameters (``L_mm`` … ``twist_bound``, and ``L_over_r``),

@@ -93,7 +93,7 @@ class SweepResult:
         """Every field as storable values: the per-step and per-start arrays,
         ``total_energy``, ``sweep_status``, the stop reason as ``message``, the counts
         and the energy gaps (``delta_E_b``, ``delta_E_c`` and the direction's
-        ``energy_gap``)."""
+        ``jamming_gap``)."""
         gaps = self.energy_gaps
         return {
             **self.arrays(),
@@ -108,7 +108,7 @@ class SweepResult:
             "wall_seconds": self.wall_seconds,
             "delta_E_b": gaps.delta_E_b,
             "delta_E_c": gaps.delta_E_c,
-            "energy_gap": gaps.jamming_gap(self.direction),
+            "jamming_gap": gaps.jamming_gap(self.direction),
         }
 
     @classmethod
