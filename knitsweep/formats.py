@@ -17,6 +17,7 @@ from pydantic import ValidationError
 
 from .config import StitchParams
 from .errors import InputError, describe_validation_error, did_you_mean
+from .quantities import PARAMETER_NAMES
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
 
 MAX_TEXT_BYTES = 1_000_000
@@ -107,17 +108,8 @@ class AuthorsConfig:
     output_prefix: str | None
 
 
-# key -> (StitchParams field or setting name, factor from their units to ours)
-_PARAM_KEYS = {
-    "stitch_length": ("L_mm", 1.0),
-    "bending_modulus": ("B_mN_mm2", 2e3),  # B/2 in N mm^2 -> B in mN mm^2
-    "regularization": ("regularization_mN_mm4", 1e3),
-    "yarn_radius": ("r_mm", 1.0),
-    "core_radius": ("r_core_mm", 1.0),
-    "max_twist_constraint": ("twist_bound", 1.0),
-    "contact_rigidity": ("k_mN_per_mm2", 1e3),  # N/mm^2 -> mN/mm^2
-    "contact_exponent": ("p", 1.0),
-}
+# key -> (StitchParams field, factor from their units to ours)
+_PARAM_KEYS = {p.authors_key: (p.field, p.authors_factor) for p in PARAMETER_NAMES.values()}
 _FLOAT_KEYS = {"ftol", "step_size", "init_dimension", "final_dimension"}
 _OTHER_KEYS = {"interactions_per_segment", "sweep_direction", "init_file", "output_prefix"}
 KNOWN_KEYS = tuple(sorted(set(_PARAM_KEYS) | _FLOAT_KEYS | _OTHER_KEYS))

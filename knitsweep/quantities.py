@@ -87,15 +87,41 @@ SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regulari
 """The parameters held fixed along a series in L (the paper's k, B, r_core, r, p, and the
 regularisation and twist bound, which files of different jobs may differ in)."""
 
-PARAM_SYMBOLS = {
-    "k_mN_per_mm2": ("k", "mN/mm²"),
-    "B_mN_mm2": ("B", "mN·mm²"),
-    "r_core_mm": ("r_core", "mm"),
-    "r_mm": ("r", "mm"),
-    "p": ("p", ""),
-    "regularization_mN_mm4": ("reg", "mN·mm⁴"),
-    "twist_bound": ("c_tw", ""),
-}
+
+@dataclass(frozen=True)
+class Parameter:
+    """Every name of one stitch parameter: its field (job files, tables, HDF5
+    attributes), plain-text ``symbol`` and display ``unit`` (tables, progress lines),
+    ``math`` symbol (figures, TeX math mode), command-line ``flag`` ("" if none), and
+    the authors' config key with the factor from their units to knitsweep's (docs/model.md §10)."""
+
+    field: str
+    symbol: str
+    unit: str
+    math: str
+    flag: str
+    authors_key: str
+    authors_factor: float = 1.0
+
+
+PARAMETER_NAMES = {
+    p.field: p
+    for p in (
+        Parameter("L_mm", "L", "mm", "L", "--L", "stitch_length"),
+        Parameter("k_mN_per_mm2", "k", "mN/mm²", "k", "--k", "contact_rigidity", 1e3),
+        Parameter("B_mN_mm2", "B", "mN·mm²", "B", "--B", "bending_modulus", 2e3),  # from B/2
+        Parameter("r_mm", "r", "mm", "r", "--r", "yarn_radius"),
+        Parameter("r_core_mm", "r_core", "mm", r"r_{\rm core}", "--r-core", "core_radius"),
+        Parameter("p", "p", "", "p", "--p", "contact_exponent"),
+        Parameter("regularization_mN_mm4", "reg", "mN·mm⁴", r"{\rm reg}", "--regularization",
+                  "regularization", 1e3),
+        Parameter("twist_bound", "c_tw", "", r"c_{\rm tw}", "", "max_twist_constraint"),
+    )
+}  # fmt: skip
+"""The one table of the stitch parameters' names, by field."""
+
+PARAM_SYMBOLS = {name: (PARAMETER_NAMES[name].symbol, PARAMETER_NAMES[name].unit)
+                 for name in SERIES_PARAMS}  # fmt: skip
 """Plain-text symbol and unit of every series parameter (table headers, labels)."""
 
 _RELAXATION = dict(

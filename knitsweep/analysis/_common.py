@@ -8,31 +8,20 @@ Python values (float, int, bool, str, None, lists and dicts of those), never NaN
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
 import numpy as np
 
+from ..config import plain_value
+
 DIRECTIONS = ("x", "y")
 
 
 def to_plain(value: Any) -> Any:
-    """Convert ``value`` to plain Python values; non-finite floats become None."""
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: to_plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, dict):
-        return {str(k): to_plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return [to_plain(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    return value
+    """``value`` in plain Python values, non-finite floats as None
+    (``config.plain_value``)."""
+    return plain_value(value, finite=True)
 
 
 class PlainDict:

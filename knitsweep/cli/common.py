@@ -105,11 +105,12 @@ def stitch_inputs(config, **flags):
     """(StitchParams, Fidelity) from defaults < an authors' config < explicit flags."""
     from ..config import Fidelity, StitchParams
     from ..formats import read_authors_config
+    from ..quantities import PARAMETER_NAMES
 
-    names = {
-        "L": "L_mm", "B": "B_mN_mm2", "k": "k_mN_per_mm2", "p": "p", "r": "r_mm",
-        "r_core": "r_core_mm", "regularization": "regularization_mN_mm4", "stitch": "stitch",
-    }  # fmt: skip
+    # the flags' keyword names ("--r-core" -> r_core) -> the fields
+    names = {p.flag.lstrip("-").replace("-", "_"): p.field for p in PARAMETER_NAMES.values()
+             if p.flag}  # fmt: skip
+    names["stitch"] = "stitch"
     phys: dict = {}
     fid: dict = {}
     if config is not None:

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..analysis.paper import TABLE_S4, at_table_1
 from ..analysis.transitions import Transition
-from ..quantities import PARAM_SYMBOLS, SERIES_PARAMS
+from ..quantities import PARAMETER_NAMES, SERIES_PARAMS
 from .plotting import (
     BENDING_COLOUR,
     BRACKET_FILL,
@@ -43,10 +43,6 @@ from .plotting import (
 from .reduce import Reduction, series_key
 from .tables import series_label
 
-MATH_SYMBOL = {"k_mN_per_mm2": "k", "B_mN_mm2": "B", "r_core_mm": r"r_{\rm core}", "r_mm": "r",
-               "p": "p", "regularization_mN_mm4": r"{\rm reg}",
-               "twist_bound": r"c_{\rm tw}"}  # fmt: skip
-"""Math-mode symbol of every series parameter (``quantities.SERIES_PARAMS``)."""
 GAP_LABEL = {"x": r"$\Delta E_c$", "y": r"$\Delta E_b$"}
 
 
@@ -358,7 +354,7 @@ def fig4c_phase_diagram(red: Reduction, notes: list[str]) -> Any:
             if any(t is not None for t in rows):
                 _transition_marks(ax, xs, rows, d, lim, label=False)
         parameter_axis(ax, xs)
-        sym, unit = MATH_SYMBOL[p], PARAM_SYMBOLS[p][1]
+        sym, unit = PARAMETER_NAMES[p].math, PARAMETER_NAMES[p].unit
         ax.set_xlabel(f"${sym}$" + (f" ({unit})" if unit else ""))
         ax.set_ylabel(L_OVER_R)
         ax.grid(False)

@@ -20,6 +20,7 @@ from typing import Any
 
 from .. import __version__
 from ..analysis.transitions import GAP_THRESHOLD
+from ..config import plain_value
 from ..errors import InputError
 from .plotting import FigureOptions
 from .results import Results, load
@@ -87,8 +88,7 @@ def table(frame: Any, columns: Sequence[str], table_id: str) -> str:
 
 
 def _plain(value: Any) -> Any:
-    if hasattr(value, "item"):
-        value = value.item()
+    value = plain_value(value)
     try:
         import pandas as pd
 

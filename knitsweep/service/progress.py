@@ -16,8 +16,6 @@ import time
 from dataclasses import dataclass, field
 from typing import IO, Any
 
-PARAM_LABELS = {"L_mm": "L", "k_mN_per_mm2": "k", "B_mN_mm2": "B", "r_mm": "r",
-                "r_core_mm": "r_core", "p": "p", "regularization_mN_mm4": "reg"}  # fmt: skip
 KINDS = ("point", "sweep")
 
 
@@ -171,7 +169,9 @@ def task_line(kind: str, params: Any, direction: str | None, status: str, second
               varying: tuple[str, ...], where: str = "") -> str:  # fmt: skip
     """'sweep x  L=11.4 k=0.1  done  1.32 s  rank 2@host' for a finished task."""
     names = ["L_mm", *(n for n in varying if n != "L_mm")]
-    values = " ".join(f"{PARAM_LABELS.get(n, n)}={getattr(params, n):g}" for n in names)
+    from ..quantities import PARAMETER_NAMES
+
+    values = " ".join(f"{PARAMETER_NAMES[n].symbol}={getattr(params, n):g}" for n in names)
     head = f"{kind} {direction}" if direction else f"{kind}  "
     return f"{head}  {values}  {status}  {seconds:.2f} s" + (f"  {where}" if where else "")
 

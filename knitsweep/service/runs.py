@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import Any, Literal
 
-from ..config import DONE, FAILED
+from ..config import DONE, FAILED, plain_value
 from ..errors import InputError
 from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
 from ..store.journal import scan
@@ -164,7 +164,7 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
         counts[s] = counts.get(s, 0) + 1
         if by is not None:
             value = e.meta.get(by, "-") if by != "direction" or e.kind != POINTS else "-"
-            group = groups.setdefault(value.item() if hasattr(value, "item") else value, {})
+            group = groups.setdefault(plain_value(value), {})
             group[s] = group.get(s, 0) + 1
         if s == FAILED:
             failures.append(f"{e.kind[:-1]} {e.task_id}: {e.meta.get('message', '')}")

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ..config import plain_value
 from .format import renamed
 
 MAGIC = b"KSJ1"
@@ -108,17 +109,10 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
 
 def _plain(value: Any) -> Any:
     """A JSON value for a scalar of a record or its metadata."""
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):  # 0-d: a scalar
-        return value.item()
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    raise TypeError(f"cannot journal a value of type {type(value).__name__}")
+    try:
+        return plain_value(value, strict=True)
+    except TypeError:
+        raise TypeError(f"cannot journal a value of type {type(value).__name__}") from None
 
 
 def encode(entry: Entry) -> bytes:
