@@ -23,6 +23,7 @@ from ..analysis.transitions import GAP_THRESHOLD
 from ..config import plain_value
 from ..errors import InputError
 from .plotting import FigureOptions
+from .reduce import TRANSITION_SUMMARY
 from .results import Results, load
 
 _STYLE = """
@@ -49,8 +50,7 @@ window.addEventListener("load", function () {
 """
 
 _TRANSITION_COLUMNS = ("direction", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm", "p",
-                       "status", "L_over_r_trans", "bracket_lower", "bracket_upper",
-                       "L_trans_mm", "delta_L_over_r", "n_points", "n_missing")  # fmt: skip
+                       *(f for c in TRANSITION_SUMMARY for f in c.fields))  # fmt: skip
 _SWEEP_COLUMNS = ("direction", "L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm",
                   "r_core_mm", "Y_sec_N_per_mm", "sigma0_N_per_mm", "delta_E_b_mJ",
                   "delta_E_c_mJ", "jammed", "regime", "n_steps", "max_strain")  # fmt: skip

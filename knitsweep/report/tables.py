@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..quantities import PARAM_SYMBOLS, table_column
-from .reduce import Reduction
+from .reduce import TRANSITION_SUMMARY, Reduction, SummaryColumn
 from .results import Results
 
 TABLES = ("transitions.csv", "sweeps.csv", "points.csv", "problems.csv")
@@ -84,9 +84,17 @@ def _fmt(value: Any, spec: str = ".4g") -> str:
     return format(value, spec)
 
 
-def _fit_range(lo: float | None, hi: float | None) -> str:
-    """'10.50–11.20' (mm), or one dash when there is no fit."""
-    return "–" if lo is None or hi is None else f"{lo:.2f}–{hi:.2f}"
+def summary_cell(column: SummaryColumn, row: Mapping[str, Any]) -> str:
+    """A transitions-summary cell: one value, a bracket '[lo, hi]' or a fitted range
+    'lo–hi' (one dash when there is no fit)."""
+    values = [row[f] for f in column.fields]
+    if len(values) == 1:
+        v = values[0]
+        return _fmt(v, column.spec) if column.spec else ("–" if v is None else str(v))
+    lo, hi = values
+    if column.header == "bracket":
+        return f"[{_fmt(lo, column.spec)}, {_fmt(hi, column.spec)}]"
+    return "–" if lo is None or hi is None else f"{lo:{column.spec}}–{hi:{column.spec}}"
 
 
 def transitions_text(red: Reduction) -> str:
@@ -100,26 +108,11 @@ def transitions_text(red: Reduction) -> str:
     lines = []
     if red.constants:
         lines.append("fixed: " + series_label(red.constants, red.constants))
-    head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying), "status", "(L/r)_trans",
-            "bracket", "L_trans/mm", "ΔL/r", "fit slope/mm", "fit intercept", "fit L/mm",
-            "n_jam", "missing"]  # fmt: skip
-    body = []
-    for t in red.transitions:
-        lo, hi = t["bracket_lower"], t["bracket_upper"]
-        body.append([
-            t["direction"],
-            *(f"{t[k]:g}" for k in red.varying),
-            t["status"],
-            _fmt(t["L_over_r_trans"], ".3f"),
-            f"[{_fmt(lo, '.3f')}, {_fmt(hi, '.3f')}]",
-            _fmt(t["L_trans_mm"], ".3f"),
-            _fmt(t["delta_L_over_r"], ".3f"),
-            _fmt(t["fit_slope_mJ_per_mm"], ".3e"),
-            _fmt(t["fit_intercept_mJ"], ".3e"),
-            _fit_range(t["fit_L_lo_mm"], t["fit_L_hi_mm"]),
-            str(t["n_jammed"]),
-            str(t["n_missing"]),
-        ])  # fmt: skip
+    head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying),
+            *(c.header for c in TRANSITION_SUMMARY)]  # fmt: skip
+    body = [[t["direction"], *(f"{t[k]:g}" for k in red.varying),
+             *(summary_cell(c, t) for c in TRANSITION_SUMMARY)]
+            for t in red.transitions]  # fmt: skip
     widths = [max(len(r[i]) for r in [head, *body]) for i in range(len(head))]
     for r in [head, *body]:
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
