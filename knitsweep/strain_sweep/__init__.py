@@ -1,7 +1,7 @@
 """Strain sweeps: the stitch pulled step by step in x or y (docs/model.md §8).
 
-``sweep`` runs the protocol, ``chains`` carries and merges the starts, ``schedule``
-chooses the steps and says when the observables asked for are determined, ``result``
+``sweep`` runs the protocol (its starts carried and merged as chains by
+``knitsweep.relax.chains``), ``schedule`` chooses the steps and says when the observables asked for are determined, ``result``
 holds a sweep and its lossless record.
 """
 

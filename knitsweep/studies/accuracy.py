@@ -47,9 +47,6 @@ LABELS = {"E0": "zero-force energy", "a_x0": "$a_{x0}$", "a_y0": "$a_{y0}$",
           "Y_sec_x": "$Y_{sec}$ (x)", "Y_sec_y": "$Y_{sec}$ (y)", "sigma0_x": r"$\sigma_0$ (x)",
           "sigma0_y": r"$\sigma_0$ (y)", "dEc_x": r"$\Delta E_c$ (x)", "dEb_y": r"$\Delta E_b$ (y)",
           "L_over_r_trans_x": "$(L/r)_{trans}$ (x)"}  # fmt: skip
-UNITS = {"E0": "mJ", "a_x0": "mm", "a_y0": "mm", "Y_sec_x": "N/mm", "Y_sec_y": "N/mm",
-         "sigma0_x": "N/mm", "sigma0_y": "N/mm", "dEc_x": "mJ", "dEb_y": "mJ",
-         "L_over_r_trans_x": "1"}  # fmt: skip
 
 
 @dataclass(frozen=True)
