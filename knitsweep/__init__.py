@@ -14,7 +14,8 @@ if TYPE_CHECKING:
 
     from .report.results import Results
 
-__version__ = "0.1.0"
+from ._version import __version__
+
 __all__ = ["__version__", "load"]
 
 

@@ -28,9 +28,9 @@ from .config import (
     SolverSettings,
     StartSettings,
     StitchParams,
-    plain_value,
 )
 from .model import CellModel
+from .plain import plain_value
 from .relax import Relaxation, single_threaded, walk_starts
 from .stitches import DEFAULT_STITCH
 

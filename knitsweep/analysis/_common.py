@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import plain_value
+from ..plain import plain_value
 
 DIRECTIONS = ("x", "y")
 

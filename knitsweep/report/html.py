@@ -18,13 +18,13 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
+from .._version import __version__
 from ..analysis.transitions import GAP_THRESHOLD
-from ..config import plain_value
 from ..errors import InputError
+from ..plain import plain_value
 from .plotting import FigureOptions
-from .reduce import TRANSITION_SUMMARY
 from .results import Results, load
+from .tables import TRANSITION_SUMMARY
 
 _STYLE = """
 body { font: 14px/1.45 system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;

@@ -36,8 +36,9 @@ from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickn
 from ..analysis.metrics import JAMMING_GAP
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition, series_transitions
-from ..config import Fidelity, plain_value
+from ..config import Fidelity
 from ..errors import InputError
+from ..plain import plain_value
 from ..quantities import PARAM_SYMBOLS, SERIES_PARAMS
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
@@ -257,33 +258,6 @@ def _problem(kind: str, row: Mapping[str, Any], meta: Mapping[str, Any], why: st
         **{k: row[k] for k in SERIES_PARAMS},
         "message": why or str(meta.get("error_message", "")),
     }
-
-
-@dataclass(frozen=True)
-class SummaryColumn:
-    """One column of the transitions summary (the text table and the HTML report):
-    its header, the fields of ``transition_row`` it shows (two for a range) and how
-    each is formatted (a ``format`` spec)."""
-
-    header: str
-    fields: tuple[str, ...]
-    spec: str = ""
-
-
-TRANSITION_SUMMARY = (
-    SummaryColumn("status", ("status",)),
-    SummaryColumn("(L/r)_trans", ("L_over_r_trans",), ".3f"),
-    SummaryColumn("bracket", ("bracket_lower", "bracket_upper"), ".3f"),
-    SummaryColumn("L_trans/mm", ("L_trans_mm",), ".3f"),
-    SummaryColumn("ΔL/r", ("delta_L_over_r",), ".3f"),
-    SummaryColumn("fit slope/mm", ("fit_slope_mJ_per_mm",), ".3e"),
-    SummaryColumn("fit intercept", ("fit_intercept_mJ",), ".3e"),
-    SummaryColumn("fit L/mm", ("fit_L_lo_mm", "fit_L_hi_mm"), ".2f"),
-    SummaryColumn("n_jam", ("n_jammed",)),
-    SummaryColumn("missing", ("n_missing",)),
-)
-"""The transitions summary after the direction and the series parameters that vary:
-the one list of its columns (``transition_row`` holds every field, for the CSV)."""
 
 
 def transition_row(

@@ -12,11 +12,12 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..quantities import PARAM_SYMBOLS, table_column
-from .reduce import TRANSITION_SUMMARY, Reduction, SummaryColumn
+from .reduce import Reduction
 from .results import Results
 
 TABLES = ("transitions.csv", "sweeps.csv", "points.csv", "problems.csv")
@@ -76,6 +77,33 @@ def series_label(values: Mapping[str, float], names: Iterable[str]) -> str:
         symbol, unit = PARAM_SYMBOLS[name]
         parts.append(f"{symbol} = {values[name]:g}{f' {unit}' if unit else ''}")
     return ", ".join(parts)
+
+
+@dataclass(frozen=True)
+class SummaryColumn:
+    """One column of the transitions summary (the text table and the HTML report):
+    its header, the fields of ``transition_row`` it shows (two for a range) and how
+    each is formatted (a ``format`` spec)."""
+
+    header: str
+    fields: tuple[str, ...]
+    spec: str = ""
+
+
+TRANSITION_SUMMARY = (
+    SummaryColumn("status", ("status",)),
+    SummaryColumn("(L/r)_trans", ("L_over_r_trans",), ".3f"),
+    SummaryColumn("bracket", ("bracket_lower", "bracket_upper"), ".3f"),
+    SummaryColumn("L_trans/mm", ("L_trans_mm",), ".3f"),
+    SummaryColumn("ΔL/r", ("delta_L_over_r",), ".3f"),
+    SummaryColumn("fit slope/mm", ("fit_slope_mJ_per_mm",), ".3e"),
+    SummaryColumn("fit intercept", ("fit_intercept_mJ",), ".3e"),
+    SummaryColumn("fit L/mm", ("fit_L_lo_mm", "fit_L_hi_mm"), ".2f"),
+    SummaryColumn("n_jam", ("n_jammed",)),
+    SummaryColumn("missing", ("n_missing",)),
+)
+"""The transitions summary after the direction and the series parameters that vary:
+the one list of its columns (``transition_row`` holds every field, for the CSV)."""
 
 
 def _fmt(value: Any, spec: str = ".4g") -> str:

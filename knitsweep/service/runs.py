@@ -13,8 +13,9 @@ import time
 from pathlib import Path
 from typing import Any, Literal
 
-from ..config import DONE, FAILED, plain_value
+from ..config import DONE, FAILED
 from ..errors import InputError
+from ..plain import plain_value
 from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
 from ..store.journal import scan
 from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root

@@ -19,7 +19,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from .. import __version__
+from .._version import __version__
 from ..errors import InputError
 
 TemplateName = Literal["mpi", "array", "merge"]

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import plain_value
+from ..plain import plain_value
 from .format import renamed
 
 MAGIC = b"KSJ1"

@@ -7,7 +7,7 @@ import os
 import socket
 from pathlib import Path
 
-from .. import __version__
+from .._version import __version__
 
 
 def environment_metadata() -> dict[str, str]:
