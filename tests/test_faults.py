@@ -18,6 +18,7 @@ from conftest import SHIPPED, TINY, assert_same_results
 
 from knitsweep import service
 from knitsweep.config import InputError
+from knitsweep.store.checksum import seal_root
 from knitsweep.store.format import journal_dir
 from knitsweep.store.journal import Entry, Malformed, decode, encode, write_entry
 from knitsweep.store.read import iter_entries, read_entry, read_root
@@ -127,6 +128,7 @@ def test_malformed_entries_are_reported_and_recomputed(tiny_reference, tmp_path)
         tid = sorted(f["sweeps"])[0]
         del f[f"sweeps/{tid}"]
         f.attrs["run_status"] = "interrupted"
+        seal_root(f)  # as the writer does at a checkpoint
     journal = journal_dir(out)
     journal.mkdir()
     path = write_entry(journal, Entry("sweeps", tid, {}, {"status": "done"}))

@@ -135,6 +135,9 @@ def problems_text(red: Reduction, limit: int = 20) -> list[str]:
     """One line per failed, not-knittable or unanalysable task (at most ``limit``)."""
     lines = []
     for p in red.problems[:limit]:
+        if p["status"] == "damaged":  # its parameters are not trusted either
+            lines.append(f"damaged: {p['kind']} {p['task_id']} in {p['file']}: {p['message']}")
+            continue
         where = f"{p['direction']}, " if p["direction"] else ""
         lines.append(
             f"{p['status']}: {p['kind']} {p['task_id']} ({where}L = {p['L_mm']:g} mm, "

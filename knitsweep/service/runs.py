@@ -15,6 +15,7 @@ from typing import Any, Literal
 
 from ..config import DONE, FAILED
 from ..errors import InputError
+from ..store.checksum import FileCheck
 from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
 from ..store.journal import scan
 from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root
@@ -156,7 +157,8 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
     series = []
     groups: dict[Any, dict[str, int]] = {}
     journalled, problems = scan(journal_dir(path))  # once, before the file (iter_entries)
-    for e in iter_entries(path, journalled=journalled):
+    check = FileCheck()
+    for e in iter_entries(path, journalled=journalled, check=check):
         if e.kind == SERIES:
             series.append(e.meta)
             continue
@@ -203,6 +205,11 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
         if by is not None
         else {},
         "journal_problems": journal_problems(path, problems),
+        "damaged": [f"{kind[:-1]} {tid}: {why}" for kind, tid, why in check.damaged]
+        + check.structure,
+        "verified": check.verified,
+        "unverified": check.unverified,
+        "check": check.lines(path),
         "series": {
             "done": sum(m.get("status") == "done" for m in series),
             "total": len(series),
@@ -263,7 +270,9 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
         raise InputError(f"inputs come from different jobs: {names}")
     job = JobSpec.model_validate_json(roots[0]["job_json"])
     points, sweeps = plan(job)
-    chosen = choose_entries(e for path in inputs for e in iter_entries(path, with_data=True))
+    checks = {str(p): FileCheck() for p in inputs}
+    chosen = choose_entries(e for path in inputs
+                            for e in iter_entries(path, with_data=True, check=checks[str(path)]))  # fmt: skip
     writer = ResultWriter(out, job, {"n_points": len(points), "n_sweeps": len(sweeps),
                                      "shard": "", "merged_from": ", ".join(map(str, inputs))})  # fmt: skip
     try:
@@ -275,4 +284,5 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     n_sweeps = sum(kind == SWEEPS for kind, _ in chosen)
     n_points = sum(kind == POINTS for kind, _ in chosen)
     return {"file": str(out), "points": n_points, "sweeps": n_sweeps,
-            "expected": len(points) + len(sweeps), "complete": complete}  # fmt: skip
+            "expected": len(points) + len(sweeps), "complete": complete,
+            "problems": [f"{p}: {line}" for p, c in checks.items() for line in c.lines(p)]}  # fmt: skip

@@ -168,10 +168,10 @@ def decode(data: bytes, with_data: bool = True) -> Entry:
             index = 0
             for part, target in (("record", record), ("meta", meta)):
                 for key in header["layout"][part]:
+                    value = npz[f"a{index}"]  # read even if not kept: a reader that
+                    if f"{part}/{key}" in objects:  # skips it must not count it intact
+                        value = np.array(value.tolist(), dtype=object)
                     if with_data or part == "meta":
-                        value = npz[f"a{index}"]
-                        if f"{part}/{key}" in objects:
-                            value = np.array(value.tolist(), dtype=object)
                         target[key] = value
                     index += 1
     except Malformed:

@@ -56,6 +56,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from .checksum import FileCheck, seal_root
 from .format import (
     KINDS,
     RESULTS_SCHEMA_VERSION,
@@ -76,7 +77,7 @@ from .journal import (
     write_entry,
 )
 from .provenance import environment_metadata
-from .read import read_root
+from .read import _open, file_entries, read_root
 
 __all__ = ["ResultWriter", "StorageError", "atomic_write_bytes", "check_compatible",
            "writer_alive"]  # fmt: skip
@@ -149,6 +150,8 @@ class ResultWriter:
         self._lag_attrs: dict[str, Any] = {}
         self._shadow_ready = False
         self.malformed: list[tuple[Path, str]] = []
+        self.check = FileCheck()  # damaged and unverified tasks found in the file
+        self.stored: list[Entry] = []
         self._lock_fd: int | None = None
         self._root_updates: dict[str, Any] = {}
         self.previous_run_seconds = 0.0  # wall time of the earlier runs into this file
@@ -208,15 +211,10 @@ class ResultWriter:
 
     def _open_or_create(self, extra_meta: dict[str, Any]) -> None:
         h5py = _h5()
-        for stale in (
-            self._shadow,
-            self._spare,
-            *self.path.parent.glob(f".{self.path.name}.*.tmp"),
-        ):
-            stale.unlink(missing_ok=True)  # a checkpoint interrupted before its rename
         if self.path.exists():
             root = read_root(self.path)
             grown = check_compatible(self.path, self.job, root)
+            self._read_stored()
             self.previous_run_seconds = float(root.get("run_seconds", 0.0))
             # the file describes the job now running; applied at the first checkpoint
             self._root_updates = {**extra_meta, "run_status": "running"}
@@ -224,6 +222,12 @@ class ResultWriter:
                 self._root_updates |= {"job_json": self.job.model_dump_json(),
                                        "job_hash": self.job.job_hash, "job_name": self.job.name,
                                        "grown_from": grown}  # fmt: skip
+        for stale in (  # only now: a damaged file was refused with its spare kept
+            self._shadow,
+            self._spare,
+            *self.path.parent.glob(f".{self.path.name}.*.tmp"),
+        ):
+            stale.unlink(missing_ok=True)  # a checkpoint interrupted before its rename
         try:
             self.journal.mkdir(exist_ok=True)
             for stale in self.journal.glob(".*.tmp"):
@@ -251,12 +255,29 @@ class ResultWriter:
                     f.attrs[k] = v
                 for kind in KINDS:
                     f.create_group(kind)
+                seal_root(f)
             _fsync_file(tmp)
             os.replace(tmp, self.path)
         except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
             tmp.unlink(missing_ok=True)
             raise storage_error(self.path, e) from None
         fsync_dir(self.path.parent)
+
+    def _read_stored(self) -> None:
+        """The file's intact tasks (metadata) and its ``FileCheck``; InputError, with
+        the way to recover, if damage hides tasks whose ids cannot be read."""
+        with _open(self.path) as f:
+            self.stored = list(file_entries(f, False, self.check))
+        if self.check.structure:
+            raise InputError(f"{self.path} is damaged ({'; '.join(self.check.structure)}): "
+                             f"`knitsweep recover {self.path}` rebuilds it from its intact "
+                             "tasks, the spare copy and the journal")  # fmt: skip
+
+    def entries(self) -> list[Entry]:
+        """Every finished, intact task: the file's (but those the journal has a newer
+        version of) and the journal's (metadata only for the file's)."""
+        newer = set(self._pending)
+        return [e for e in self.stored if (e.kind, e.task_id) not in newer] + self.journalled
 
     def add(self, kind: str, task_id: str, record: dict[str, Any], meta: dict[str, Any]) -> None:
         """Journal one finished task durably (atomic, fsynced); StorageError if the
@@ -338,6 +359,7 @@ class ResultWriter:
                 _put(f, e)
             for k, v in {**self._lag_attrs, **(attrs or {})}.items():
                 f.attrs[k] = v
+            seal_root(f)
         _fsync_file(self._shadow)
         try:  # keep the version being replaced: it becomes the next shadow
             os.link(self.path, self._spare)
