@@ -17,7 +17,7 @@ PKG = Path(__file__).resolve().parents[1] / "knitsweep"
 # bottom to top; a module belongs to the first entry that is a prefix of its name
 LAYERS = [
     ["state"],
-    ["errors"],
+    ["errors", "env"],
     ["config", "kernels", "quantities"],
     ["analysis", "formats"],
     ["store"],

@@ -10,11 +10,13 @@ results file is not a complete run.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..formats import make_output_dir, replace_file
 from ..quantities import PARAM_SYMBOLS, table_column
 from .reduce import Reduction
 from .results import Results
@@ -36,12 +38,12 @@ def write_csv(path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequence[s
     """Write ``rows`` with the given column order (missing keys → empty cells); the
     header names each column as ``knitsweep.quantities`` does (unit suffixes), the
     same names as the DataFrames of ``knitsweep.load``."""
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow([table_column(c) for c in columns])
-        for row in rows:
-            w.writerow([_cell(row.get(c)) for c in columns])
-    return path
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    w.writerow([table_column(c) for c in columns])
+    for row in rows:
+        w.writerow([_cell(row.get(c)) for c in columns])
+    return replace_file(path, f.getvalue().encode())  # never through a symbolic link
 
 
 def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
@@ -51,8 +53,7 @@ def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
     Returns:
         The paths written, in the order of :data:`TABLES`.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_output_dir(out_dir)
     written = []
     for name, frame in zip(TABLES, (results.transitions, results.sweeps, results.points,
                                     results.problems), strict=True):  # fmt: skip

@@ -246,6 +246,14 @@ def read_root(path: str | Path) -> dict[str, Any]:
     if missing:
         raise InputError(f"{path}: schema_version {version} but no {' or '.join(missing)} "
                          "attribute: not a complete knitsweep results file")  # fmt: skip
+    if version >= 2:  # the same test in every command: a spec that is no JSON object is foreign
+        try:
+            spec = json.loads(str(attrs["job_json"]))
+        except ValueError:
+            spec = None
+        if not isinstance(spec, dict) or not isinstance(attrs["job_hash"], str):
+            raise InputError(f"{path}: its job_json attribute is not a job spec: not a results "
+                             "file written by knitsweep")  # fmt: skip
     return attrs
 
 

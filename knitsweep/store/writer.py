@@ -46,6 +46,7 @@ datasets.
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import gc
 import os
@@ -56,6 +57,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..formats import refuse_link
 from .checksum import FileCheck, seal_root
 from .format import (
     KINDS,
@@ -65,6 +67,7 @@ from .format import (
     journal_dir,
     lock_path,
     now,
+    progress_path,
 )
 from .journal import (
     Entry,
@@ -109,12 +112,23 @@ def _put(f, entry: Entry) -> None:
     _write_group(f.create_group(group_path), entry.record, entry.meta)
 
 
+def check_no_links(path: Path) -> None:
+    """InputError if the results file or any file the writer makes beside it (lock,
+    journal directory, shadow, spare, progress file) is a symbolic link: the writer
+    never writes, replaces or deletes through one."""
+    for p, what in ((path, "results file"), (lock_path(path), "lock file"),
+                    (journal_dir(path), "journal directory"),
+                    (_hidden(path, "shadow"), "shadow copy"), (_hidden(path, "spare"), "spare copy"),
+                    (progress_path(path), "progress file")):  # fmt: skip
+        refuse_link(p, what)
+
+
 def _lockable(path: Path, mode: int) -> bool | None:
     """Whether ``path`` could be flocked with ``mode`` right now (the probe's own lock
     is dropped at once): False if another holder blocks it, None if the file cannot be
     opened or locked at all."""
     try:
-        fd = os.open(path, os.O_RDONLY)
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
     except OSError:
         return None
     try:
@@ -170,11 +184,14 @@ class ResultWriter:
         if not self.path.parent.is_dir():
             raise StorageError(2, f"cannot write {self.path}: directory {self.path.parent} "
                                "does not exist")  # fmt: skip
+        check_no_links(self.path)
         while True:
             try:
-                fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
+                fd = os.open(lock, os.O_CREAT | os.O_RDWR | os.O_NOFOLLOW, 0o644)
             except OSError as e:
-                raise storage_error(self.path, e) from None
+                if e.errno == errno.ELOOP:  # made a link since check_no_links looked
+                    check_no_links(self.path)
+                raise storage_error(lock, e) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -200,7 +217,8 @@ class ResultWriter:
 
     def _release_lock(self) -> None:
         if self._lock_fd is not None:
-            lock_path(self.path).unlink(missing_ok=True)
+            with contextlib.suppress(OSError):  # e.g. the directory became read-only:
+                lock_path(self.path).unlink(missing_ok=True)  # a stale lock is harmless
             os.close(self._lock_fd)
             self._lock_fd = None
 
@@ -236,6 +254,8 @@ class ResultWriter:
             raise storage_error(self.journal, e) from None
         entries, self.malformed = scan(self.journal, with_data=True)
         for path, _ in self.malformed:
+            if path.is_symlink():
+                continue  # reported; not ours to remove
             with contextlib.suppress(OSError):
                 path.unlink(missing_ok=True)  # reported by the caller; the task is redone
         self._pending = {(e.kind, e.task_id): e for e in entries}
@@ -346,7 +366,7 @@ class ResultWriter:
             # once per launch (or after a reader held the retired file open: unlink
             # that name first, copying onto it would rewrite the reader's file)
             self._shadow.unlink(missing_ok=True)
-            shutil.copyfile(self.path, self._shadow)
+            _copy_new(self.path, self._shadow)
             self._lag, self._lag_attrs = [], {}
         self._shadow_ready = False  # until it is published whole
         with _h5().File(self._shadow, "a") as f:
@@ -404,8 +424,18 @@ def _quiet_failed_writes():
 
 
 def _fsync_file(path: Path) -> None:
-    with open(path, "rb") as fh:
-        os.fsync(fh.fileno())
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _copy_new(src: Path, dst: Path) -> None:
+    """Copy ``src`` to a new file ``dst``, created exclusively (never through a link)."""
+    fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+    with open(src, "rb") as fin, os.fdopen(fd, "wb") as fout:
+        shutil.copyfileobj(fin, fout, 1 << 20)
 
 
 def writer_alive(lock: Path) -> bool:
