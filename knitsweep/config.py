@@ -462,6 +462,6 @@ class Numerics(BaseModel):
 
 def plain_value(v: Any) -> Any:
     """A numpy scalar (as read from HDF5 attributes) as a Python value, bytes as str."""
-    if isinstance(v, bytes):
-        return v.decode()
+    if isinstance(v, bytes):  # an attribute of a foreign or damaged file may not be UTF-8
+        return v.decode("utf-8", "backslashreplace")
     return v.item() if hasattr(v, "item") and getattr(v, "ndim", 1) == 0 else v

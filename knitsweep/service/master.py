@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import DONE, FAILED
-from ..errors import InputError
+from ..errors import InputError, remedy
 from ..store.format import POINTS, SERIES, SWEEPS, progress_path, split_record
 from ..store.journal import StorageError, atomic_write_bytes
 from ..store.read import read_entry
@@ -373,8 +373,8 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
         summary.interrupted = True
         summary.storage_error = str(failure)
         print(f"error: {failure}; {written} of {summary.total} tasks are in {out} (with its "
-              "journal); make room and run the same command again to resume", file=sys.stderr,
-              flush=True)  # fmt: skip
+              f"journal); {remedy(failure)} and run the same command again to resume",
+              file=sys.stderr, flush=True)  # fmt: skip
     elif summary.interrupted:
         name = signal.Signals(signals.received() or signal.SIGINT).name
         print(f"\ninterrupted by {name}: {written} of {summary.total} tasks are in {out}; to "
