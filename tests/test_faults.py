@@ -357,29 +357,35 @@ def test_render_to_a_missing_directory_is_refused_before_any_compute(tmp_path):
 
 @pytest.mark.slow
 def test_directory_made_read_only_mid_run(tmpfs, six_stored):
-    """The output's file system turns read-only once the first result is journalled:
-    one line naming the cause (read-only, not a full disk), exit 3, no traceback (the
-    lock's removal used to raise PermissionError), and the file still opens."""
+    """The output directory refuses new files once the first result is journalled
+    (``chattr +i``: even root cannot create files in it): one line naming the cause
+    (permission, not a full disk), exit 3, no traceback (the lock's removal used to
+    raise PermissionError), and the file still opens."""
     job, _ = six_stored
-    d = tmpfs("64m")
+    d = tmpfs("64m") / "out"
+    d.mkdir()
     out = d / "r.h5"
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     proc = subprocess.Popen([sys.executable, "-m", "knitsweep", "run", str(job), "--out",
                              str(out), "--quiet"], stderr=subprocess.PIPE, text=True, env=env)  # fmt: skip
     landed = False
     t0 = time.monotonic()
-    while proc.poll() is None and time.monotonic() - t0 < 300:
-        if journal_dir(out).is_dir() and any(journal_dir(out).glob("*.entry")):
-            subprocess.run(["mount", "-o", "remount,ro", str(d)], check=True)
-            landed = proc.poll() is None
-            break
-        time.sleep(0.01)
-    err = proc.communicate(timeout=300)[1]
+    try:
+        while proc.poll() is None and time.monotonic() - t0 < 300:
+            if journal_dir(out).is_dir() and any(journal_dir(out).glob("*.entry")):
+                subprocess.run(["chattr", "+i", str(d)], check=True)
+                landed = proc.poll() is None
+                break
+            time.sleep(0.01)
+        err = proc.communicate(timeout=300)[1]
+    finally:
+        subprocess.run(["chattr", "-i", str(d)], check=False)
     print(f"read-only fault landed mid-run: {int(landed)} of 1")
     assert landed, f"the run ended before the fault: {err}"
     assert proc.returncode == 3, err
     errors = [line for line in err.splitlines() if line.startswith("error: ")]
-    assert len(errors) == 1 and "read-only" in errors[0] and "make room" not in errors[0], err
-    assert "Traceback" not in err
+    assert len(errors) == 1, err
+    assert "permission denied" in errors[0] and "make the directory writable" in errors[0], err
+    assert "make room" not in errors[0] and "Traceback" not in err, err
     with h5py.File(out) as f:
         assert f.attrs["schema_version"] == 2

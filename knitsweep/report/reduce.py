@@ -138,6 +138,10 @@ def _check_meta(path: Path, entry: Entry) -> dict[str, Any]:
             f"{path}: {entry.kind[:-1]} {entry.task_id} lacks attribute(s) "
             f"{', '.join(missing)}: not a knitsweep results file of this schema"
         )
+    for k in _REQUIRED_META[1:]:  # the parameters: numbers (a foreign file may hold text)
+        if isinstance(meta[k], bool) or not isinstance(meta[k], (int, float)):
+            raise InputError(f"{path}: {entry.kind[:-1]} {entry.task_id}: {k} = {meta[k]!r}: "
+                             "must be a number: not a knitsweep results file of this schema")  # fmt: skip
     return meta
 
 
