@@ -389,3 +389,21 @@ def test_directory_made_read_only_mid_run(tmpfs, six_stored):
     assert "make room" not in errors[0] and "Traceback" not in err, err
     with h5py.File(out) as f:
         assert f.attrs["schema_version"] == 2
+
+
+@pytest.mark.parametrize("command", ["run", "merge", "phase-diagram", "report", "render",
+                                     "accuracy", "sweep"])  # fmt: skip
+def test_out_into_a_missing_directory_is_refused_alike_by_every_command(tiny_reference, command):
+    """``--out`` follows one rule in every command: its directory must exist
+    (phase-diagram and accuracy make only their own output directory)."""
+    out = "/nonexistent/dir/x"
+    args = {
+        "run": ("run", TINY, "--out", out + ".h5"),
+        "merge": ("merge", out + ".h5", tiny_reference),
+        "phase-diagram": ("phase-diagram", tiny_reference, "--out", out),
+        "report": ("report", tiny_reference, "--out", out + ".html"),
+        "render": ("render", "--out", out + ".png", "--state", SHIPPED / "Init_1.dat"),
+        "accuracy": ("accuracy", "--out", out),
+        "sweep": ("sweep", "--direction", "x", "--out", out + ".csv"),
+    }[command]
+    one_error_line(knitsweep(*args), "/nonexistent/dir does not exist")
