@@ -123,7 +123,7 @@ def test_a_linked_journal_entry_is_not_read_and_not_deleted(shared, user):
 
 
 @pytest.mark.parametrize("command", ["phase-diagram-dir", "phase-diagram-file", "report",
-                                     "render", "merge"])  # fmt: skip
+                                     "render", "merge", "recover"])  # fmt: skip
 def test_outputs_are_never_written_through_a_link(shared, user, command):
     d, victim, vdir = shared
     if command == "phase-diagram-dir":
@@ -140,9 +140,12 @@ def test_outputs_are_never_written_through_a_link(shared, user, command):
     elif command == "render":
         (d / "r.png").symlink_to(victim)
         args = ("render", "--out", "r.png", "--state", str(ROOT / "knitsweep/data/Init_1.dat"))
-    else:
+    elif command == "merge":
         (d / "m.h5").symlink_to(victim)
         args = ("merge", "m.h5", "t.h5")
+    else:
+        (d / "m.h5").symlink_to(victim)
+        args = ("recover", "m.h5")
     proc = as_user(user, *args, cwd=d)
     assert proc.returncode == 2, proc.stderr
     assert "symbolic link" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr

@@ -19,7 +19,7 @@ from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, SWEEPS, journ
 from ..store.journal import scan
 from ..store.read import choose_entries
 from ..store.salvage import salvage, set_aside
-from ..store.writer import ResultWriter, writer_alive
+from ..store.writer import ResultWriter, check_no_links, writer_alive
 from .jobs import JobSpec, load_job
 
 _RUN_ATTRS = ("run_status", "finished_at")  # set by the rebuild itself
@@ -37,6 +37,7 @@ def recover(path: str | Path, job_path: str | Path | None = None) -> dict[str, A
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{path}: a directory, not a results file")
+    check_no_links(path)  # nothing is read, renamed or written through a link
     if writer_alive(lock_path(path)):
         raise InputError(f"{path} is being written by a running knitsweep; stop it first")
     sources = [salvage(path), salvage(_hidden(path, "shadow")), salvage(_hidden(path, "spare"))]
