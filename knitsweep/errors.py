@@ -6,6 +6,7 @@ unknown keys). No numba, no scipy; ``config`` and everything above use it.
 from __future__ import annotations
 
 import difflib
+import errno
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
@@ -14,6 +15,44 @@ from pydantic import BaseModel, ValidationError
 # ---- errors -----------------------------------------------------------------------
 class InputError(ValueError):
     """Bad user input, reported as one line naming the field and the allowed range."""
+
+
+class StorageError(OSError):
+    """A results file, journal entry or output could not be written (disk full,
+    read-only or missing directory, permissions): one line for the user."""
+
+
+def storage_error(what: Any, e: BaseException) -> StorageError:
+    """A one-line StorageError for a failed write of ``what``."""
+    code = getattr(e, "errno", None)
+    text = str(e)
+    if code == errno.ENOSPC or "No space left" in text:
+        reason = "the disk is full"
+    elif code == errno.EROFS or "Read-only file system" in text:
+        reason = "the file system is read-only"
+    elif code in (errno.EACCES, errno.EPERM) or "Permission denied" in text:
+        reason = "permission denied"
+    elif code == errno.ENOENT:
+        reason = "its directory does not exist"
+    elif code == errno.EDQUOT:
+        reason = "the disk quota is exceeded"
+    elif code == errno.ELOOP:
+        reason = "it is a symbolic link (knitsweep never writes through one)"
+    else:
+        reason = getattr(e, "strerror", None) or (text.splitlines() or [type(e).__name__])[0]
+    return StorageError(code or errno.EIO, f"cannot write {what}: {reason}")
+
+
+def remedy(e: BaseException) -> str:
+    """What to do about a failed write, by its cause (space, permission, or other)."""
+    code = getattr(e, "errno", None)
+    if code in (errno.ENOSPC, errno.EDQUOT):
+        return "make room"
+    if code in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return "make the directory writable (or move the files to one that is)"
+    if code == errno.ELOOP:
+        return "remove the symbolic link"
+    return "fix the cause"
 
 
 MAX_SEED = 2**63

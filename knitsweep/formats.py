@@ -84,7 +84,7 @@ def write_state(path: str | Path, x: np.ndarray) -> None:
     x = np.asarray(x, dtype=float)
     if x.ndim != 1 or x.size < 2:
         raise ValueError(f"a state is a vector ending with the periods, got shape {x.shape}")
-    Path(path).write_text("".join(f"{float(v)!r}\n" for v in x))
+    replace_file(Path(path), "".join(f"{float(v)!r}\n" for v in x).encode())
 
 
 def shipped_state(index: int = 1, stitch: str = DEFAULT_STITCH) -> np.ndarray:
@@ -172,15 +172,66 @@ def read_authors_config(path: str | Path) -> AuthorsConfig:
     )
 
 
+def refuse_link(path: str | Path, what: str) -> None:
+    """InputError if ``path`` is a symbolic link: knitsweep never writes, replaces or
+    deletes a file through one (it could point anywhere)."""
+    import os
+
+    if os.path.islink(path):
+        raise InputError(f"{what} {path}: is a symbolic link (to {os.readlink(path)}); "
+                         "knitsweep does not write through links: remove it or give the "
+                         "real path")  # fmt: skip
+
+
+def replace_file(path: str | Path, data: bytes, fsync: bool = False) -> Path:
+    """Write ``data`` to ``path`` through a new temporary file (created exclusively,
+    never following a link) and an atomic rename: a reader sees the old file or the
+    new one. A symbolic link at ``path`` is refused (StorageError, ELOOP); on failure
+    no temporary file is left and StorageError names the cause."""
+    import errno
+    import os
+
+    from .errors import StorageError, storage_error
+
+    path = Path(path)
+    if os.path.islink(path):
+        raise storage_error(path, OSError(errno.ELOOP, "symbolic link"))
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        if os.path.lexists(tmp):
+            os.unlink(tmp)  # this process's own leftover (a name with our pid)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]
+            if fsync:
+                os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except StorageError:
+        raise
+    except OSError as e:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise storage_error(path, e) from None
+    return path
+
+
 def check_writable(path: str | Path, what: str) -> Path:
     """Refuse, before any compute, an output ``path`` that cannot be written: a missing
-    or read-only directory, or a directory in its place (an existing file is
-    overwritten). Probes the directory by creating and removing a hidden file."""
+    or read-only directory, a directory or a symbolic link in its place (an existing
+    file is replaced). Probes the directory by creating and removing a hidden file.
+    Every command checks its outputs with this (``--out`` rules are the same in all)."""
     import os
     import tempfile
 
     path = Path(path)
     parent = path.parent
+    refuse_link(path, what)
     if not parent.is_dir():
         raise InputError(f"{what} {path}: directory {parent} does not exist")
     if path.is_dir():
@@ -196,18 +247,29 @@ def check_writable(path: str | Path, what: str) -> Path:
 
 
 def check_output_dir(path: str | Path, what: str) -> Path:
-    """Refuse an output directory whose place holds a file, or that cannot be
-    created or written (checked before any compute)."""
+    """Refuse an output directory that is a symbolic link, whose place holds a file,
+    whose parent does not exist (as for every output file: no directories are made
+    but this one), or that cannot be written (checked before any compute)."""
     path = Path(path)
+    refuse_link(path, what)
     if path.exists() and not path.is_dir():
         raise InputError(f"{what} {path}: exists and is not a directory")
     if path.is_dir():
         check_writable(path / "probe", what)
         return path
-    parent = path.parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if not parent.is_dir():
-        raise InputError(f"{what} {path}: {parent} is not a directory")
-    check_writable(parent / "probe", what)
+    check_writable(path, what)
+    return path
+
+
+def make_output_dir(path: str | Path, what: str = "--out") -> Path:
+    """The output directory ``path``, made if missing (its parent must exist), after
+    ``check_output_dir``; never a symbolic link."""
+    path = check_output_dir(path, what)
+    try:
+        path.mkdir(exist_ok=True)
+    except OSError as e:
+        from .errors import storage_error
+
+        raise storage_error(path, e) from None
+    refuse_link(path, what)
     return path

@@ -16,8 +16,8 @@ def plain_value(v: Any, *, finite: bool = False, strict: bool = False) -> Any:
     ``finite``: non-finite floats become None (JSON and tables). ``strict``: TypeError
     for anything that is not then None, bool, int, float, str, list or dict (what a
     journal entry may hold)."""
-    if isinstance(v, bytes):
-        return v.decode()
+    if isinstance(v, bytes):  # an attribute of a foreign or damaged file may not be UTF-8
+        return v.decode("utf-8", "backslashreplace")
     if dataclasses.is_dataclass(v) and not isinstance(v, type):
         v = {f.name: getattr(v, f.name) for f in dataclasses.fields(v)}
     if isinstance(v, dict):

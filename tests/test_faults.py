@@ -9,6 +9,7 @@ import pickle
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import h5py
@@ -18,6 +19,7 @@ from conftest import SHIPPED, TINY, assert_same_results
 
 from knitsweep import service
 from knitsweep.config import InputError
+from knitsweep.store.checksum import seal_root
 from knitsweep.store.format import journal_dir
 from knitsweep.store.journal import Entry, Malformed, decode, encode, write_entry
 from knitsweep.store.read import iter_entries, read_entry, read_root
@@ -127,6 +129,7 @@ def test_malformed_entries_are_reported_and_recomputed(tiny_reference, tmp_path)
         tid = sorted(f["sweeps"])[0]
         del f[f"sweeps/{tid}"]
         f.attrs["run_status"] = "interrupted"
+        seal_root(f)  # as the writer does at a checkpoint
     journal = journal_dir(out)
     journal.mkdir()
     path = write_entry(journal, Entry("sweeps", tid, {}, {"status": "done"}))
@@ -325,3 +328,82 @@ def test_checkpoints_append_in_place_and_never_touch_a_file_a_reader_holds(tmp_p
         assert sorted(f["sweeps"], key=lambda t: int(t[1:])) == [f"s{i}" for i in range(8)]
         assert [int(f["sweeps"][f"s{i}"].attrs["i"]) for i in range(8)] == list(range(8))
     assert leftovers(tmp_path) == [] and not journal_dir(out).exists()
+
+
+# ---- faults that once ended in a traceback -----------------------------------------
+
+
+@pytest.mark.parametrize("attr", ["message", "L_mm", "status"])
+def test_non_utf8_attributes_are_no_traceback(tmp_path, attr):
+    from results_factory import write_results
+
+    path = write_results(tmp_path / "u.h5", ks=(0.1,))
+    with h5py.File(path, "a") as f:
+        f[f"sweeps/{sorted(f['sweeps'])[0]}"].attrs[attr] = np.bytes_(b"\xff\xfe bad \xc3")
+    for args in (("phase-diagram", path, "--out", tmp_path / "pd", "--no-figures"),
+                 ("report", path, "--out", tmp_path / "r.html"), ("status", path)):  # fmt: skip
+        proc = knitsweep(*args)
+        assert proc.returncode in (0, 2), (args, proc.stderr)
+        assert "Traceback" not in proc.stderr and "UnicodeDecodeError" not in proc.stderr
+        if proc.returncode == 2:
+            one_error_line(proc, "u.h5")
+
+
+def test_render_to_a_missing_directory_is_refused_before_any_compute(tmp_path):
+    proc = knitsweep("render", "--out", "/nonexistent/dir/r.png", "--state",
+                     SHIPPED / "Init_1.dat")  # fmt: skip
+    one_error_line(proc, "directory /nonexistent/dir does not exist")
+
+
+@pytest.mark.slow
+def test_directory_made_read_only_mid_run(tmpfs, six_stored):
+    """The output directory refuses new files once the first result is journalled
+    (``chattr +i``: even root cannot create files in it): one line naming the cause
+    (permission, not a full disk), exit 3, no traceback (the lock's removal used to
+    raise PermissionError), and the file still opens."""
+    job, _ = six_stored
+    d = tmpfs("64m") / "out"
+    d.mkdir()
+    out = d / "r.h5"
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    proc = subprocess.Popen([sys.executable, "-m", "knitsweep", "run", str(job), "--out",
+                             str(out), "--quiet"], stderr=subprocess.PIPE, text=True, env=env)  # fmt: skip
+    landed = False
+    t0 = time.monotonic()
+    try:
+        while proc.poll() is None and time.monotonic() - t0 < 300:
+            if journal_dir(out).is_dir() and any(journal_dir(out).glob("*.entry")):
+                subprocess.run(["chattr", "+i", str(d)], check=True)
+                landed = proc.poll() is None
+                break
+            time.sleep(0.01)
+        err = proc.communicate(timeout=300)[1]
+    finally:
+        subprocess.run(["chattr", "-i", str(d)], check=False)
+    print(f"read-only fault landed mid-run: {int(landed)} of 1")
+    assert landed, f"the run ended before the fault: {err}"
+    assert proc.returncode == 3, err
+    errors = [line for line in err.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1, err
+    assert "permission denied" in errors[0] and "make the directory writable" in errors[0], err
+    assert "make room" not in errors[0] and "Traceback" not in err, err
+    with h5py.File(out) as f:
+        assert f.attrs["schema_version"] == 2
+
+
+@pytest.mark.parametrize("command", ["run", "merge", "phase-diagram", "report", "render",
+                                     "accuracy", "sweep"])  # fmt: skip
+def test_out_into_a_missing_directory_is_refused_alike_by_every_command(tiny_reference, command):
+    """``--out`` follows one rule in every command: its directory must exist
+    (phase-diagram and accuracy make only their own output directory)."""
+    out = "/nonexistent/dir/x"
+    args = {
+        "run": ("run", TINY, "--out", out + ".h5"),
+        "merge": ("merge", out + ".h5", tiny_reference),
+        "phase-diagram": ("phase-diagram", tiny_reference, "--out", out),
+        "report": ("report", tiny_reference, "--out", out + ".html"),
+        "render": ("render", "--out", out + ".png", "--state", SHIPPED / "Init_1.dat"),
+        "accuracy": ("accuracy", "--out", out),
+        "sweep": ("sweep", "--direction", "x", "--out", out + ".csv"),
+    }[command]
+    one_error_line(knitsweep(*args), "/nonexistent/dir does not exist")

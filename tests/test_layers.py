@@ -20,6 +20,7 @@ LAYERS = [
     ["_version"],
     ["plain"],
     ["errors"],
+    ["env"],
     ["kernels"],  # generic numba: knows no stitch, no settings
     ["stitches"],  # geometries behind one interface; their kernels call down into kernels
     ["config"],
@@ -46,12 +47,13 @@ MODULE_ORDER = {
     "stitches": ["base", "stockinette"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper"],
-    "store": ["format", "journal", "provenance", "read", "writer", "sweep_file"],
+    "store": ["checksum", "format", "journal", "provenance", "read", "writer", "salvage",
+              "sweep_file"],
     "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],
     "strain_sweep": ["result", "schedule", "sweep"],
     "studies": ["accuracy"],
     "service": ["signals", "grid", "jobs", "progress", "worker", "adaptive", "executors",
-                "slurm", "master", "runs"],
+                "slurm", "master", "runs", "recovery"],
     "report": ["force_columns", "reduce", "results", "tables", "plotting", "fig_energy",
                "fig_mechanics", "figures", "html", "render"],
     "cli": ["common", "model_commands", "run_commands", "analysis_commands", "app"],

@@ -19,12 +19,18 @@ def main() -> None:
     from ..service import signals
 
     signals.install(interruptible=True)
+    rc = 1
     try:
+        signals.test_point("imports")
         from .app import main as run_cli
 
         rc = run_cli()
-    except signals.Interrupted as e:  # during start-up, before typer took over
-        print(f"interrupted by {e}", file=sys.stderr, flush=True)
+    except BaseException as e:  # during start-up, before typer took over
+        interrupt = signals.as_interrupt(e)
+        if interrupt is None:
+            signals.quiet_exit()  # an unexpected error: no rank may wait for this one
+            raise
+        print(f"interrupted by {interrupt}", file=sys.stderr, flush=True)
         rc = signals.EXIT_INTERRUPTED
     signals.quiet_exit()
     results_file = sys.modules.get("knitsweep.store.writer")

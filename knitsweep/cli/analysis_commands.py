@@ -210,6 +210,9 @@ def accuracy(
             setting(spec)  # validate every setting before any compute
         if reference is not None and reference not in specs:
             raise InputError(f"reference = {reference!r}: must be one of --settings")
+        from ..formats import check_output_dir
+
+        check_output_dir(out, "--out")  # before any compute, as in every command
     compile_notice()
     results = accuracy_study(params, specs, Ls, workers=workers,
                              progress=lambda m: typer.echo(m, err=True), reference=reference)  # fmt: skip

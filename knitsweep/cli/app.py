@@ -17,12 +17,17 @@ def build_app() -> typer.Typer:
 def main() -> int:
     """The commands' exit code: usage errors become one line and exit code 2, a signal
     one line and exit code 3 (``knitsweep.cli.main`` handles signals first)."""
-    from ..service.signals import EXIT_INTERRUPTED, Interrupted
+    from ..service.signals import EXIT_INTERRUPTED, Interrupted, as_interrupt
 
     try:
         rc = build_app()(prog_name="knitsweep", standalone_mode=False)
     except Interrupted as e:
         typer.echo(f"interrupted by {e}", err=True)
+        rc = EXIT_INTERRUPTED
+    except RuntimeError as e:  # a signal's exception wrapped (e.g. in class creation)
+        if as_interrupt(e) is None:
+            raise
+        typer.echo(f"interrupted by {as_interrupt(e)}", err=True)
         rc = EXIT_INTERRUPTED
     except typer.Exit as e:
         rc = e.exit_code

@@ -96,6 +96,8 @@ def status(
         typer.echo(f"  failed {line}")
     for line in s["journal_problems"]:
         typer.echo(f"  malformed journal entry {line}: its task is recomputed on resume")
+    for line in s["check"]:
+        typer.echo(f"  {line}")
 
 
 @app.command()
@@ -114,6 +116,42 @@ def merge(
         else f"partial: {r['points'] + r['sweeps']} of {r['expected']} tasks"
     )
     typer.echo(f"{r['file']}: {r['points']} points, {r['sweeps']} sweeps ({state})")
+    for line in r["problems"]:
+        typer.echo(f"  {line}", err=True)
+
+
+@app.command()
+def recover(
+    results: Annotated[Path, typer.Argument(help="damaged results file")],
+    job: Annotated[Path | None, typer.Option("--job", help="the job file, if no copy of the "
+                   "file's job spec is intact")] = None,
+    as_json: JsonOpt = False,
+) -> None:  # fmt: skip
+    """Rebuild a damaged results file from its intact tasks, the previous checkpoint's
+    copy and the journal; say what was recovered and what must be recomputed."""
+    from ..service.recovery import recover as rebuild
+
+    with user_errors():
+        r = rebuild(results, job)
+    if as_json:
+        typer.echo(json.dumps(r))
+        return
+    if r["intact"]:
+        typer.echo(f"{r['file']}: intact ({r['verified']} tasks verified, {r['unverified']} "
+                   "without checksums): nothing to recover")  # fmt: skip
+        return
+    for source, note in r["sources"].items():
+        typer.echo(f"  {source}: {note}")
+    got = ", ".join(f"{n} from the {k}" for k, n in r["from"].items() if n)
+    typer.echo(f"{r['file']}: recovered {r['recovered']} of {r['planned']} tasks"
+               f"{' (' + got + ')' if got else ''}; the damaged file is kept as {r['kept']}")  # fmt: skip
+    for line in r["damaged_lost"]:
+        typer.echo(f"  damaged, not recovered: {line}")
+    if r["recompute"]:
+        typer.echo(f"{r['recompute']} tasks must be recomputed: run the job again with "
+                   f"--out {r['file']} to resume (finished tasks are skipped)")  # fmt: skip
+    else:
+        typer.echo("every planned task is recovered")
 
 
 # ---- knitsweep slurm … (batch scripts; knitsweep/slurm.py, slurm/README.md) -------

@@ -11,6 +11,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from ..formats import make_output_dir, replace_file
 from .fig_energy import fig3_energy_gaps, fig4a_gap_fit, fig4b_deltaL_vs_k, fig4c_phase_diagram
 from .fig_mechanics import (
     SMALL_STRAIN,
@@ -96,15 +97,14 @@ def write_figures(
     """Write every figure of :data:`FIGURES` that the reduction has data for, in each
     of ``options.formats``; one outcome per figure (its path: the first format)."""
     options = options or FigureOptions()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_output_dir(out_dir)
     outcomes = []
     for name, make in FIGURES.items():
         outcome, files = render_figure(red, name, make, options)
         paths = []
         for fmt, data in files.items():
             path = out / f"{Path(name).stem}.{fmt}"
-            path.write_bytes(data)
+            replace_file(path, data)  # never through a symbolic link
             paths.append(path)
         if paths:
             extra = tuple(f"also {p.name}" for p in paths[1:])

@@ -21,6 +21,7 @@ from typing import Any
 from .._version import __version__
 from ..analysis.transitions import GAP_THRESHOLD
 from ..errors import InputError
+from ..formats import check_writable, replace_file
 from ..plain import plain_value
 from .plotting import FigureOptions
 from .results import Results, load
@@ -194,14 +195,9 @@ def write_report(
     out = Path(out)
     if out.suffix.lower() not in (".html", ".htm"):
         raise InputError(f"out = '{out}': the report is an .html file")
-    if not out.parent.is_dir():
-        raise InputError(f"out = '{out}': directory {out.parent} does not exist")
+    check_writable(out, "--out")
     results = load(*paths, threshold=threshold)
-    text = report_html(results)
-    tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(out)
-    return out
+    return replace_file(out, report_html(results).encode("utf-8"))
 
 
 __all__ = ["report_html", "table", "write_report"]

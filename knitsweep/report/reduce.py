@@ -138,6 +138,10 @@ def _check_meta(path: Path, entry: Entry) -> dict[str, Any]:
             f"{path}: {entry.kind[:-1]} {entry.task_id} lacks attribute(s) "
             f"{', '.join(missing)}: not a knitsweep results file of this schema"
         )
+    for k in _REQUIRED_META[1:]:  # the parameters: numbers (a foreign file may hold text)
+        if isinstance(meta[k], bool) or not isinstance(meta[k], (int, float)):
+            raise InputError(f"{path}: {entry.kind[:-1]} {entry.task_id}: {k} = {meta[k]!r}: "
+                             "must be a number: not a knitsweep results file of this schema")  # fmt: skip
     return meta
 
 
@@ -370,6 +374,11 @@ def _partial_reasons(root: Mapping[str, Any], n_found: int) -> list[str]:
         reasons.append(f"run_status '{run_status}'")
     if n_found < n_expected:
         reasons.append(f"{n_found} of {n_expected} tasks present")
+    check = root.get("check")
+    if check is not None and (check.damaged or check.structure):
+        reasons.append(f"{len(check.damaged)} damaged task(s) not used"
+                       + (f" ({'; '.join(check.structure)})" if check.structure else "")
+                       + f": `knitsweep recover {root['file']}`, then resume")  # fmt: skip
     return reasons
 
 
@@ -434,6 +443,13 @@ def reduce_results(
 
     transition_of, transitions = _transitions(sweeps, problems, threshold)
     notes: list[str] = []
+    for r in roots:  # damaged tasks are never used: listed, and the file is partial
+        check = r["check"]
+        problems += [{"kind": kind[:-1], "task_id": tid, "status": "damaged", "direction": "",
+                      "message": why, "file": r["file"]} for kind, tid, why in check.damaged]  # fmt: skip
+        if check.unverified:
+            notes.append(f"{Path(r['file']).name}: {check.unverified} task(s) written without "
+                         "checksums (a knitsweep before checksums): read unverified")  # fmt: skip
     _adaptive([e for e in entries if e.kind not in tasks], transitions, notes)
     for row in (*points, *sweeps):
         row["regime"] = _regime(row, transition_of) if row["status"] == "done" else None

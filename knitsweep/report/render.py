@@ -15,6 +15,7 @@ matplotlib is imported lazily, with the Agg canvas and no pyplot.
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,7 @@ import numpy as np
 
 from ..config import StitchParams
 from ..errors import InputError
+from ..formats import check_writable, replace_file
 from ..kernels.bezier import basis_tables
 
 ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
@@ -285,8 +287,9 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
         note += f"{stitch.r_mm:g} mm)" + ("; saturated: one unit cell" if highlight else "")
         ax.text(1.0, -0.01, note, transform=ax.transAxes, ha="right", va="top", fontsize=10,
                 color="0.35")  # fmt: skip
-        fig.savefig(out, dpi=160, facecolor="white")
-    return out
+        buf = io.BytesIO()
+        fig.savefig(buf, format=Path(out).suffix.lstrip(".").lower(), dpi=160, facecolor="white")
+    return replace_file(out, buf.getvalue())  # never through a symbolic link
 
 
 # ---- where the stitch comes from ---------------------------------------------------
@@ -411,6 +414,7 @@ def render(
         raise InputError(f"width = {width_px}: must be in 100..6000 pixels")
     if (results is None) == (state is None):
         raise InputError("give either --results FILE --task ID, or --state FILE")
+    check_writable(out, "--out")  # before any compute, as in every command
     if results is not None:
         if task is None:
             raise InputError("--results needs --task ID (a point or sweep id)")

@@ -10,12 +10,14 @@ results file is not a complete run.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..formats import make_output_dir, replace_file
 from ..quantities import PARAM_SYMBOLS, table_column
 from .reduce import Reduction
 from .results import Results
@@ -37,12 +39,12 @@ def write_csv(path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequence[s
     """Write ``rows`` with the given column order (missing keys → empty cells); the
     header names each column as ``knitsweep.quantities`` does (unit suffixes), the
     same names as the DataFrames of ``knitsweep.load``."""
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow([table_column(c) for c in columns])
-        for row in rows:
-            w.writerow([_cell(row.get(c)) for c in columns])
-    return path
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    w.writerow([table_column(c) for c in columns])
+    for row in rows:
+        w.writerow([_cell(row.get(c)) for c in columns])
+    return replace_file(path, f.getvalue().encode())  # never through a symbolic link
 
 
 def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
@@ -52,8 +54,7 @@ def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
     Returns:
         The paths written, in the order of :data:`TABLES`.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_output_dir(out_dir)
     written = []
     for name, frame in zip(TABLES, (results.transitions, results.sweeps, results.points,
                                     results.problems), strict=True):  # fmt: skip
@@ -156,6 +157,9 @@ def problems_text(red: Reduction, limit: int = 20) -> list[str]:
     """One line per failed, not-knittable or unanalysable task (at most ``limit``)."""
     lines = []
     for p in red.problems[:limit]:
+        if p["status"] == "damaged":  # its parameters are not trusted either
+            lines.append(f"damaged: {p['kind']} {p['task_id']} in {p['file']}: {p['message']}")
+            continue
         where = f"{p['direction']}, " if p["direction"] else ""
         lines.append(
             f"{p['status']}: {p['kind']} {p['task_id']} ({where}L = {p['L_mm']:g} mm, "

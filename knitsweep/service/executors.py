@@ -171,12 +171,27 @@ def _lost(task, exc: BaseException) -> Reply:
     return Reply(task.task_id, None, error, -1, socket.gethostname(), 0.0)
 
 
-def release_workers(comm) -> None:
-    """Tell every MPI worker that there is no job (rank 0 refused it, or was
-    interrupted before handing it out)."""
+def release_workers(comm, code: int | None = None) -> None:
+    """Tell every MPI worker that there is no job: ``None`` (rank 0 refused it) or
+    the exit code they leave with (3: rank 0 was interrupted before handing it out)."""
     with signals.deferred():
         for rank in range(1, comm.Get_size()):
-            comm.send(None, dest=rank, tag=JOB)
+            comm.send(code, dest=rank, tag=JOB)
+    signals.mpi_handshake_done()
+
+
+def leave_at_start_up(comm) -> None:
+    """This rank ends before its part of the protocol (a signal during its imports,
+    class creation or MPI_Init; ``signals.quiet_exit``): rank 0 releases the workers,
+    a worker tells the master it LEFT and waits for its STOP (``_leave``), so that no
+    rank waits for this one."""
+    from mpi4py import MPI
+
+    with signals.deferred():
+        if comm.Get_rank() == 0:
+            release_workers(comm, signals.EXIT_INTERRUPTED)
+        else:
+            _leave(comm, MPI.Status(), Backoff())
 
 
 class MPIExecutor:
@@ -191,10 +206,13 @@ class MPIExecutor:
         self._sends: list = []  # requests of tasks not yet received by their worker
         self._stopped = False
         with signals.interruptible():  # compile once, into numba's cache, before the workers
+            signals.test_point("compile")
             prepare(job, stderr_notice)
+            signals.test_point("broadcast")
         with signals.deferred():
             for rank in self._outstanding:
                 comm.send(job.model_dump_json(), dest=rank, tag=JOB)
+        signals.mpi_handshake_done()
 
     @property
     def capacity(self) -> int:
@@ -207,6 +225,7 @@ class MPIExecutor:
         return sum(self._outstanding.values())
 
     def submit(self, task, zero: dict | None) -> None:
+        signals.test_point("handout")  # (deferred here: the master's loop sees it)
         live = [r for r in self._outstanding if r not in self._left]
         rank = min(live, key=self._outstanding.__getitem__)
         # isend: a large task must not block the master until its worker is free
@@ -243,7 +262,7 @@ class MPIExecutor:
             return Reply(message, None, error, source, socket.gethostname(), 0.0)
         return message
 
-    def _stop_all(self, grace: float, on_reply=None) -> bool:
+    def _stop_all(self, grace: float, on_reply=None, code: int = 0) -> bool:
         """STOP to every worker, then take replies (to ``on_reply``) and the
         workers' STOPPED answers for up to ``grace`` seconds (a further signal
         shortens the wait); True if all answered."""
@@ -252,7 +271,7 @@ class MPIExecutor:
         waiting = set(self._outstanding)
         with signals.deferred():
             for rank in waiting:
-                self._sends.append(self.comm.isend(None, dest=rank, tag=STOP))
+                self._sends.append(self.comm.isend(code, dest=rank, tag=STOP))
         status = MPI.Status()
         deadline = time.monotonic() + grace
         seen = signals.count()
@@ -283,7 +302,7 @@ class MPIExecutor:
     def interrupt(self, grace: float, on_reply) -> bool:
         """Stop handing out work and end every worker; results that still arrive go
         to ``on_reply``. False if some worker did not stop within ``grace``."""
-        self._stopped = self._stop_all(grace, on_reply)
+        self._stopped = self._stop_all(grace, on_reply, signals.EXIT_INTERRUPTED)
         return self._stopped
 
     def shutdown(self, abort: bool = False) -> None:
@@ -294,12 +313,15 @@ class MPIExecutor:
             self.comm.Abort(3)  # the last resort: a worker that would not stop
 
 
-def mpi_worker_loop(comm) -> None:
-    """A worker rank: wait for the job, then take tasks until told to stop. A
+def mpi_worker_loop(comm) -> int:
+    """A worker rank: wait for the job, then take tasks until told to stop; returns
+    the run's exit code (3: interrupted, by a signal of its own or the master's). A
     signal abandons the task being computed (the master redoes it on resume); a
     signalled worker then leaves (``_leave``)."""
+    signals.mpi_handshake_done()
     with signals.deferred():
-        _worker(comm)
+        code = _worker(comm)
+    return signals.EXIT_INTERRUPTED if signals.received() is not None else int(code or 0)
 
 
 def _probe(comm, status, backoff: Backoff) -> bool:
@@ -328,11 +350,13 @@ def _worker(comm) -> None:
         message = comm.recv(source=0, tag=status.Get_tag())
         if status.Get_tag() == JOB:
             break
-    if message is None:  # the master refused the job before any work
-        return None
+    signals.test_point("broadcast")  # recorded here; the compile below raises it
+    if message is None or isinstance(message, int):  # no job: refused, or interrupted
+        return message
     job = JobSpec.model_validate_json(message)
     try:
         with signals.interruptible():
+            signals.test_point("compile")
             prepare(job)  # rank 0 has compiled the kernels into numba's cache
     except Interrupted:
         return _leave(comm, status, backoff)
@@ -343,13 +367,14 @@ def _worker(comm) -> None:
         message = comm.recv(source=0, tag=status.Get_tag())
         if status.Get_tag() == STOP:
             comm.send(None, dest=0, tag=STOPPED)
-            return None
+            return message  # the run's exit code
         task, zero = message
         if comm.Iprobe(source=0, tag=STOP):
             comm.send(task.task_id, dest=0, tag=ABANDONED)  # stopping: not started
             continue
         try:
             with signals.interruptible():
+                signals.test_point("handout")
                 reply = execute(job, task, zero, rank)
         except Interrupted:
             comm.send(task.task_id, dest=0, tag=ABANDONED)
@@ -376,5 +401,5 @@ def _leave(comm, status, backoff: Backoff) -> None:
             return
         if tag == TASK:
             comm.send(message[0].task_id, dest=0, tag=ABANDONED)
-        elif tag == JOB and message is None:
+        elif tag == JOB and (message is None or isinstance(message, int)):
             return  # the master stopped before handing out the job

@@ -29,10 +29,10 @@ from pathlib import Path
 from typing import Any
 
 from ..config import DONE, FAILED
-from ..errors import InputError
+from ..errors import InputError, remedy
 from ..store.format import POINTS, SERIES, SWEEPS, progress_path, split_record
 from ..store.journal import StorageError, atomic_write_bytes
-from ..store.read import iter_entries, read_entry
+from ..store.read import read_entry
 from ..store.writer import ResultWriter
 from . import signals
 from .adaptive import Refiner
@@ -100,7 +100,7 @@ class _Master:
         self.ready_sweeps: deque = deque()
         self.zero: dict[str, dict[str, Any]] = {}  # done points' records, while sweeps need them
         self.finished: dict[str, dict[str, dict[str, Any]]] = {POINTS: {}, SWEEPS: {}, SERIES: {}}
-        for e in iter_entries(writer.path, journalled=writer.journalled):
+        for e in writer.entries():
             if str(e.meta.get("status")) != FAILED or not retry_failed or e.kind == SERIES:
                 self.finished[e.kind][e.task_id] = e.meta
         self.refiner = Refiner(job) if job.mode == "adaptive" else None
@@ -327,6 +327,9 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
     for path, why in writer.malformed:
         print(f"warning: journal entry {path.name} was malformed ({why}): its task is "
               "recomputed", file=sys.stderr, flush=True)  # fmt: skip
+    for kind, tid, why in writer.check.damaged:
+        print(f"warning: {out}: {kind[:-1]} {tid} is damaged ({why}): it is not used, and "
+              "is recomputed", file=sys.stderr, flush=True)  # fmt: skip
     summary = RunSummary(out, 0)
     status = "interrupted"
     master = None
@@ -370,8 +373,8 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
         summary.interrupted = True
         summary.storage_error = str(failure)
         print(f"error: {failure}; {written} of {summary.total} tasks are in {out} (with its "
-              "journal); make room and run the same command again to resume", file=sys.stderr,
-              flush=True)  # fmt: skip
+              f"journal); {remedy(failure)} and run the same command again to resume",
+              file=sys.stderr, flush=True)  # fmt: skip
     elif summary.interrupted:
         name = signal.Signals(signals.received() or signal.SIGINT).name
         print(f"\ninterrupted by {name}: {written} of {summary.total} tasks are in {out}; to "

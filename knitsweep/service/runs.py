@@ -9,6 +9,7 @@ workers are released instead of left waiting.
 from __future__ import annotations
 
 import math
+import signal
 import time
 from pathlib import Path
 from typing import Any, Literal
@@ -16,6 +17,7 @@ from typing import Any, Literal
 from ..config import DONE, FAILED
 from ..errors import InputError
 from ..plain import plain_value
+from ..store.checksum import FileCheck
 from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
 from ..store.journal import scan
 from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root
@@ -72,6 +74,7 @@ def _mpi_world():
     """MPI_COMM_WORLD; MPI_Init runs deferred: a signal during it is recorded, and
     rank 0 raises it only after it can release the workers (``_run_mpi``)."""
     with signals.deferred():
+        signals.test_point("mpi_init")
         try:
             from mpi4py import MPI
         except ImportError as e:
@@ -114,10 +117,13 @@ def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:
 
 
 def check_output(out: Path) -> None:
-    """Refuse an output path that cannot be written, before any compute."""
+    """Refuse a results file that cannot be written, or whose lock, journal, shadow,
+    spare or progress file is a symbolic link, before any compute (``run``, ``merge``)."""
     from ..formats import check_writable
+    from ..store.writer import check_no_links
 
     check_writable(out, "results file")
+    check_no_links(out)
 
 
 def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress, max_tasks):
@@ -125,14 +131,15 @@ def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress, max_tasks)
     from .master import run_job
 
     if comm.Get_rank() != 0:
-        mpi_worker_loop(comm)
+        if mpi_worker_loop(comm) == signals.EXIT_INTERRUPTED:  # every rank says so, exit 3
+            raise signals.Interrupted(signals.received() or signal.SIGTERM)
         return None
     try:
         with signals.interruptible():  # raises at once for a signal during MPI_Init
             job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks)
             ex = MPIExecutor(job, comm)  # compiles, then hands the job to the workers
-    except BaseException:
-        release_workers(comm)  # there is no job: the workers leave
+    except BaseException as e:  # there is no job: the workers leave (exit 3 on a signal)
+        release_workers(comm, None if signals.as_interrupt(e) is None else signals.EXIT_INTERRUPTED)
         raise
     return run_job(job, out, ex, shard=shard_t, retry_failed=retry_failed,
                    show_progress=show_progress)  # fmt: skip
@@ -157,7 +164,8 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
     series = []
     groups: dict[Any, dict[str, int]] = {}
     journalled, problems = scan(journal_dir(path))  # once, before the file (iter_entries)
-    for e in iter_entries(path, journalled=journalled):
+    check = FileCheck()
+    for e in iter_entries(path, journalled=journalled, check=check):
         if e.kind == SERIES:
             series.append(e.meta)
             continue
@@ -204,6 +212,11 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
         if by is not None
         else {},
         "journal_problems": journal_problems(path, problems),
+        "damaged": [f"{kind[:-1]} {tid}: {why}" for kind, tid, why in check.damaged]
+        + check.structure,
+        "verified": check.verified,
+        "unverified": check.unverified,
+        "check": check.lines(path),
         "series": {
             "done": sum(m.get("status") == "done" for m in series),
             "total": len(series),
@@ -264,7 +277,9 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
         raise InputError(f"inputs come from different jobs: {names}")
     job = JobSpec.model_validate_json(roots[0]["job_json"])
     points, sweeps = plan(job)
-    chosen = choose_entries(e for path in inputs for e in iter_entries(path, with_data=True))
+    checks = {str(p): FileCheck() for p in inputs}
+    chosen = choose_entries(e for path in inputs
+                            for e in iter_entries(path, with_data=True, check=checks[str(path)]))  # fmt: skip
     writer = ResultWriter(out, job, {"n_points": len(points), "n_sweeps": len(sweeps),
                                      "shard": "", "merged_from": ", ".join(map(str, inputs))})  # fmt: skip
     try:
@@ -276,4 +291,7 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     n_sweeps = sum(kind == SWEEPS for kind, _ in chosen)
     n_points = sum(kind == POINTS for kind, _ in chosen)
     return {"file": str(out), "points": n_points, "sweeps": n_sweeps,
-            "expected": len(points) + len(sweeps), "complete": complete}  # fmt: skip
+            "expected": len(points) + len(sweeps), "complete": complete,
+            "problems": [f"{p}: {line}" for p, c in checks.items() for line in c.lines(p)]
+            + [f"{p}: malformed journal entry {line}: not merged" for p in inputs
+               for line in journal_problems(p)]}  # fmt: skip

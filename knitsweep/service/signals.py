@@ -89,6 +89,48 @@ def restore(old: dict | None) -> None:
         _state.update({"signum": None, "count": 0, "raise": False})
 
 
+def as_interrupt(e: BaseException) -> Interrupted | None:
+    """The ``Interrupted`` that ``e`` is or wraps, else None. A signal's exception
+    raised inside library code may come out wrapped: Python wraps an exception raised
+    in ``__set_name__`` during class creation (pydantic's models) in RuntimeError, and
+    numba one raised as a dispatcher returns in SystemError; the original is then the
+    ``__cause__`` or ``__context__`` of what arrives."""
+    seen: BaseException | None = e
+    for _ in range(20):  # cause chains are short; never loop on a cycle
+        if seen is None:
+            return None
+        if isinstance(seen, Interrupted):
+            return seen
+        seen = seen.__cause__ or seen.__context__
+    return None
+
+
+STAGES = ("imports", "class", "mpi_init", "broadcast", "compile", "handout")
+"""Start-up stages at which a test can have the signal arrive (``test_point``)."""
+
+
+def test_point(stage: str) -> None:
+    """Fault injection for the tests: with ``KNITSWEEP_TEST_SIGNAL_AT=<stage>[@<rank>]``
+    (``<rank>``: the MPI rank, from the launcher's PMI_RANK; default every rank) this
+    process sends itself SIGTERM at that stage of start-up, so the signal arrives
+    exactly there. Does nothing otherwise."""
+    from ..env import setting
+
+    wanted = setting("TEST_SIGNAL_AT")
+    if not wanted:
+        return
+    where, _, rank = wanted.partition("@")
+    if where != stage or (rank and rank != os.environ.get("PMI_RANK", "0")):
+        return
+    os.kill(os.getpid(), signal.SIGTERM)  # the handler runs before the next bytecode
+
+
+def mpi_handshake_done() -> None:
+    """This rank has played its part of the MPI start-up (rank 0: the job handed out
+    or the workers released; a worker: in its loop), so ``quiet_exit`` needs no more."""
+    _state["mpi_done"] = True
+
+
 def received() -> int | None:
     """The first signal received since ``install``, or None."""
     return _state["signum"]
@@ -155,6 +197,10 @@ def quiet_exit() -> None:
         except ImportError:
             mpi = None  # MPI itself could not start: nothing to finish
     if mpi is not None and mpi.Is_initialized() and not mpi.Is_finalized():
+        if not _state.get("mpi_done") and mpi.COMM_WORLD.Get_size() > 1:
+            from .executors import leave_at_start_up
+
+            leave_at_start_up(mpi.COMM_WORLD)  # the others must not wait for this rank
         mpi.Finalize()
     if threading.current_thread() is threading.main_thread():
         for s in SIGNALS:

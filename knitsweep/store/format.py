@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..stitches import DEFAULT_STITCH
+from .checksum import DIGEST_ATTRS, Damaged, FileCheck, seal_group, verify_group
 
 RESULTS_SCHEMA_VERSION = 2
 """The results-file format this knitsweep writes."""
@@ -102,6 +103,7 @@ def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
             group.attrs[key] = float(value)
         else:
             group.attrs[key] = str(value)
+    seal_group(group)
 
 
 _LEADING_DIM = {"start": "start of the zero-force relaxation",
@@ -140,9 +142,13 @@ def describe_dataset(group, kind: str, name: str) -> None:
             ds.dims[axis].attach_scale(scale)
 
 
-def _read_group(group) -> tuple[dict[str, Any], dict[str, Any]]:
-    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in group.attrs.items()}
+def _read_group(group, with_data: bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(meta, record) of a task group, unchecked (``read_task`` checks it first)."""
+    attrs = {k: (v.item() if isinstance(v, np.generic) else v)
+             for k, v in group.attrs.items() if k not in DIGEST_ATTRS}  # fmt: skip
     data = {}
+    if not with_data:
+        return attrs, data
     for k, ds in group.items():
         if not isinstance(ds, _h5().Dataset) or ds.is_scale:  # (scales: coordinates)
             continue
@@ -151,3 +157,26 @@ def _read_group(group) -> tuple[dict[str, Any], dict[str, Any]]:
             v = np.array([s.decode() if isinstance(s, bytes) else s for s in v], dtype=object)
         data[k] = v
     return renamed(attrs), data
+
+
+def read_task(group, with_data: bool, check: FileCheck | None = None):
+    """(meta, record) of a task group after its checksum is verified (``record`` empty
+    unless ``with_data``); None if it is damaged, which ``check`` then records."""
+    kind, tid = group.name.strip("/").split("/")[:2]
+    try:
+        verified = verify_group(group)
+        meta, record = _read_group(group, with_data)
+    except Damaged as e:
+        if check is not None:
+            check.damaged.append((kind, tid, str(e)))
+        return None
+    except Exception as e:  # e.g. undecodable bytes that no checksum covered
+        if check is not None:
+            check.damaged.append((kind, tid, f"unreadable ({type(e).__name__})"))
+        return None
+    if check is not None:
+        if verified:
+            check.verified += 1
+        else:
+            check.unverified += 1
+    return meta, record

@@ -29,8 +29,14 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import StorageError, storage_error
+from ..formats import replace_file
 from ..plain import plain_value
 from .format import renamed
+
+__all__ = ["Entry", "Malformed", "StorageError", "atomic_write_bytes", "decode", "encode",
+           "entry_path", "fsync_dir", "read_entry_file", "scan", "storage_error",
+           "write_entry"]  # fmt: skip
 
 MAGIC = b"KSJ1"
 ENTRY_FORMAT = 1
@@ -50,30 +56,6 @@ class Entry:
     meta: dict[str, Any]
 
 
-class StorageError(OSError):
-    """A results file, journal entry or output could not be written (disk full,
-    read-only or missing directory, permissions): one line for the user."""
-
-
-def storage_error(what: str | Path, e: BaseException) -> StorageError:
-    """A one-line StorageError for a failed write of ``what``."""
-    code = getattr(e, "errno", None)
-    text = str(e)
-    if code == errno.ENOSPC or "No space left" in text:
-        reason = "the disk is full"
-    elif code == errno.EROFS or "Read-only file system" in text:
-        reason = "the file system is read-only"
-    elif code in (errno.EACCES, errno.EPERM) or "Permission denied" in text:
-        reason = "permission denied"
-    elif code == errno.ENOENT:
-        reason = "its directory does not exist"
-    elif code == errno.EDQUOT:
-        reason = "the disk quota is exceeded"
-    else:
-        reason = getattr(e, "strerror", None) or (text.splitlines() or [type(e).__name__])[0]
-    return StorageError(code or errno.EIO, f"cannot write {what}: {reason}")
-
-
 def fsync_dir(path: Path) -> None:
     """Make a rename or unlink in directory ``path`` durable."""
     try:
@@ -90,18 +72,10 @@ def fsync_dir(path: Path) -> None:
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` via a temporary file, fsync and rename: a reader sees
-    the old file or the new one, never a part. On failure no temporary file is left
-    and ``StorageError`` names the cause."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except OSError as e:
-        tmp.unlink(missing_ok=True)
-        raise storage_error(path, e) from None
+    the old file or the new one, never a part; neither is ever a symbolic link
+    followed (``formats.replace_file``). On failure no temporary file is left and
+    ``StorageError`` names the cause."""
+    replace_file(path, data, fsync=True)
 
 
 # ---- encoding -------------------------------------------------------------------
@@ -164,10 +138,10 @@ def decode(data: bytes, with_data: bool = True) -> Entry:
             index = 0
             for part, target in (("record", record), ("meta", meta)):
                 for key in header["layout"][part]:
+                    value = npz[f"a{index}"]  # read even if not kept: a reader that
+                    if f"{part}/{key}" in objects:  # skips it must not count it intact
+                        value = np.array(value.tolist(), dtype=object)
                     if with_data or part == "meta":
-                        value = npz[f"a{index}"]
-                        if f"{part}/{key}" in objects:
-                            value = np.array(value.tolist(), dtype=object)
                         target[key] = value
                     index += 1
     except Malformed:
@@ -199,11 +173,14 @@ def read_entry_file(path: Path, with_data: bool = True) -> Entry:
     if match is None:
         raise Malformed("not a journal entry name")
     try:
-        data = path.read_bytes()
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
     except FileNotFoundError:
         raise
     except OSError as e:
-        raise Malformed(f"unreadable ({e.strerror or e})") from None
+        why = "a symbolic link, not read" if e.errno == errno.ELOOP else e.strerror or e
+        raise Malformed(f"unreadable ({why})") from None
+    with os.fdopen(fd, "rb") as fh:
+        data = fh.read()
     entry = decode(data, with_data)
     if (entry.kind, entry.task_id) != match.groups():
         raise Malformed(f"holds {entry.kind}/{entry.task_id}, not what its name says")
@@ -217,9 +194,14 @@ def scan(journal: Path, with_data: bool = False) -> tuple[list[Entry], list[tupl
     old pickle entries (``*.pkl``) are listed as malformed, never unpickled."""
     entries: list[Entry] = []
     problems: list[tuple[Path, str]] = []
+    if journal.is_symlink():  # it could point anywhere: never read, written or cleaned
+        return entries, [(journal, "the journal directory is a symbolic link, not read")]
     if not journal.is_dir():
         return entries, problems
     for path in sorted(journal.iterdir()):
+        if path.is_symlink() and not path.name.startswith("."):
+            problems.append((path, "a symbolic link, not read (and never deleted through)"))
+            continue
         if path.name.startswith(".") or not path.is_file():
             continue  # an entry being written (temporary file), or not ours to judge
         if path.suffix == ".pkl":

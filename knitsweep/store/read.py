@@ -15,15 +15,16 @@ import numpy as np
 
 from ..config import FAILED
 from ..errors import InputError
+from .checksum import DIGEST_ATTRS, Damaged, FileCheck, verify_root
 from .format import (
     KINDS,
     POINTS,
     READABLE_SCHEMAS,
     SWEEPS,
     _h5,
-    _read_group,
     journal_dir,
     progress_path,
+    read_task,
 )
 from .journal import Entry, entry_path, read_entry_file, scan
 
@@ -39,47 +40,114 @@ def _open(path: Path):
         raise InputError(f"{path}: no such results file") from None
     except Exception as e:  # h5py raises OSError, sometimes others, for foreign files
         why = str(e).split("(")[0].strip() or type(e).__name__
-        raise InputError(f"{path}: not a readable HDF5 file ({why})") from None
+        eof, size = stored_eof(path), path.stat().st_size
+        if eof is not None and eof > size:
+            why = f"truncated: {size} of its {eof} bytes"
+        elif size == 0:
+            why = "empty: 0 bytes"
+        raise InputError(f"{path}: not a readable HDF5 file ({why}){recover_hint(path)}") from None
     try:
         yield f
     finally:
         f.close()
 
 
-def _groups(f, kind: str):
-    """(task id, group) of one kind in an open file; foreign members are skipped."""
+SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def stored_eof(path: Path) -> int | None:
+    """The end-of-file address an HDF5 file's superblock records (superblock versions
+    0-3 at offset 0), or None if the superblock cannot be read."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(96)
+    except OSError:
+        return None
+    if len(head) < 16 or head[:8] != SIGNATURE:
+        return None
+    version = head[8]
+    if version in (0, 1):
+        size = head[13]
+        at = 24 + (4 if version == 1 else 0) + 2 * size
+    elif version in (2, 3):
+        size = head[9]
+        at = 12 + 2 * size
+    else:
+        return None
+    if size not in (2, 4, 8) or len(head) < at + size:
+        return None
+    return int.from_bytes(head[at : at + size], "little")
+
+
+def recover_hint(path: Path) -> str:
+    """'; …knitsweep recover…' for the refusal of a file that looks like a damaged
+    results file (an HDF5 signature, or a journal or spare beside it), else ''."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError:
+        head = b""
+    beside = [p for p in (journal_dir(path), path.with_name(f".{path.name}.spare"),
+                          path.with_name(f".{path.name}.shadow")) if p.exists()]  # fmt: skip
+    if head == SIGNATURE or beside or (path.exists() and path.stat().st_size == 0):
+        return (f"; if it is a damaged knitsweep results file, `knitsweep recover {path}` "
+                "rebuilds it from its intact tasks, the spare copy and the journal")  # fmt: skip
+    return ""
+
+
+def _groups(f, kind: str, check: FileCheck | None = None):
+    """(task id, group) of one kind in an open file; foreign members are skipped, and
+    members HDF5 cannot open are recorded in ``check`` as damaged."""
     h5py = _h5()
-    parent = f.get(kind)
-    if not isinstance(parent, h5py.Group):
+    try:
+        parent = f.get(kind)
+        names = list(parent.keys()) if isinstance(parent, h5py.Group) else []
+    except Exception as e:  # the group's index is damaged: its tasks cannot be named
+        if check is not None:
+            check.structure.append(f"the index of /{kind} is unreadable ({type(e).__name__})")
         return
-    for tid, group in parent.items():
+    for tid in names:
+        try:
+            group = parent[tid]
+        except Exception as e:
+            if check is not None:
+                check.damaged.append((kind, tid, f"unreadable ({type(e).__name__})"))
+            continue
         if isinstance(group, h5py.Group):
             yield tid, group
 
 
+def file_entries(f, with_data: bool, check: FileCheck | None = None,
+                 skip: set | frozenset = frozenset()) -> Iterator[Entry]:  # fmt: skip
+    """The verified task groups of an open file (damaged ones recorded in ``check``
+    and left out), but those in ``skip`` ((kind, task id) pairs)."""
+    for kind in KINDS:
+        for tid, group in _groups(f, kind, check):
+            if (kind, tid) in skip:
+                continue
+            task = read_task(group, with_data, check)
+            if task is not None:
+                yield Entry(kind, tid, task[1], task[0])
+
+
 def iter_entries(path: str | Path, with_data: bool = False,
-                 journalled: list[Entry] | None = None) -> Iterator[Entry]:  # fmt: skip
+                 journalled: list[Entry] | None = None,
+                 check: FileCheck | None = None) -> Iterator[Entry]:  # fmt: skip
     """Every finished task of a results file, deduplicated: the HDF5 file's
     groups that the journal has no newer version of, then the journal's entries.
 
     The journal is read first (or given as ``journalled``, read before this call): an
     entry merged and deleted meanwhile is then in the file opened after it. Malformed
-    journal entries are skipped (``journal_problems`` lists them)."""
+    journal entries are skipped (``journal_problems`` lists them). Every group is
+    verified against its checksum (``store.checksum``): damaged ones are left out and
+    recorded in ``check``, with the count of verified and unverified ones."""
     path = Path(path)
     if journalled is None:
         journalled = scan(journal_dir(path), with_data)[0]
     newer = {(e.kind, e.task_id) for e in journalled}
     if path.exists():
         with _open(path) as f:
-            for kind in KINDS:
-                for tid, group in _groups(f, kind):
-                    if (kind, tid) in newer:
-                        continue
-                    if with_data:
-                        meta, record = _read_group(group)
-                    else:
-                        meta, record = dict(group.attrs), {}
-                    yield Entry(kind, tid, record, meta)
+            yield from file_entries(f, with_data, check, newer)
     yield from journalled
 
 
@@ -95,10 +163,11 @@ def choose_entries(entries: Iterable[Entry]) -> dict[tuple[str, str], Entry]:
 
 
 def read_files(paths: Sequence[str | Path]) -> tuple[list[dict[str, Any]], list[Entry]]:
-    """Root attributes of each results file (with ``file`` and ``n_found``, the
-    number of its point and sweep tasks), and every finished task of all of them
-    (journals included), each task once: a result that is not 'failed' wins over a
-    failed one, the first file over later ones. Each entry's meta gets ``file``."""
+    """Root attributes of each results file (with ``file``, ``n_found``, the
+    number of its point and sweep tasks, and ``check``, its ``FileCheck``), and every
+    finished, intact task of all of them (journals included), each task once: a result
+    that is not 'failed' wins over a failed one, the first file over later ones. Each
+    entry's meta gets ``file``."""
     roots, entries = [], []
     seen = set()
     for path in map(Path, paths):
@@ -106,9 +175,10 @@ def read_files(paths: Sequence[str | Path]) -> tuple[list[dict[str, Any]], list[
         if key in seen:
             raise InputError(f"{path}: given twice")
         seen.add(key)
-        root = read_root(path) | {"file": str(path), "n_found": 0}
+        check = FileCheck()
+        root = read_root(path) | {"file": str(path), "n_found": 0, "check": check}
         roots.append(root)
-        for e in iter_entries(path, with_data=True):
+        for e in iter_entries(path, with_data=True, check=check):
             e.meta["file"] = str(path)
             root["n_found"] += e.kind in (POINTS, SWEEPS)
             entries.append(e)
@@ -116,7 +186,8 @@ def read_files(paths: Sequence[str | Path]) -> tuple[list[dict[str, Any]], list[
 
 
 def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
-    """One finished task with its data, from the journal or the HDF5 file."""
+    """One finished task with its data, from the journal or the HDF5 file (None if
+    absent or damaged)."""
     from .journal import Malformed
 
     path = Path(path)
@@ -126,10 +197,13 @@ def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
         pass
     if path.exists():
         with _open(path) as f:
-            group = f.get(f"{kind}/{task_id}")
-            if isinstance(group, _h5().Group):
-                meta, record = _read_group(group)
-                return Entry(kind, task_id, record, meta)
+            try:
+                group = f.get(f"{kind}/{task_id}")
+            except Exception:  # a damaged index
+                return None
+            task = read_task(group, True) if isinstance(group, _h5().Group) else None
+            if task is not None:
+                return Entry(kind, task_id, task[1], task[0])
     return None
 
 
@@ -147,7 +221,15 @@ def read_root(path: str | Path) -> dict[str, Any]:
     schema)."""
     path = Path(path)
     with _open(path) as f:
-        attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in f.attrs.items()}
+        try:
+            verify_root(f)
+            attrs = {k: (v.item() if isinstance(v, np.generic) else v)
+                     for k, v in f.attrs.items() if k not in DIGEST_ATTRS}  # fmt: skip
+        except Damaged as e:
+            raise InputError(f"{path}: {e}{recover_hint(path)}") from None
+        except Exception as e:  # an unreadable attribute (damage or a foreign writer)
+            raise InputError(f"{path}: root attributes unreadable ({type(e).__name__})"
+                             f"{recover_hint(path)}") from None  # fmt: skip
     version = attrs.get("schema_version")
     if version is None:
         raise InputError(f"{path}: an HDF5 file, but not a knitsweep results file (no "
@@ -164,6 +246,14 @@ def read_root(path: str | Path) -> dict[str, Any]:
     if missing:
         raise InputError(f"{path}: schema_version {version} but no {' or '.join(missing)} "
                          "attribute: not a complete knitsweep results file")  # fmt: skip
+    if version >= 2:  # the same test in every command: a spec that is no JSON object is foreign
+        try:
+            spec = json.loads(str(attrs["job_json"]))
+        except ValueError:
+            spec = None
+        if not isinstance(spec, dict) or not isinstance(attrs["job_hash"], str):
+            raise InputError(f"{path}: its job_json attribute is not a job spec: not a results "
+                             "file written by knitsweep")  # fmt: skip
     return attrs
 
 

@@ -44,7 +44,9 @@ def write_sweep(path: str | Path, result, params: StitchParams) -> None:
     """Write one sweep to ``.csv`` (the table) or ``.h5`` (every per-step array)."""
     path = Path(path)
     if path.suffix == ".csv":
-        path.write_text(sweep_table(result))
+        from ..formats import replace_file
+
+        replace_file(path, sweep_table(result).encode())
         return
     import h5py
 

@@ -47,6 +47,7 @@ datasets.
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import gc
 import os
@@ -57,6 +58,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..formats import refuse_link
+from .checksum import FileCheck, seal_root
 from .format import (
     KINDS,
     RESULTS_SCHEMA_VERSION,
@@ -65,6 +68,7 @@ from .format import (
     journal_dir,
     lock_path,
     now,
+    progress_path,
 )
 from .journal import (
     Entry,
@@ -77,7 +81,7 @@ from .journal import (
     write_entry,
 )
 from .provenance import environment_metadata
-from .read import read_root
+from .read import _open, file_entries, read_root
 
 __all__ = ["ResultWriter", "StorageError", "atomic_write_bytes", "check_compatible",
            "writer_alive"]  # fmt: skip
@@ -109,12 +113,23 @@ def _put(f, entry: Entry) -> None:
     _write_group(f.create_group(group_path), entry.record, entry.meta)
 
 
+def check_no_links(path: Path) -> None:
+    """InputError if the results file or any file the writer makes beside it (lock,
+    journal directory, shadow, spare, progress file) is a symbolic link: the writer
+    never writes, replaces or deletes through one."""
+    for p, what in ((path, "results file"), (lock_path(path), "lock file"),
+                    (journal_dir(path), "journal directory"),
+                    (_hidden(path, "shadow"), "shadow copy"), (_hidden(path, "spare"), "spare copy"),
+                    (progress_path(path), "progress file")):  # fmt: skip
+        refuse_link(p, what)
+
+
 def _lockable(path: Path, mode: int) -> bool | None:
     """Whether ``path`` could be flocked with ``mode`` right now (the probe's own lock
     is dropped at once): False if another holder blocks it, None if the file cannot be
     opened or locked at all."""
     try:
-        fd = os.open(path, os.O_RDONLY)
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
     except OSError:
         return None
     try:
@@ -150,6 +165,8 @@ class ResultWriter:
         self._lag_attrs: dict[str, Any] = {}
         self._shadow_ready = False
         self.malformed: list[tuple[Path, str]] = []
+        self.check = FileCheck()  # damaged and unverified tasks found in the file
+        self.stored: list[Entry] = []
         self._lock_fd: int | None = None
         self._root_updates: dict[str, Any] = {}
         self.previous_run_seconds = 0.0  # wall time of the earlier runs into this file
@@ -168,11 +185,14 @@ class ResultWriter:
         if not self.path.parent.is_dir():
             raise StorageError(2, f"cannot write {self.path}: directory {self.path.parent} "
                                "does not exist")  # fmt: skip
+        check_no_links(self.path)
         while True:
             try:
-                fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
+                fd = os.open(lock, os.O_CREAT | os.O_RDWR | os.O_NOFOLLOW, 0o644)
             except OSError as e:
-                raise storage_error(self.path, e) from None
+                if e.errno == errno.ELOOP:  # made a link since check_no_links looked
+                    check_no_links(self.path)
+                raise storage_error(lock, e) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -198,7 +218,8 @@ class ResultWriter:
 
     def _release_lock(self) -> None:
         if self._lock_fd is not None:
-            lock_path(self.path).unlink(missing_ok=True)
+            with contextlib.suppress(OSError):  # e.g. the directory became read-only:
+                lock_path(self.path).unlink(missing_ok=True)  # a stale lock is harmless
             os.close(self._lock_fd)
             self._lock_fd = None
 
@@ -209,15 +230,10 @@ class ResultWriter:
 
     def _open_or_create(self, extra_meta: dict[str, Any]) -> None:
         h5py = _h5()
-        for stale in (
-            self._shadow,
-            self._spare,
-            *self.path.parent.glob(f".{self.path.name}.*.tmp"),
-        ):
-            stale.unlink(missing_ok=True)  # a checkpoint interrupted before its rename
         if self.path.exists():
             root = read_root(self.path)
             grown = check_compatible(self.path, self.job, root)
+            self._read_stored()
             self.previous_run_seconds = float(root.get("run_seconds", 0.0))
             # the file describes the job now running; applied at the first checkpoint
             self._root_updates = {**extra_meta, "run_status": "running"}
@@ -225,6 +241,12 @@ class ResultWriter:
                 self._root_updates |= {"job_json": self.job.model_dump_json(),
                                        "job_hash": self.job.job_hash, "job_name": self.job.name,
                                        "grown_from": grown}  # fmt: skip
+        for stale in (  # only now: a damaged file was refused with its spare kept
+            self._shadow,
+            self._spare,
+            *self.path.parent.glob(f".{self.path.name}.*.tmp"),
+        ):
+            stale.unlink(missing_ok=True)  # a checkpoint interrupted before its rename
         try:
             self.journal.mkdir(exist_ok=True)
             for stale in self.journal.glob(".*.tmp"):
@@ -233,6 +255,8 @@ class ResultWriter:
             raise storage_error(self.journal, e) from None
         entries, self.malformed = scan(self.journal, with_data=True)
         for path, _ in self.malformed:
+            if path.is_symlink():
+                continue  # reported; not ours to remove
             with contextlib.suppress(OSError):
                 path.unlink(missing_ok=True)  # reported by the caller; the task is redone
         self._pending = {(e.kind, e.task_id): e for e in entries}
@@ -252,12 +276,29 @@ class ResultWriter:
                     f.attrs[k] = v
                 for kind in KINDS:
                     f.create_group(kind)
+                seal_root(f)
             _fsync_file(tmp)
             os.replace(tmp, self.path)
         except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
             tmp.unlink(missing_ok=True)
             raise storage_error(self.path, e) from None
         fsync_dir(self.path.parent)
+
+    def _read_stored(self) -> None:
+        """The file's intact tasks (metadata) and its ``FileCheck``; InputError, with
+        the way to recover, if damage hides tasks whose ids cannot be read."""
+        with _open(self.path) as f:
+            self.stored = list(file_entries(f, False, self.check))
+        if self.check.structure:
+            raise InputError(f"{self.path} is damaged ({'; '.join(self.check.structure)}): "
+                             f"`knitsweep recover {self.path}` rebuilds it from its intact "
+                             "tasks, the spare copy and the journal")  # fmt: skip
+
+    def entries(self) -> list[Entry]:
+        """Every finished, intact task: the file's (but those the journal has a newer
+        version of) and the journal's (metadata only for the file's)."""
+        newer = set(self._pending)
+        return [e for e in self.stored if (e.kind, e.task_id) not in newer] + self.journalled
 
     def add(self, kind: str, task_id: str, record: dict[str, Any], meta: dict[str, Any]) -> None:
         """Journal one finished task durably (atomic, fsynced); StorageError if the
@@ -326,7 +367,7 @@ class ResultWriter:
             # once per launch (or after a reader held the retired file open: unlink
             # that name first, copying onto it would rewrite the reader's file)
             self._shadow.unlink(missing_ok=True)
-            shutil.copyfile(self.path, self._shadow)
+            _copy_new(self.path, self._shadow)
             self._lag, self._lag_attrs = [], {}
         self._shadow_ready = False  # until it is published whole
         with _h5().File(self._shadow, "a") as f:
@@ -339,6 +380,7 @@ class ResultWriter:
                 _put(f, e)
             for k, v in {**self._lag_attrs, **(attrs or {})}.items():
                 f.attrs[k] = v
+            seal_root(f)
         _fsync_file(self._shadow)
         try:  # keep the version being replaced: it becomes the next shadow
             os.link(self.path, self._spare)
@@ -383,8 +425,18 @@ def _quiet_failed_writes():
 
 
 def _fsync_file(path: Path) -> None:
-    with open(path, "rb") as fh:
-        os.fsync(fh.fileno())
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _copy_new(src: Path, dst: Path) -> None:
+    """Copy ``src`` to a new file ``dst``, created exclusively (never through a link)."""
+    fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+    with open(src, "rb") as fin, os.fdopen(fd, "wb") as fout:
+        shutil.copyfileobj(fin, fout, 1 << 20)
 
 
 def writer_alive(lock: Path) -> bool:

@@ -15,6 +15,7 @@ continuous (L/r)_trans whose error is measurable.
 from __future__ import annotations
 
 import csv
+import io
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -182,19 +183,22 @@ def accuracy_study(
 
 def write_report(results: list[SettingResult], out: Path) -> list[Path]:
     """accuracy.csv and accuracy.png (relative error against cost) in ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
+    from ..formats import make_output_dir, replace_file
+
+    out = make_output_dir(out)  # as every command's --out: its parent must exist
     csv_path = out / "accuracy.csv"
-    with open(csv_path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["setting", "cpu_seconds_per_relaxation", "cpu_seconds_per_sweep",
-                    "cpu_seconds_per_point", "relaxations_per_sweep", "evaluations_per_sweep",
-                    *METRICS, *(f"relerr_{m}" for m in METRICS)])  # fmt: skip
-        for r in results:
-            w.writerow([r.name, f"{r.seconds_relax:.4g}", f"{r.seconds_sweep:.4g}",
-                        f"{r.seconds_point:.4g}", f"{r.relaxations_per_sweep:.4g}",
-                        f"{r.evaluations_per_sweep:.4g}",
-                        *(_fmt(r.values.get(m)) for m in METRICS),
-                        *(_fmt(r.errors.get(m)) for m in METRICS)])  # fmt: skip
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    w.writerow(["setting", "cpu_seconds_per_relaxation", "cpu_seconds_per_sweep",
+                "cpu_seconds_per_point", "relaxations_per_sweep", "evaluations_per_sweep",
+                *METRICS, *(f"relerr_{m}" for m in METRICS)])  # fmt: skip
+    for r in results:
+        w.writerow([r.name, f"{r.seconds_relax:.4g}", f"{r.seconds_sweep:.4g}",
+                    f"{r.seconds_point:.4g}", f"{r.relaxations_per_sweep:.4g}",
+                    f"{r.evaluations_per_sweep:.4g}",
+                    *(_fmt(r.values.get(m)) for m in METRICS),
+                    *(_fmt(r.errors.get(m)) for m in METRICS)])  # fmt: skip
+    replace_file(csv_path, f.getvalue().encode())
     png = out / "accuracy.png"
     _plot(results, png)
     return [csv_path, png]
@@ -247,5 +251,9 @@ def _plot(results: list[SettingResult], path: Path) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, ncol=2, loc="upper right")
     fig.tight_layout()
-    fig.savefig(path)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
     plt.close(fig)
+    from ..formats import replace_file
+
+    replace_file(path, buf.getvalue())

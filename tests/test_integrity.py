@@ -1,0 +1,232 @@
+"""Checksums and recovery: a results file whose bytes changed is never used (every
+reader names the damaged task, a resume recomputes it), files without checksums
+still read and say so, and ``knitsweep recover`` rebuilds a truncated file from what
+is intact so that a resume completes it identically to a clean run (integration)."""
+
+import hashlib
+import io
+import json
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import h5py
+import numpy as np
+import pytest
+from conftest import TINY, assert_same_results
+
+import knitsweep
+from knitsweep import service
+from knitsweep.errors import InputError
+from knitsweep.store.checksum import GROUP_DIGEST, ROOT_DIGEST, FileCheck, seal_root
+from knitsweep.store.format import journal_dir
+from knitsweep.store.journal import MAGIC, Malformed, decode
+from knitsweep.store.read import iter_entries, read_root
+
+
+def knitsweep_cli(*args, timeout=600):
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    return subprocess.run([sys.executable, "-m", "knitsweep", *map(str, args)],
+                          capture_output=True, text=True, timeout=timeout, env=env)  # fmt: skip
+
+
+def flip(path, offset, n=64):
+    with open(path, "r+b") as fh:
+        fh.seek(offset)
+        data = fh.read(n)
+        fh.seek(offset)
+        fh.write(bytes(b ^ 0x5A for b in data))
+
+
+def data_offset(ds) -> int:
+    return ds.id.get_offset() if ds.chunks is None else ds.id.get_chunk_info(0).byte_offset
+
+
+@pytest.fixture
+def damaged(tiny_reference, tmp_path):
+    """A copy of the tiny reference with 64 bytes of one sweep's total_energy flipped."""
+    out = tmp_path / "d.h5"
+    shutil.copy(tiny_reference, out)
+    with h5py.File(out, "r") as f:
+        tid = sorted(f["sweeps"])[0]
+        offset = data_offset(f[f"sweeps/{tid}/total_energy"])
+    flip(out, offset)
+    return out, tid
+
+
+def test_flipped_bytes_are_found_by_every_reader_and_recomputed(damaged, tiny_reference, tmp_path):
+    out, tid = damaged
+    s = service.status(out)
+    assert s["done"] == 5 and s["verified"] == 5
+    assert [d.split(":")[0] for d in s["damaged"]] == [f"sweep {tid}"]
+    shown = knitsweep_cli("status", out)
+    assert shown.returncode == 0 and f"damaged sweep {tid}" in shown.stdout
+    assert "knitsweep recover" in shown.stdout
+    res = knitsweep.load(out)
+    assert res.partial and tid not in set(res.sweeps["task_id"])
+    assert list(res.problems.query("status == 'damaged'")["task_id"]) == [tid]
+    pd = knitsweep_cli("phase-diagram", out, "--out", tmp_path / "pd", "--no-figures")
+    assert pd.returncode == 0 and f"damaged: sweep {tid}" in pd.stdout, pd.stdout + pd.stderr
+    merged = knitsweep_cli("merge", tmp_path / "m.h5", out)
+    assert merged.returncode == 0 and "partial: 5 of 6" in merged.stdout
+    assert f"damaged sweep {tid}" in merged.stderr
+    rep = knitsweep_cli("report", out, "--out", tmp_path / "r.html")
+    assert rep.returncode == 0 and tid in (tmp_path / "r.html").read_text()
+    run = knitsweep_cli("run", TINY, "--out", out, "--quiet")
+    assert run.returncode == 0 and f"sweep {tid} is damaged" in run.stderr
+    assert "(5 already finished)" in run.stderr
+    assert_same_results(tiny_reference, out)
+    assert service.status(out)["damaged"] == []
+
+
+def test_a_changed_attribute_or_root_is_damage(tiny_reference, tmp_path):
+    out = tmp_path / "a.h5"
+    shutil.copy(tiny_reference, out)
+    with h5py.File(out, "a") as f:
+        tid = sorted(f["points"])[0]
+        f[f"points/{tid}"].attrs["L_mm"] = 99.0
+    check = FileCheck()
+    assert tid not in {e.task_id for e in iter_entries(out, check=check)}
+    assert check.damaged[0][:2] == ("points", tid) and "checksum" in check.damaged[0][2]
+    with h5py.File(out, "a") as f:
+        f.attrs["job_name"] = "other"
+    for args in (("status", out), ("phase-diagram", out, "--out", tmp_path / "pd"),
+                 ("report", out, "--out", tmp_path / "r.html"),
+                 ("merge", tmp_path / "m.h5", out), ("run", TINY, "--out", out)):  # fmt: skip
+        proc = knitsweep_cli(*args)
+        assert proc.returncode == 2, (args, proc.stderr)
+        assert "root attributes fail their checksum" in proc.stderr, proc.stderr
+        assert "knitsweep recover" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_files_without_checksums_read_unverified(tiny_reference, tmp_path):
+    out = tmp_path / "old.h5"
+    shutil.copy(tiny_reference, out)
+    with h5py.File(out, "a") as f:
+        del f.attrs[ROOT_DIGEST]
+        for kind in ("points", "sweeps"):
+            for g in f[kind].values():
+                del g.attrs[GROUP_DIGEST]
+    s = service.status(out)
+    assert s["done"] == 6 and s["unverified"] == 6 and s["verified"] == 0
+    assert any("without checksums" in line for line in s["check"])
+    assert any("without checksums" in n for n in knitsweep.load(out).reduction.notes)
+
+
+def test_digests_cover_scalars_empty_arrays_strings_and_attributes(tmp_path):
+    from knitsweep.service.jobs import JobSpec
+    from knitsweep.store.writer import ResultWriter
+
+    out = tmp_path / "s.h5"
+    writer = ResultWriter(out, JobSpec(schema_version=1, name="s", grid={"L_mm": 11.6}))
+    record = {"empty": np.zeros(0), "labels": np.array(["a", "bé"], dtype=object),
+              "one": np.array([2.5]), "flag": True, "n": 3, "text": "x"}  # fmt: skip
+    for i in range(4):
+        writer.add("sweeps", f"s{i}", record, {"status": "done", "where": {"rank": 1}})
+    writer.close("complete")
+
+    def tamper(name, fn):
+        with h5py.File(out, "a") as f:
+            fn(f[f"sweeps/{name}"])
+
+    tamper("s0", lambda g: g["labels"].__setitem__(1, "bx"))
+    tamper("s1", lambda g: g.attrs.__setitem__("text", "y"))
+    tamper("s2", lambda g: g["empty"].attrs.__setitem__("units", "mm"))
+    check = FileCheck()
+    assert [e.task_id for e in iter_entries(out, check=check)] == ["s3"]
+    assert sorted(t for _, t, _ in check.damaged) == ["s0", "s1", "s2"]
+
+
+def test_a_journal_entry_with_an_object_array_is_malformed_for_every_reader():
+    """``status`` (metadata only) and resume (data) agree on an unreadable entry."""
+    header = {"format": 1, "kind": "sweeps", "task_id": "t",
+              "scalars": {"record": {}, "meta": {"status": "done"}},
+              "layout": {"record": ["x"], "meta": [], "object": []}}  # fmt: skip
+    buffer = io.BytesIO()
+    np.savez(buffer, __entry__=np.frombuffer(json.dumps(header).encode(), np.uint8),
+             a0=np.array([{"a": 1}], dtype=object))  # fmt: skip
+    payload = buffer.getvalue()
+    data = MAGIC + hashlib.sha256(payload).digest() + payload
+    for with_data in (False, True):
+        with pytest.raises(Malformed):
+            decode(data, with_data=with_data)
+
+
+# ---- recovery ----------------------------------------------------------------------
+
+_MID_RUN = """
+import os, signal, sys
+from knitsweep.service.jobs import load_job
+from knitsweep.store.read import iter_entries
+from knitsweep.store.writer import ResultWriter
+ref, out = sys.argv[1], sys.argv[2]
+entries = sorted(iter_entries(ref, with_data=True), key=lambda e: (e.kind, e.task_id))
+writer = ResultWriter(out, load_job({job!r}), {{"n_points": 2, "n_sweeps": 4}})
+for e in entries[:2]:
+    writer.add(e.kind, e.task_id, e.record, e.meta)
+writer.checkpoint()  # version 1
+for e in entries[2:4]:
+    writer.add(e.kind, e.task_id, e.record, e.meta)
+writer.checkpoint()  # version 2; version 1 is the shadow
+writer.add(entries[4].kind, entries[4].task_id, entries[4].record, entries[4].meta)
+os.kill(os.getpid(), signal.SIGKILL)  # the journal holds the fifth task
+"""
+
+
+@pytest.fixture
+def killed_mid_run(tiny_reference, tmp_path):
+    out = tmp_path / "k.h5"
+    script = textwrap.dedent(_MID_RUN.format(job=str(TINY)))
+    proc = subprocess.run([sys.executable, "-c", script, str(tiny_reference), str(out)],
+                          capture_output=True, text=True)  # fmt: skip
+    assert proc.returncode == -9, proc.stderr
+    assert (tmp_path / ".k.h5.shadow").exists() and len(list(journal_dir(out).iterdir())) == 1
+    return out
+
+
+@pytest.mark.parametrize("cut", ["half", "1 byte", "4 KiB", "0 bytes"])
+def test_recover_a_truncated_file_then_resume_identically(killed_mid_run, tiny_reference, cut):
+    out = killed_mid_run
+    size = out.stat().st_size
+    keep = {"half": size // 2, "1 byte": size - 1, "4 KiB": size - 4096, "0 bytes": 0}[cut]
+    os.truncate(out, keep)
+    for args in (("status", out), ("run", TINY, "--out", out)):
+        refused = knitsweep_cli(*args)
+        assert refused.returncode == 2 and f"knitsweep recover {out}" in refused.stderr
+    proc = knitsweep_cli("recover", out)
+    assert proc.returncode == 0, proc.stderr
+    assert "recovered" in proc.stdout and f"kept as {out}.damaged" in proc.stdout, proc.stdout
+    assert "from the journal" in proc.stdout  # the fifth task
+    assert out.with_name(out.name + ".damaged").stat().st_size == keep  # nothing deleted
+    assert read_root(out)["run_status"] == "recovered"
+    s = service.status(out)
+    assert s["done"] >= 3, proc.stdout  # at least the shadow's two and the journal's one
+    assert s["damaged"] == []
+    run = knitsweep_cli("run", TINY, "--out", out, "--quiet")
+    assert run.returncode == 0, run.stderr
+    assert_same_results(tiny_reference, out)
+
+
+def test_recover_an_intact_file_changes_nothing(tiny_reference, tmp_path):
+    out = tmp_path / "i.h5"
+    shutil.copy(tiny_reference, out)
+    before = out.read_bytes()
+    proc = knitsweep_cli("recover", out)
+    assert proc.returncode == 0 and "intact (6 tasks verified" in proc.stdout
+    assert out.read_bytes() == before
+
+
+def test_recover_needs_the_job_when_no_root_is_intact(tiny_reference, tmp_path):
+    out = tmp_path / "j.h5"
+    shutil.copy(tiny_reference, out)
+    with h5py.File(out, "a") as f:
+        f.attrs["job_json"] = "{}"
+    with pytest.raises(InputError, match="--job"):
+        service.recover(out)
+    r = service.recover(out, TINY)
+    assert r["recovered"] == 6 and r["recompute"] == 0
+    with h5py.File(out, "a") as f:
+        seal_root(f)  # (the test's own edit, resealed: still a valid file)
+    assert service.status(out)["done"] == 6

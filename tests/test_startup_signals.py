@@ -1,0 +1,77 @@
+"""A signal at every stage of start-up, in every rank of ``mpirun -n 3``: imports,
+class creation (where Python wraps the signal's exception in RuntimeError), MPI_Init,
+the compile, the job's broadcast and the first hand-out. The signal is raised at the
+stage itself (``KNITSWEEP_TEST_SIGNAL_AT=<stage>@<rank>``, ``signals.test_point``),
+not at a wall-clock delay. Every rank reports one line and the run ends within
+seconds with exit code 3, no traceback, no process left (integration tier)."""
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import pytest
+from conftest import TINY
+
+from knitsweep.service.signals import STAGES, as_interrupt
+
+VENV_BIN = Path(sys.executable).parent
+MPIRUN = shutil.which("mpirun", path=str(VENV_BIN)) or shutil.which("mpirun")
+
+
+def test_a_wrapped_signal_is_still_the_signal():
+    from knitsweep.service.signals import Interrupted
+
+    class Probe:
+        def __set_name__(self, owner, name):
+            raise Interrupted(signal.SIGTERM)
+
+    with pytest.raises(RuntimeError) as info:
+        type("Made", (), {"probe": Probe()})  # what pydantic's class creation does
+    assert isinstance(as_interrupt(info.value), Interrupted)
+    assert as_interrupt(RuntimeError("other")) is None
+
+
+def test_signal_during_class_creation_in_a_single_process(tmp_path):
+    env = {**os.environ, "KNITSWEEP_TEST_SIGNAL_AT": "class", "OPENBLAS_NUM_THREADS": "1"}
+    proc = subprocess.run([sys.executable, "-m", "knitsweep", "run", str(TINY), "--out",
+                           str(tmp_path / "c.h5")], capture_output=True, text=True, env=env,
+                          timeout=120)  # fmt: skip
+    assert proc.returncode == 3, proc.stderr
+    assert proc.stderr.strip() == "interrupted by SIGTERM", proc.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+@pytest.mark.parametrize("stage", STAGES)
+def test_signal_at_each_start_up_stage_in_each_rank(tmp_path, stage):
+    if MPIRUN is None:
+        pytest.fail("mpirun not found: install the mpich wheel")
+    for rank in range(3):
+        out = tmp_path / f"{stage}{rank}.h5"
+        env = {**os.environ, "OPENBLAS_NUM_THREADS": "1",
+               "KNITSWEEP_TEST_SIGNAL_AT": f"{stage}@{rank}"}  # fmt: skip
+        cmd = [MPIRUN, "-n", "3", sys.executable, "-m", "knitsweep", "run", str(TINY), "--out",
+               str(out), "--quiet"]  # fmt: skip
+        t0 = time.monotonic()
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True, start_new_session=True)  # fmt: skip
+        try:
+            _, err = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            pytest.fail(f"signal at {stage} in rank {rank}: still running after 60 s")
+        seconds = time.monotonic() - t0
+        where = f"signal at {stage} in rank {rank} ({seconds:.1f} s)"
+        assert proc.returncode == 3, f"{where}: exit {proc.returncode}: {err}"
+        assert "Traceback" not in err and "RuntimeError" not in err, f"{where}: {err}"
+        lines = [line for line in err.splitlines() if line.startswith("interrupted by SIGTERM")]
+        assert len(lines) == 3, f"{where}: not every rank reported: {err}"
+        assert seconds < 30, f"{where}: too slow to end"
+        if out.exists():
+            with h5py.File(out) as f:
+                assert f.attrs["run_status"] == "interrupted"
