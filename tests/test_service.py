@@ -47,6 +47,20 @@ def six(tmp_path_factory):
     return job, reference
 
 
+@pytest.fixture(scope="module")
+def twelve(tmp_path_factory):
+    """A 36-task job (12 points, fine steps), long enough for eight kills that each
+    wait for a result of their own launch, with its serial uninterrupted reference."""
+    d = tmp_path_factory.mktemp("twelve")
+    job = d / "twelve.toml"
+    grid = "[" + ", ".join(f"{11.0 + 0.1 * i:.1f}" for i in range(12)) + "]"
+    text = TINY.read_text().replace("[11.4, 12.0]", grid)
+    job.write_text(text.replace("step_mm = 0.02", "step_mm = 0.001"))
+    reference = d / "reference.h5"
+    service.run(job, reference, executor="serial", show_progress=False)
+    return job, reference
+
+
 def test_file_schema(tiny_reference):
     with h5py.File(tiny_reference, "r") as f:
         for key in ("schema_version", "knitsweep_version", "git_commit", "job_json", "job_hash",
@@ -186,6 +200,20 @@ def test_status_of_a_finished_file(tiny_reference):
     assert s["run_status"] == "complete" and not s["live"]
 
 
+def _wait_for_new_entry(out, proc, since, timeout=120):
+    """Until a journal entry newer than ``since`` appears (this launch has a result of
+    its own), or the process ends."""
+    journal = journal_dir(out)
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout and proc.poll() is None:
+        try:
+            if any(p.stat().st_mtime > since for p in journal.glob("*.entry")):
+                return
+        except FileNotFoundError:  # merged into the file meanwhile
+            pass
+        time.sleep(0.005)
+
+
 def _wait_for_fresh_progress(out, proc, since, finished=0, timeout=120):
     """Until this launch's master reports ``finished`` tasks, or the process ends."""
     import json
@@ -281,14 +309,14 @@ def _all_gone(tag: str, timeout: float = 30.0) -> bool:
 
 @pytest.mark.slow
 @pytest.mark.mpi
-def test_kill_9_campaign_loses_and_duplicates_nothing(six, tmp_path):
+def test_kill_9_campaign_loses_and_duplicates_nothing(twelve, tmp_path):
     """kill -9 the whole run, mpirun alone, the master alone, a worker alone, and the
     master in the middle of checkpoints (every 20 ms), at random moments; the file
     on disk opens after each kill, and the resumed run holds every task exactly
     once, bit-identical to an uninterrupted run."""
     if MPIRUN is None:
         pytest.fail("mpirun not found: install the mpich wheel")
-    job, reference = six
+    job, reference = twelve
     busy = tmp_path / "busy.toml"  # [run] settings do not change the job (or its file)
     busy.write_text(job.read_text().replace("checkpoint_s = 0.5", "checkpoint_s = 0.02"))
     assert "checkpoint_s = 0.02" in busy.read_text()
@@ -304,9 +332,10 @@ def test_kill_9_campaign_loses_and_duplicates_nothing(six, tmp_path):
         since = time.time()
         log = tmp_path / f"launch{i}.log"
         tag = f"k9-{os.getpid()}-{i}"
+        before = service.status(out)["done"] if out.exists() else 0
         with open(log, "w") as fh:
             proc = _launch(cmd, tag, stdout=fh, stderr=fh)
-        _wait_for_fresh_progress(out, proc, since)
+        _wait_for_new_entry(out, proc, since)  # mid-run: this launch journalled a result
         time.sleep(rng.uniform(0.0, 0.4))
         if proc.poll() is not None:
             pytest.fail(f"the run ended by itself (code {proc.returncode}): {log.read_text()}")
@@ -337,14 +366,15 @@ def test_kill_9_campaign_loses_and_duplicates_nothing(six, tmp_path):
             assert f.attrs["schema_version"] == RESULTS_SCHEMA_VERSION
             assert set(f) >= {"points", "sweeps"}
         done = service.status(out)["done"]
-        if done < 18:  # the process was alive at the kill (checked above), the job unfinished
-            landed.append(f"{target} at {done}/18")
+        print(f"kill -9 of the {target}: {before} -> {done} of 36 tasks finished")
+        if before < done < 36:  # alive at the kill (checked above), mid-way through the job
+            landed.append(f"{target} at {done}/36")
     print(f"kill -9 landed mid-run: {len(landed)} of {len(targets)} ({', '.join(landed)})")
     assert len(landed) == len(targets), f"only {len(landed)} of {len(targets)} kills landed mid-run"
     final = knitsweep("run", str(job), "--out", str(out), "--quiet", mpi=3)
     assert final.returncode == 0, final.stderr
     with h5py.File(out) as f:
-        assert len(f["points"]) == 6 and len(f["sweeps"]) == 12  # each task exactly once
+        assert len(f["points"]) == 12 and len(f["sweeps"]) == 24  # each task exactly once
     assert not journal_dir(out).exists()
     assert not list(tmp_path.glob(".k9.h5*")), "shadow or temporary files left"
     assert_same_results(reference, out)
