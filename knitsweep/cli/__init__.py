@@ -28,11 +28,11 @@ def main() -> None:
     except BaseException as e:  # during start-up, before typer took over
         interrupt = signals.as_interrupt(e)
         if interrupt is None:
-            signals.quiet_exit()  # an unexpected error: no rank may wait for this one
+            signals.quiet_exit(_leave)  # an unexpected error: no rank may wait for this one
             raise
         print(f"interrupted by {interrupt}", file=sys.stderr, flush=True)
         rc = signals.EXIT_INTERRUPTED
-    signals.quiet_exit()
+    signals.quiet_exit(_leave)
     results_file = sys.modules.get("knitsweep.store.writer")
     if results_file is not None and results_file.hdf5_write_failed():
         import os
@@ -41,6 +41,13 @@ def main() -> None:
         sys.stderr.flush()
         os._exit(rc)  # the file and journal are safe; HDF5's exit clean-up is not
     sys.exit(rc)
+
+
+def _leave(comm) -> None:
+    """A rank's part of the MPI protocol when it stops before reaching it."""
+    from ..service.executors import leave_at_start_up
+
+    leave_at_start_up(comm)
 
 
 def __getattr__(name: str):

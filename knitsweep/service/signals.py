@@ -178,7 +178,7 @@ def deferred():
         _state["raise"] = old
 
 
-def quiet_exit() -> None:
+def quiet_exit(leave=None) -> None:
     """The command is done: finish MPI (a signal then is only recorded), then ignore
     SIGINT/SIGTERM for the rest of the interpreter's teardown, where Python would
     put the default handlers back and a late signal would turn a finished run's
@@ -186,7 +186,9 @@ def quiet_exit() -> None:
 
     Under mpirun a rank that a signal stopped before it started MPI still starts
     and finishes it: MPI_Init waits for every rank, and ranks already inside it
-    would otherwise wait for this one for ever."""
+    would otherwise wait for this one for ever. ``leave(comm)`` is its part of the
+    protocol for a rank that stops before it (the caller passes it:
+    ``executors.leave_at_start_up``; this module sits below the executors)."""
     import sys
 
     _state["raise"] = False
@@ -197,10 +199,8 @@ def quiet_exit() -> None:
         except ImportError:
             mpi = None  # MPI itself could not start: nothing to finish
     if mpi is not None and mpi.Is_initialized() and not mpi.Is_finalized():
-        if not _state.get("mpi_done") and mpi.COMM_WORLD.Get_size() > 1:
-            from .executors import leave_at_start_up
-
-            leave_at_start_up(mpi.COMM_WORLD)  # the others must not wait for this rank
+        if not _state.get("mpi_done") and mpi.COMM_WORLD.Get_size() > 1 and leave is not None:
+            leave(mpi.COMM_WORLD)  # the others must not wait for this rank
         mpi.Finalize()
     if threading.current_thread() is threading.main_thread():
         for s in SIGNALS:
