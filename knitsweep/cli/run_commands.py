@@ -116,7 +116,7 @@ def merge(
     typer.echo(f"{r['file']}: {r['points']} points, {r['sweeps']} sweeps ({state})")
 
 
-# ---- knitsweep slurm … (batch scripts; knitsweep/slurm.py, slurm/README.md) -------
+# ---- knitsweep slurm … (batch scripts; knitsweep/service/slurm.py, slurm/README.md)
 slurm_app = typer.Typer(
     no_args_is_help=True, help="SLURM batch scripts for knitsweep runs (slurm/README.md)."
 )
