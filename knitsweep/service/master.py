@@ -43,7 +43,7 @@ from .progress import RunProgress, task_line
 from .signals import EXIT_INTERRUPTED, Interrupted
 from .worker import Reply
 
-COMMIT_AGE_S = 0.05
+COMMIT_AGE_S = 0.2
 """A result waits at most about this long for its batch's commit while replies keep
 arriving (the master commits at once when it has nothing else to do)."""
 

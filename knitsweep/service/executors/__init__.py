@@ -94,7 +94,8 @@ def _mpi_world():
 def open_executor(job: JobSpec, kind: ExecutorKind, workers: int, comm=None) -> Executor:
     """The executor of a run: MPI ranks when ``comm`` is given (``launch``), else
     ``workers`` local processes ('processes', or 'auto' with workers > 1), else this
-    process. Creating it compiles the kernels the job uses (interruptible)."""
+    process. Its first task compiles (or loads) the kernels the job uses and starts
+    the workers (interruptible): a run with nothing left to compute starts none."""
     if comm is not None:
         from .mpi import MPIExecutor
 

@@ -12,11 +12,11 @@ import socket
 import time
 
 from .. import signals
-from ..worker import Reply, execute, prepare, stderr_notice
+from ..worker import Reply, execute, kernels_cached, prepare, stderr_notice
 
 __all__ = ["ProcessExecutor", "SerialExecutor"]
 
-SHORT_TASK_S = 0.01
+SHORT_TASK_S = 0.2
 """After a task this short the serial executor computes the next one without
 first letting the master commit (the next is likely as short: results batch)."""
 
@@ -30,14 +30,17 @@ class SerialExecutor:
         self.job = job
         self._queue: collections.deque = collections.deque()
         self._last_seconds = 0.0
-        with signals.interruptible():
-            prepare(job, stderr_notice)
+        self._prepared = False
 
     @property
     def in_flight(self) -> int:
         return len(self._queue)
 
     def submit(self, task, zero: dict | None) -> None:
+        if not self._prepared:  # the first task: compile (or load) the kernels
+            with signals.interruptible():
+                prepare(self.job, stderr_notice)
+            self._prepared = True
         self._queue.append((task, zero))
 
     def next_reply(self, timeout: float, idle=None) -> Reply | None:
@@ -79,11 +82,7 @@ class ProcessExecutor:
     def __init__(self, job, workers: int) -> None:
         self.job = job
         self._workers = workers
-        with signals.interruptible():  # compile once here; the workers load numba's cache
-            prepare(job, stderr_notice)
-        with signals.deferred():  # a pool is not left half-started
-            ctx = multiprocessing.get_context("spawn")
-            self._pool = ctx.Pool(workers, initializer=_process_worker_init, initargs=(job,))
+        self._pool = None  # started with the first task
         self._replies: queue.Queue = queue.Queue()
         self._running = 0
         self._next_rank = 0
@@ -96,7 +95,18 @@ class ProcessExecutor:
     def in_flight(self) -> int:
         return self._running
 
+    def _start(self) -> None:
+        with signals.interruptible():  # compile once here; the workers load numba's cache
+            if not kernels_cached():
+                prepare(self.job, stderr_notice)
+        with signals.deferred():  # a pool is not left half-started
+            ctx = multiprocessing.get_context("spawn")
+            self._pool = ctx.Pool(self._workers, initializer=_process_worker_init,
+                                  initargs=(self.job,))  # fmt: skip
+
     def submit(self, task, zero: dict | None) -> None:
+        if self._pool is None:
+            self._start()
         self._next_rank = self._next_rank % self._workers + 1
         self._pool.apply_async(
             _process_execute,
@@ -118,11 +128,14 @@ class ProcessExecutor:
 
     def interrupt(self, grace: float, on_reply) -> bool:
         """Local workers are simply ended; their tasks are redone on resume."""
-        self._pool.terminate()
-        self._pool.join()
+        if self._pool is not None:
+            self._pool.terminate()
+            self._pool.join()
         return True
 
     def shutdown(self, abort: bool = False) -> None:
+        if self._pool is None:
+            return
         if abort:
             self._pool.terminate()
         else:

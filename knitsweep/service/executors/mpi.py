@@ -40,7 +40,7 @@ import time
 
 from .. import signals
 from ..signals import Interrupted
-from ..worker import Reply, execute, prepare, stderr_notice
+from ..worker import Reply, execute, kernels_cached, prepare, stderr_notice
 
 __all__ = ["MPIExecutor", "mpi_worker_loop", "release_workers"]
 
@@ -80,7 +80,8 @@ def release_workers(comm) -> None:
 
 class MPIExecutor:
     """Rank 0's side of the MPI protocol; ranks 1..N-1 run ``mpi_worker_loop``.
-    Creating it compiles the kernels (interruptible) and hands the job out."""
+    The first task compiles the kernels (interruptible) and hands the job out; a
+    run with nothing to compute releases the workers at once."""
 
     def __init__(self, job, comm) -> None:
         self.job = job
@@ -92,11 +93,16 @@ class MPIExecutor:
         self._sends: list = []  # requests of tasks not yet received by their worker
         self._stopped = False
         self._task_s: float | None = None  # running mean of the tasks' compute time
+        self._started = False
+
+    def _start(self) -> None:
         with signals.interruptible():  # compile once, into numba's cache, before the workers
-            prepare(job, stderr_notice)
+            if not kernels_cached():  # (cached: the workers load them, all at once)
+                prepare(self.job, stderr_notice)
         with signals.deferred():
             for rank in self._outstanding:
-                comm.send(job.model_dump_json(), dest=rank, tag=JOB)
+                self.comm.send(self.job.model_dump_json(), dest=rank, tag=JOB)
+        self._started = True
 
     @property
     def depth(self) -> int:
@@ -114,6 +120,8 @@ class MPIExecutor:
         return sum(self._outstanding.values()) + len(self._ready)
 
     def submit(self, task, zero: dict | None) -> None:
+        if not self._started:
+            self._start()
         live = [r for r in self._outstanding if r not in self._left]
         rank = min(live, key=self._outstanding.__getitem__)
         self._queued[rank].append((task, zero))
@@ -179,6 +187,10 @@ class MPIExecutor:
         (they are redone on resume)."""
         from mpi4py import MPI
 
+        if not self._started:  # the workers still wait for the job: there is none
+            release_workers(self.comm)
+            self._started = True
+            return True
         for rank, tasks in self._queued.items():
             self._outstanding[rank] -= len(tasks)
             tasks.clear()
