@@ -1,11 +1,19 @@
 """MPI throughput against a serial run of the same job (prints figures).
 
-The master must not spin while it waits: with ``mpirun -n 3`` on a 2-core
-machine (one master, two workers) a job should run >= 1.8x faster than
-serially. Each configuration runs ``--repeats`` times into a fresh file
-(numba's cache is warm after the first run); the median wall time is reported.
+Whole-process wall seconds of ``knitsweep run JOB`` per executor (default: serial
+and ``mpirun -n 3``, i.e. one master and two workers on a 2-core machine; the target
+for ``jobs/phase_small.toml`` is >= 1.8x serial). Every configuration runs
+``--repeats`` times into a fresh file (numba's cache warm: one run first, not
+timed), in turn (A B A B ...) so that a machine whose speed drifts moves all alike;
+figures are medians. With ``--baseline OTHER/venv/bin/python`` the other install runs
+the same, in turn with this one, from a neutral directory.
 
-Run: ``python benchmarks/bench_throughput.py [--job jobs/demo.toml] [--repeats 3]``.
+Each run's file is compared with this install's first serial file: the same task
+ids and every dataset and attribute bit for bit, except the timings
+(``relax_seconds``, ``wall_seconds``, and ``rank``, ``host``, ``seconds``).
+
+Run: ``python benchmarks/bench_throughput.py [--job jobs/phase_small.toml]
+[--repeats 3] [--configs serial "mpirun -n 3"] [--baseline PY]``.
 """
 
 from __future__ import annotations
@@ -20,41 +28,106 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
+TIMINGS = {"relax_seconds", "wall_seconds", "rank", "host", "seconds"}
 
 
-def _time(cmd: list[str]) -> float:
+def _time(cmd: list[str], cwd: str) -> float:
     t = time.perf_counter()
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                   env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})  # fmt: skip
+                   cwd=cwd, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})  # fmt: skip
     return time.perf_counter() - t
+
+
+def differences(a: Path, b: Path) -> list[str]:
+    """What differs between two results files, timings aside (empty: identical)."""
+    import h5py
+
+    out = []
+    with h5py.File(a) as fa, h5py.File(b) as fb:
+        for kind in ("points", "sweeps", "series"):
+            if sorted(fa[kind]) != sorted(fb[kind]):
+                return [f"{kind}: other task ids"]
+            for tid in fa[kind]:
+                ga, gb = fa[kind][tid], fb[kind][tid]
+                for name in set(ga) | set(gb):
+                    if name in TIMINGS:
+                        continue
+                    if name not in ga or name not in gb:
+                        out.append(f"{kind}/{tid}/{name} missing")
+                        continue
+                    x, y = ga[name][()], gb[name][()]
+                    nan = x.dtype.kind in "fc"
+                    if x.shape != y.shape or not np.array_equal(x, y, equal_nan=nan):
+                        out.append(f"{kind}/{tid}/{name}")
+                for k in (set(ga.attrs) | set(gb.attrs)) - TIMINGS:
+                    va, vb = ga.attrs.get(k), gb.attrs.get(k)
+                    if not (va == vb or (isinstance(va, float) and np.isnan(va) and np.isnan(vb))):
+                        out.append(f"{kind}/{tid}@{k}")
+    return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--job", type=Path, default=ROOT / "jobs" / "demo.toml")
+    ap.add_argument("--job", type=Path, default=ROOT / "jobs" / "phase_small.toml")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--configs", nargs="+", default=["serial", "mpirun -n 3"],
+                    help="serial, '--workers N', 'mpirun -n N'")  # fmt: skip
+    ap.add_argument("--baseline", help="the Python of another knitsweep install")
     args = ap.parse_args()
-    mpirun = shutil.which("mpirun", path=str(Path(sys.executable).parent)) or "mpirun"
-    base = [sys.executable, "-m", "knitsweep", "run", str(args.job), "--quiet"]
-    configs = {
-        "serial": lambda out: [*base, "--out", out, "--executor", "serial"],
-        "--workers 2": lambda out: [*base, "--out", out, "--workers", "2"],
-        "mpirun -n 2": lambda out: [mpirun, "-n", "2", *base, "--out", out],
-        "mpirun -n 3": lambda out: [mpirun, "-n", "3", *base, "--out", out],
-    }
-    print(f"throughput of {args.job.name} on {os.cpu_count()} cores, median of {args.repeats} runs")
+    job = str(args.job.resolve())
+    installs = {"this": sys.executable}
+    if args.baseline:
+        installs["baseline"] = args.baseline
+
+    def command(python: str, config: str, out: str) -> list[str]:
+        base = [python, "-m", "knitsweep", "run", job, "--quiet", "--out", out]
+        if config == "serial":
+            return [*base, "--executor", "serial"]
+        if config.startswith("--workers"):
+            return [*base, "--workers", config.split()[-1]]
+        mpirun = shutil.which("mpirun", path=str(Path(python).parent)) or "mpirun"
+        return [mpirun, "-n", config.split()[-1], *base]
+
+    times: dict[tuple[str, str], list[float]] = {}
+    problems: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
-        _time(configs["serial"](f"{tmp}/warm.h5"))  # compile/load numba's cache once
-        times = {}
-        for name, make in configs.items():
-            runs = []
-            for i in range(args.repeats):
-                runs.append(_time(make(f"{tmp}/{name.replace(' ', '_')}_{i}.h5")))
-            times[name] = statistics.median(runs)
-    print(f"{'executor':<16}{'median [s]':>12}{'vs serial':>11}")
-    for name, t in times.items():
-        print(f"{name:<16}{t:12.2f}{times['serial'] / t:10.2f}x")
+        reference = Path(tmp) / "reference.h5"
+        for name, python in installs.items():  # load numba's cache once, untimed
+            _time(command(python, "serial", str(reference if name == "this" else
+                                               Path(tmp) / f"warm-{name}.h5")), tmp)  # fmt: skip
+        for i in range(args.repeats):
+            for config in args.configs:
+                for name, python in installs.items():
+                    out = Path(tmp) / f"{name}-{config.replace(' ', '_')}-{i}.h5"
+                    times.setdefault((name, config), []).append(
+                        _time(command(python, config, str(out)), tmp)
+                    )
+                    if name == "this":
+                        problems += [f"{out.name}: {d}" for d in differences(reference, out)]
+                    out.unlink()
+    print(f"throughput of {args.job.name}, whole-process wall seconds on {os.cpu_count()} "
+          f"cores, median of {args.repeats}")  # fmt: skip
+    head = f"{'executor':<14}" + "".join(f"{n + ' [s]':>14}{'vs serial':>10}" for n in installs)
+    print(head + (f"{'this/base':>11}" if args.baseline else ""))
+    for config in args.configs:
+        line = f"{config:<14}"
+        for name in installs:
+            t = statistics.median(times[(name, config)])
+            line += f"{t:14.2f}{statistics.median(times[(name, 'serial')]) / t:9.2f}x"
+        if args.baseline:
+            ratio = statistics.median(times[("baseline", config)]) / statistics.median(
+                times[("this", config)]
+            )
+            line += f"{ratio:10.2f}x"
+        print(line)
+    print(
+        "results of this install identical to its serial run (task ids, datasets, "
+        "attributes; timings aside):",
+        "yes" if not problems else f"NO: {problems[:5]}",
+    )
     print("target: mpirun -n 3 on 2 cores >= 1.8x the serial throughput")
 
 

@@ -21,7 +21,17 @@ from knitsweep import service
 from knitsweep.config import InputError
 from knitsweep.store.checksum import seal_root
 from knitsweep.store.format import journal_dir
-from knitsweep.store.journal import Entry, Malformed, decode, encode, write_entry
+from knitsweep.store.journal import (
+    Entry,
+    Malformed,
+    decode,
+    decode_batch,
+    encode,
+    encode_batch,
+    scan,
+    write_batch,
+    write_entry,
+)
 from knitsweep.store.read import iter_entries, read_entry, read_root
 
 
@@ -102,6 +112,55 @@ def test_journal_entry_round_trip_keeps_values_and_types():
 def test_damaged_entries_are_malformed(damage, why):
     with pytest.raises(Malformed, match=why):
         decode(damage(encode(sample_entry())))
+
+
+def test_journal_batch_round_trip_keeps_values_types_and_order():
+    a, b = sample_entry(), Entry("points", "p1", {}, {"status": "failed", "message": "x"})
+    newer = Entry("sweeps", "abc123", {"x": np.zeros((0, 4))}, {"status": "done"})
+    back = decode_batch(encode_batch([a, b, newer]))
+    assert [(e.kind, e.task_id) for e in back] == [("sweeps", "abc123"), ("points", "p1"),
+                                                   ("sweeps", "abc123")]  # fmt: skip
+    for k, v in a.record.items():
+        assert back[0].record[k].dtype == v.dtype and np.array_equal(back[0].record[k], v)
+    assert back[0].meta["seed"] == 2**62 and back[0].meta["where"] == {"rank": 1}
+    assert back[2].record["x"].shape == (0, 4) and back[1].meta["message"] == "x"
+    assert decode_batch(encode_batch([a]), with_data=False)[0].record == {}
+    data = encode_batch([a, b])
+    for damaged in (data[: len(data) // 2], data[:50] + bytes([data[50] ^ 1]) + data[51:]):
+        with pytest.raises(Malformed, match="checksum"):
+            decode_batch(damaged)
+
+
+def test_group_commit_writes_one_batch_per_commit_and_later_entries_win(tmp_path):
+    """Results added are durable only at the commit: one batch file per commit, read
+    back in sequence order; a damaged batch is one malformed file."""
+    from knitsweep.service.jobs import load_job
+    from knitsweep.store.writer import ResultWriter
+
+    out = tmp_path / "g.h5"
+    writer = ResultWriter(out, load_job(TINY))
+    for i in range(3):
+        writer.add("points", f"p{i}", {"E": np.arange(3.0)}, {"status": "failed"})
+    assert list(journal_dir(out).glob("*.entry")) == [] and writer.uncommitted == 3
+    assert writer.commit() == 3 and writer.uncommitted == 0
+    writer.add("points", "p0", {}, {"status": "done"})
+    writer.commit()
+    batches = sorted(journal_dir(out).glob("batch-*.entry"))
+    assert len(batches) == 2
+    entries, problems = scan(journal_dir(out), with_data=True)
+    assert problems == [] and [e.task_id for e in entries] == ["p0", "p1", "p2", "p0"]
+    assert entries[-1].meta["status"] == "done"
+    assert {e.task_id: e.meta["status"] for e in iter_entries(out)}["p0"] == "done"
+    writer.close("interrupted")
+    assert not journal_dir(out).exists()
+    with h5py.File(out) as f:
+        assert sorted(f["points"]) == ["p0", "p1", "p2"]
+        assert f["points/p0"].attrs["status"] == "done"
+    journal = journal_dir(out)
+    journal.mkdir()
+    path = write_batch(journal, 1, [Entry("points", "p9", {}, {"status": "done"})])
+    path.write_bytes(path.read_bytes()[:-3])
+    assert len(scan(journal)[1]) == 1 and read_entry(out, "points", "p9") is None
 
 
 def test_a_pickle_in_the_journal_is_never_unpickled(tmp_path):

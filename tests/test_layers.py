@@ -56,6 +56,7 @@ MODULE_ORDER = {
                 "slurm", "master", "runs", "recovery"],
     "report": ["force_columns", "reduce", "results", "tables", "plotting", "fig_energy",
                "fig_mechanics", "figures", "html", "render"],
+    "service.executors": ["local", "mpi"],
     "cli": ["common", "model_commands", "run_commands", "analysis_commands", "app"],
 }  # fmt: skip
 
@@ -178,3 +179,17 @@ def test_one_definition_of_the_gap_threshold():
         if "5e-5" in line or "5e-05" in line
     ]
     assert len(hits) == 1 and hits[0].startswith("analysis/transitions.py:"), hits
+
+
+def test_a_run_with_nothing_to_compute_loads_no_kernels(tiny_reference, tmp_path):
+    """Resuming a finished file starts no executor: numba is not even imported."""
+    import shutil
+
+    from conftest import TINY
+
+    done = tmp_path / "done.h5"
+    shutil.copy(tiny_reference, done)
+    names = _imported_modules(["-m", "knitsweep", "run", str(TINY), "--out", str(done),
+                               "--quiet"], tmp_path)  # fmt: skip
+    assert "knitsweep.service.master" in names
+    assert not {n for n in names if n.split(".")[0] in ("numba", "scipy")}

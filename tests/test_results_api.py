@@ -138,6 +138,8 @@ def test_load_reads_a_file_being_written(tiny_reference, tmp_path):
             pid = next(iter(f["points"]))
         entry = read_entry(tiny_reference, POINTS, pid)
         writer.add(POINTS, pid, entry.record, entry.meta)
+        assert len(knitsweep.load(out).points) == 0  # queued, not yet durable
+        writer.commit()  # its journal batch: durable, and read
         res = knitsweep.load(out)
         assert list(res.points["task_id"]) == [pid] and res.partial
     finally:

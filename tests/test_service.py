@@ -155,6 +155,19 @@ def test_failing_task_is_isolated(tmp_path, monkeypatch):
         assert all(s.attrs["status"] == "failed" for s in inherited)
 
 
+def test_every_executor_implements_the_protocol():
+    """Serial, process and MPI executors offer what the master uses, interrupt included."""
+    from knitsweep.service.executors import Executor, MPIExecutor, ProcessExecutor
+
+    members = ("capacity", "in_flight", "submit", "next_reply", "interrupt", "shutdown")
+    assert all(hasattr(Executor, m) for m in members)
+    for cls in (SerialExecutor, ProcessExecutor, MPIExecutor):
+        missing = [m for m in members if not hasattr(cls, m)]
+        assert not missing, f"{cls.__name__} lacks {missing}"
+    job = load_job(TINY)
+    assert isinstance(SerialExecutor(job), Executor)
+
+
 def test_task_wall_time_budget(tmp_path):
     """A 1 ms budget: every zero-force relaxation is cut off, its sweeps inherit."""
     tiny = load_job(TINY)

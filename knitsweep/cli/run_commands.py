@@ -154,7 +154,7 @@ def recover(
         typer.echo("every planned task is recovered")
 
 
-# ---- knitsweep slurm … (batch scripts; knitsweep/slurm.py, slurm/README.md) -------
+# ---- knitsweep slurm … (batch scripts; knitsweep/service/slurm.py, slurm/README.md)
 slurm_app = typer.Typer(
     no_args_is_help=True, help="SLURM batch scripts for knitsweep runs (slurm/README.md)."
 )

@@ -3,8 +3,10 @@
 Each grid point's zero-force relaxation runs once; when it arrives, the point's
 sweeps become ready and carry its record with them (a point that is failed or
 not knittable passes its verdict to its sweeps without computing them).
-Results go to the journal as they arrive and into the HDF5 file at
-checkpoints (``storage``). Running the same job again skips what is finished
+Results go to the journal as they arrive, in batches (group commit: the master
+commits whenever it would otherwise wait, so a batch holds what arrived during the
+previous one's fsync), and into the HDF5 file at checkpoints (``store.writer``). A
+result counts as finished (progress line, progress file) once its batch is durable. Running the same job again skips what is finished
 (done, not_knittable, and failed unless ``retry_failed``) and redoes the rest.
 
 On SIGTERM or SIGINT (``signals``: recorded, never cutting a write in half) the
@@ -32,7 +34,6 @@ from ..config import DONE, FAILED
 from ..errors import InputError, remedy
 from ..store.format import POINTS, SERIES, SWEEPS, progress_path, split_record
 from ..store.journal import StorageError, atomic_write_bytes
-from ..store.read import read_entry
 from ..store.writer import ResultWriter
 from . import signals
 from .adaptive import Refiner
@@ -40,6 +41,10 @@ from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, sweep_task
 from .progress import RunProgress, task_line
 from .signals import EXIT_INTERRUPTED, Interrupted
 from .worker import Reply
+
+COMMIT_AGE_S = 0.2
+"""A result waits at most about this long for its batch's commit while replies keep
+arriving (the master commits at once when it has nothing else to do)."""
 
 
 @dataclass
@@ -89,10 +94,15 @@ class _Master:
     sweeps of this point get computed (its zero-force task first, if needed).
     """
 
-    def __init__(self, job, points, writer, executor, summary, retry_failed, progress):
+    def __init__(self, job, points, writer, executor, summary, retry_failed, progress,
+                 sweeps=()):  # fmt: skip
         self.job, self.writer, self.executor, self.summary = job, writer, executor, summary
+        self._planned = {(s.point_id, s.direction): s for s in sweeps}  # ids hashed once
+        self._described: dict[str, dict[str, Any]] = {}
         self.progress: RunProgress = progress
         self._last_file = 0.0
+        self._unacknowledged: list[tuple] = []  # progress of results not yet durable
+        self._oldest = 0.0  # when the oldest of them arrived
         self.points: dict[str, PointTask] = {}
         self.sweeps: dict[str, SweepTask] = {}
         self.sweeps_of: dict[str, list[SweepTask]] = {}  # waiting for their point
@@ -132,7 +142,7 @@ class _Master:
                 self.summary.skipped += 1
                 self._count(str(self.finished[POINTS][pid]["status"]))
         for d in directions:
-            s = sweep_task(self.job, pid, d)
+            s = self._planned.get((pid, d)) or sweep_task(self.job, pid, d)
             if s.task_id in self.sweeps:
                 continue
             self.sweeps[s.task_id] = s
@@ -156,11 +166,24 @@ class _Master:
             return
         meta = self._meta(s, status, f"zero-force state: {point_meta.get('message', status)}")
         self._record_sweep(s, {}, meta)
-        self.progress.finished("sweep", 0.0, self._line(s, status, 0.0), measured=False)
+        self._finished("sweep", 0.0, self._line(s, status, 0.0), measured=False)
+
+    def _finished(self, kind: str, seconds: float, line: str, measured: bool = True) -> None:
+        """Report a result once its journal batch is durable (``_commit``)."""
+        if not self._unacknowledged:
+            self._oldest = time.monotonic()
+        self._unacknowledged.append((kind, seconds, line, measured))
+
+    def _commit(self) -> None:
+        """Make the results added so far durable (one journal batch), then report them."""
+        self.writer.commit()
+        for kind, seconds, line, measured in self._unacknowledged:
+            self.progress.finished(kind, seconds, line, measured=measured)
+        self._unacknowledged = []
 
     def _payload(self, pid: str) -> dict[str, Any]:
         if pid not in self.zero:
-            entry = read_entry(self.writer.path, POINTS, pid)
+            entry = self.writer.entry(POINTS, pid)
             self.zero[pid] = {**entry.record, **entry.meta}
         return {**self.zero[pid], "params": self.points[pid].params}
 
@@ -183,13 +206,13 @@ class _Master:
                 self.finished[SERIES][key] = meta
 
     def _meta(self, task, status: str, message: str, reply: Reply | None = None) -> dict[str, Any]:
-        params = (self.points[task.point_id] if isinstance(task, SweepTask) else task).params
-        meta: dict[str, Any] = {
-            "status": status,
-            "message": message,
-            **params.model_dump(mode="json"),
-            "L_over_r": params.L_over_r,
-        }
+        pid = task.point_id if isinstance(task, SweepTask) else task.task_id
+        described = self._described.get(pid)
+        if described is None:  # a point's parameters, dumped once for it and its sweeps
+            params = self.points[pid].params
+            described = {**params.model_dump(mode="json"), "L_over_r": params.L_over_r}
+            self._described[pid] = described
+        meta: dict[str, Any] = {"status": status, "message": message, **described}
         if isinstance(task, SweepTask):
             meta |= {"point_id": task.point_id, "direction": task.direction}
         else:
@@ -213,13 +236,16 @@ class _Master:
                 if not queue:
                     break
                 self.executor.submit(*queue.popleft())
-            reply = self.executor.next_reply(timeout=0.25)
+            reply = self.executor.next_reply(timeout=0.25, idle=self._commit)
             if reply is not None:
                 self._handle(reply)
+            if self._unacknowledged and time.monotonic() - self._oldest > COMMIT_AGE_S:
+                self._commit()
             if time.monotonic() - last_checkpoint > self.job.run.checkpoint_s:
                 self.writer.checkpoint()
                 last_checkpoint = time.monotonic()
             self._progress()
+        self._commit()
         self._progress(force=True)
         return "complete"
 
@@ -247,7 +273,7 @@ class _Master:
         meta = self._meta(task, status, message, reply) | scalars
         kind = "sweep" if isinstance(task, SweepTask) else "point"
         where = f"rank {reply.rank}@{reply.host}"
-        self.progress.finished(kind, reply.seconds, self._line(task, status, reply.seconds, where))
+        self._finished(kind, reply.seconds, self._line(task, status, reply.seconds, where))
         if isinstance(task, SweepTask):
             self._record_sweep(task, record, meta)
             return
@@ -272,6 +298,7 @@ class _Master:
         if not force and t - self._last_file < 1.0:
             return
         self._last_file = t
+        self._commit()  # the file counts only durable results
         c = self.summary.counts
         counts = {"done": c[DONE], "failed": c[FAILED], "not_knittable": c["not_knittable"],
                   "running": self.executor.in_flight, "pending": self.pending,
@@ -346,7 +373,8 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
     progress = RunProgress(varying_parameters(job), show=show_progress)
     try:
         with progress:
-            master = _Master(job, points, writer, executor, summary, retry_failed, progress)
+            master = _Master(job, points, writer, executor, summary, retry_failed, progress,
+                             sweeps)  # fmt: skip
             status = master.run()
     except Interrupted:
         pass

@@ -12,7 +12,7 @@ import math
 import signal
 import time
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any
 
 from ..config import DONE, FAILED
 from ..errors import InputError
@@ -25,7 +25,9 @@ from ..store.writer import writer_alive
 from . import signals
 from .jobs import JobSpec, load_job
 
-ExecutorKind = Literal["auto", "serial", "processes", "mpi"]
+if TYPE_CHECKING:
+    from .executors import ExecutorKind
+
 LARGE_GRID_TASKS = 20_000
 """Jobs with more tasks (points and sweeps) than this need ``--max-tasks`` (README)."""
 
@@ -50,38 +52,30 @@ def run(
 
     Everything that can be refused is checked before any compute: the job, the
     shard, the grid size against ``max_tasks`` (default ``LARGE_GRID_TASKS``) and
-    whether ``out`` can be written."""
-    from .executors import launched_by_mpi
+    whether ``out`` can be written. Under MPI, rank 0 does that and the workers
+    wait for the job; if rank 0 refuses it (or a signal comes first), they are
+    released instead of left waiting."""
+    from .executors import launch, mpi_worker_loop, open_executor, release_workers
     from .master import run_job
 
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InputError(f"workers = {workers!r}: must be an integer >= 1")
-    use_mpi = executor == "mpi" or (executor == "auto" and launched_by_mpi())
-    if use_mpi:
-        comm = _mpi_world()
-        if comm.Get_size() > 1:
-            return _run_mpi(comm, job_path, out, shard, retry_failed, show_progress, max_tasks)
-        if executor == "mpi":
-            raise InputError("executor = 'mpi' needs at least 2 ranks (mpirun -n 2 or more)")
-    with signals.interruptible():
-        job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks)
-        ex = _local_executor(job, executor, workers)
+    comm, is_worker = launch(executor)
+    if is_worker:
+        if mpi_worker_loop(comm) == signals.EXIT_INTERRUPTED:  # every rank says so, exit 3
+            raise signals.Interrupted(signals.received() or signal.SIGTERM)
+        return None
+    try:
+        with signals.interruptible():  # raises at once for a signal during MPI_Init
+            job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks)
+            ex = open_executor(job, executor, workers, comm)  # compiles; hands the job out
+    except BaseException as e:  # there is no job: the workers leave (exit 3 on a signal)
+        if comm is not None:
+            release_workers(comm, None if signals.as_interrupt(e) is None
+                            else signals.EXIT_INTERRUPTED)  # fmt: skip
+        raise
     return run_job(job, out, ex, shard=shard_t, retry_failed=retry_failed,
                    show_progress=show_progress)  # fmt: skip
-
-
-def _mpi_world():
-    """MPI_COMM_WORLD; MPI_Init runs deferred: a signal during it is recorded, and
-    rank 0 raises it only after it can release the workers (``_run_mpi``)."""
-    with signals.deferred():
-        signals.test_point("mpi_init")
-        try:
-            from mpi4py import MPI
-        except ImportError as e:
-            if signals.received() is not None:
-                raise signals.Interrupted(signals.received()) from None
-            raise InputError(f"MPI could not start: {e}") from None
-    return MPI.COMM_WORLD
 
 
 def _prepare_run(job_path, out, shard, max_tasks):
@@ -94,14 +88,6 @@ def _prepare_run(job_path, out, shard, max_tasks):
     check_grid_size(job, max_tasks)
     check_output(out)
     return job, shard_t, out
-
-
-def _local_executor(job, executor, workers):
-    from .executors import ProcessExecutor, SerialExecutor
-
-    if executor == "processes" or (executor == "auto" and workers > 1):
-        return ProcessExecutor(job, workers)
-    return SerialExecutor(job)
 
 
 def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:
@@ -124,25 +110,6 @@ def check_output(out: Path) -> None:
 
     check_writable(out, "results file")
     check_no_links(out)
-
-
-def _run_mpi(comm, job_path, out, shard, retry_failed, show_progress, max_tasks):
-    from .executors import MPIExecutor, mpi_worker_loop, release_workers
-    from .master import run_job
-
-    if comm.Get_rank() != 0:
-        if mpi_worker_loop(comm) == signals.EXIT_INTERRUPTED:  # every rank says so, exit 3
-            raise signals.Interrupted(signals.received() or signal.SIGTERM)
-        return None
-    try:
-        with signals.interruptible():  # raises at once for a signal during MPI_Init
-            job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks)
-            ex = MPIExecutor(job, comm)  # compiles, then hands the job to the workers
-    except BaseException as e:  # there is no job: the workers leave (exit 3 on a signal)
-        release_workers(comm, None if signals.as_interrupt(e) is None else signals.EXIT_INTERRUPTED)
-        raise
-    return run_job(job, out, ex, shard=shard_t, retry_failed=retry_failed,
-                   show_progress=show_progress)  # fmt: skip
 
 
 def status(path: str | Path, by: str | None = None) -> dict[str, Any]:

@@ -65,6 +65,14 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> None:
     compile_kernels(job.fidelity, notice, (job.stitch,))
 
 
+def kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds the kernels already: a master that does
+    not compute then need not load them (its workers do, at the same time)."""
+    from ..kernels import cached
+
+    return cached()
+
+
 def stderr_notice(message: str) -> None:
     """A one-line notice for the person running the job."""
     import sys

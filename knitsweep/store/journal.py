@@ -13,6 +13,19 @@ code when it is read (the journal used to be pickles: whoever could write into
 the journal directory could run code in the master). A damaged, truncated,
 foreign or old (pickle) entry is *malformed*: readers skip it and report it
 (``knitsweep status``), and the master recomputes its task.
+
+The master journals in *batches* (group commit): ``batch-<sequence>.entry`` holds
+the entries that arrived while the previous batch was written, in one file written
+and fsynced once (``write_batch``). Its bytes are
+
+    b"KSJB" | sha256(payload) (32 bytes) | payload
+
+with payload ``u32 header length | JSON header | array bytes``: the header lists
+each entry (kind, task id, scalars) and, per array, its dtype, shape and offset
+into the array bytes (read with ``np.frombuffer``; object dtypes are refused).
+A batch is whole or absent after a kill -9; a damaged one is malformed as a whole
+and all its tasks are recomputed. Sequence numbers grow, so scanning the journal
+in name order meets an entry's newer version after the older one.
 """
 
 from __future__ import annotations
@@ -23,6 +36,7 @@ import io
 import json
 import os
 import re
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,6 +57,9 @@ ENTRY_FORMAT = 1
 SUFFIX = ".entry"
 _HEADER = "__entry__"
 _NAME = re.compile(r"^(points|sweeps|series)-([A-Za-z0-9._-]{1,200})$")
+BATCH_MAGIC = b"KSJB"
+BATCH_FORMAT = 1
+_BATCH = re.compile(r"^batch-([0-9]{12})$")
 
 
 @dataclass
@@ -190,27 +207,147 @@ def read_entry_file(path: Path, with_data: bool = True) -> Entry:
 def scan(journal: Path, with_data: bool = False) -> tuple[list[Entry], list[tuple[Path, str]]]:
     """The journal's intact entries and its malformed files ``(path, why)``.
 
-    Entries merged into the HDF5 file (and deleted) while this reads are skipped;
-    old pickle entries (``*.pkl``) are listed as malformed, never unpickled."""
+    Single entry files come first, then the batches in sequence order (a task's
+    later entry follows its earlier one). Entries merged into the HDF5 file (and
+    deleted) while this reads are skipped; old pickle entries (``*.pkl``) are
+    listed as malformed, never unpickled."""
     entries: list[Entry] = []
     problems: list[tuple[Path, str]] = []
     if journal.is_symlink():  # it could point anywhere: never read, written or cleaned
         return entries, [(journal, "the journal directory is a symbolic link, not read")]
-    if not journal.is_dir():
-        return entries, problems
-    for path in sorted(journal.iterdir()):
-        if path.is_symlink() and not path.name.startswith("."):
-            problems.append((path, "a symbolic link, not read (and never deleted through)"))
-            continue
-        if path.name.startswith(".") or not path.is_file():
-            continue  # an entry being written (temporary file), or not ours to judge
+    if journal.is_dir():
+        for path in sorted(journal.iterdir()):
+            if path.is_symlink() and not path.name.startswith("."):
+                problems.append((path, "a symbolic link, not read (and never deleted through)"))
+    for path in journal_files(journal):
         if path.suffix == ".pkl":
             problems.append((path, "an old pickle entry, not read (pickle could run code)"))
             continue
         try:
-            entries.append(read_entry_file(path, with_data))
+            if _BATCH.match(path.name.removesuffix(SUFFIX)):
+                entries.extend(read_batch_file(path, with_data))
+            else:
+                entries.append(read_entry_file(path, with_data))
         except FileNotFoundError:
             continue
         except Malformed as e:
             problems.append((path, str(e)))
     return entries, problems
+
+
+def journal_files(journal: Path) -> list[Path]:
+    """The journal's files in reading order: entry files, then batches by sequence
+    (temporary files of writes under way and symbolic links are not listed: nothing
+    is read, written or deleted through a link)."""
+    if not journal.is_dir():
+        return []
+    if journal.is_symlink():
+        return []
+    paths = [p for p in journal.iterdir()
+             if not p.name.startswith(".") and not p.is_symlink() and p.is_file()]  # fmt: skip
+    return sorted(paths, key=lambda p: (p.name.startswith("batch-"), p.name))
+
+
+def next_batch_number(journal: Path) -> int:
+    """One more than the highest batch sequence number in ``journal``."""
+    numbers = [int(m.group(1)) for p in journal_files(journal)
+               if (m := _BATCH.match(p.name.removesuffix(SUFFIX)))]  # fmt: skip
+    return max(numbers, default=0) + 1
+
+
+# ---- batches (group commit) -----------------------------------------------------
+
+
+def batch_path(journal: Path, number: int) -> Path:
+    return journal / f"batch-{number:012d}{SUFFIX}"
+
+
+_JSON_TYPES = (str, float, int, bool, type(None))
+
+
+def encode_batch(entries: list[Entry]) -> bytes:
+    """The bytes of one batch file (see the module docstring)."""
+    blobs: list[bytes] = []
+    offset = 0
+    listed = []
+    for entry in entries:
+        arrays = []
+        scalars: dict[str, dict[str, Any]] = {"record": {}, "meta": {}}
+        for part, values in (("record", entry.record), ("meta", entry.meta)):
+            for key, value in values.items():
+                if isinstance(value, np.ndarray) and value.ndim > 0:
+                    is_object = value.dtype == object
+                    if is_object:
+                        value = value.astype(str)
+                    data = np.ascontiguousarray(value).tobytes()
+                    arrays.append([part, key, value.dtype.str, list(value.shape), offset,
+                                   len(data), is_object])  # fmt: skip
+                    blobs.append(data)
+                    offset += len(data)
+                elif type(value) in _JSON_TYPES:
+                    scalars[part][key] = value
+                else:
+                    scalars[part][key] = _plain(value)
+        listed.append({"kind": entry.kind, "task_id": entry.task_id, "scalars": scalars,
+                       "arrays": arrays})  # fmt: skip
+    header = json.dumps({"format": BATCH_FORMAT, "entries": listed}, separators=(",", ":"),
+                        check_circular=False).encode()  # fmt: skip
+    payload = b"".join([struct.pack("<I", len(header)), header, *blobs])
+    return BATCH_MAGIC + hashlib.sha256(payload).digest() + payload
+
+
+def decode_batch(data: bytes, with_data: bool = True) -> list[Entry]:
+    """The entries of one batch file; ``Malformed`` if it is not an intact batch."""
+    if len(data) < 40 or data[:4] != BATCH_MAGIC:
+        raise Malformed("not a knitsweep journal batch")
+    payload = memoryview(data)[36:]
+    if hashlib.sha256(payload).digest() != data[4:36]:
+        raise Malformed("checksum mismatch (damaged or truncated)")
+    try:
+        (n,) = struct.unpack_from("<I", payload, 0)
+        header = json.loads(bytes(payload[4 : 4 + n]))
+        if header.get("format") != BATCH_FORMAT:
+            raise Malformed(f"batch format {header.get('format')!r}, expected {BATCH_FORMAT}")
+        blob = payload[4 + n :]
+        out = []
+        for item in header["entries"]:
+            record = dict(item["scalars"]["record"])
+            meta = dict(item["scalars"]["meta"])
+            for part, key, dtype, shape, offset, size, is_object in item["arrays"]:
+                if not with_data and part == "record":
+                    continue
+                dt = np.dtype(dtype)
+                if dt.hasobject or offset < 0 or offset + size > len(blob):
+                    raise Malformed("an array outside the batch or of object dtype")
+                value = np.frombuffer(blob[offset : offset + size], dtype=dt).reshape(shape)
+                value = np.array(value.tolist(), dtype=object) if is_object else value.copy()
+                (record if part == "record" else meta)[key] = value
+            kind, task_id = item["kind"], item["task_id"]
+            if not (isinstance(kind, str) and isinstance(task_id, str)):
+                raise Malformed("kind or task id is not a string")
+            out.append(Entry(kind, task_id, record, meta))
+    except Malformed:
+        raise
+    except Exception as e:  # whatever a checksummed but foreign payload raises
+        raise Malformed(f"unreadable ({type(e).__name__})") from None
+    return out
+
+
+def write_batch(journal: Path, number: int, entries: list[Entry]) -> Path:
+    """Journal several entries durably in one file: one write, one fsync of it and
+    one of the directory (the group commit); returns its path."""
+    path = batch_path(journal, number)
+    atomic_write_bytes(path, encode_batch(entries))
+    fsync_dir(journal)
+    return path
+
+
+def read_batch_file(path: Path, with_data: bool = True) -> list[Entry]:
+    """The entries of one batch file; ``Malformed`` or FileNotFoundError."""
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise
+    except OSError as e:
+        raise Malformed(f"unreadable ({e.strerror or e})") from None
+    return decode_batch(data, with_data)

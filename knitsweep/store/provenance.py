@@ -13,18 +13,17 @@ from .._version import __version__
 def environment_metadata() -> dict[str, str]:
     """Versions, host, git commit and SLURM job of this run (root attributes)."""
     import platform
+    from importlib.metadata import version
 
     import h5py
-    import numba
     import numpy
-    import scipy
 
     meta = {
         "knitsweep_version": __version__,
         "python_version": platform.python_version(),
         "numpy_version": numpy.__version__,
-        "scipy_version": scipy.__version__,
-        "numba_version": numba.__version__,
+        "scipy_version": version("scipy"),  # read without importing scipy and numba
+        "numba_version": version("numba"),
         "h5py_version": h5py.__version__,
         "hdf5_version": h5py.version.hdf5_version,
         "host": socket.gethostname(),

@@ -195,6 +195,9 @@ def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
         return read_entry_file(entry_path(journal_dir(path), kind, task_id))
     except (FileNotFoundError, Malformed):
         pass
+    for e in reversed(scan(journal_dir(path), with_data=True)[0]):  # batches: newest first
+        if (e.kind, e.task_id) == (kind, task_id):
+            return e
     if path.exists():
         with _open(path) as f:
             try:

@@ -3,10 +3,14 @@
 Crash safety without parallel HDF5 or SWMR, with checkpoints whose cost grows with
 the new results, not with the file:
 
-1. every result that arrives is first written to the journal (write-ahead log),
-   ``<file>.journal/<kind>-<task id>.entry``: one checksummed file per task that
-   cannot run code when read (``journal``), written through a temporary file,
-   fsync and an atomic rename, so after a kill -9 an entry is whole or absent;
+1. every result that arrives is first written to the journal (write-ahead log) in
+   batches (group commit): ``add`` queues it, ``commit`` writes the queued results
+   as one checksummed file ``<file>.journal/batch-<n>.entry`` that cannot run code
+   when read (``journal``), through a temporary file, one fsync and an atomic
+   rename, so after a kill -9 a batch is whole or absent. A result is durable (and
+   the master reports it finished) only once its batch is committed; the master
+   commits whenever it would otherwise wait, and at least every ``COMMIT_ENTRIES``
+   results;
 2. every ``checkpoint_s`` seconds (and at the end) the master appends the new
    results *in place* to a private shadow copy of the file
    (``.<file>.shadow``), fsyncs it and publishes it by an atomic rename over
@@ -74,11 +78,12 @@ from .journal import (
     Entry,
     StorageError,
     atomic_write_bytes,
-    entry_path,
     fsync_dir,
+    journal_files,
+    next_batch_number,
     scan,
     storage_error,
-    write_entry,
+    write_batch,
 )
 from .provenance import environment_metadata
 from .read import _open, file_entries, read_root
@@ -86,6 +91,10 @@ from .read import _open, file_entries, read_root
 __all__ = ["ResultWriter", "StorageError", "atomic_write_bytes", "check_compatible",
            "writer_alive"]  # fmt: skip
 
+COMMIT_ENTRIES = 512
+"""A batch is committed at the latest when it holds this many results."""
+COMMIT_BYTES = 8 * 1024 * 1024
+"""… or this many bytes of arrays."""
 SPACE_MARGIN_BYTES = 256 * 1024
 """Free space a checkpoint leaves at least, for HDF5's own metadata."""
 _HDF5_WRITE_FAILED = False
@@ -161,6 +170,10 @@ class ResultWriter:
         self.journal = journal_dir(self.path)
         self._shadow, self._spare = _hidden(self.path, "shadow"), _hidden(self.path, "spare")
         self._pending: dict[tuple[str, str], Entry] = {}  # journalled, not yet in the file
+        self._batch: list[Entry] = []  # added, not yet journalled (the next group commit)
+        self._batch_bytes = 0
+        self._batch_no = 1
+        self._files: list[Path] = []  # the journal files holding the pending entries
         self._lag: list[Entry] = []  # in the file, not yet in the shadow
         self._lag_attrs: dict[str, Any] = {}
         self._shadow_ready = False
@@ -260,6 +273,8 @@ class ResultWriter:
             with contextlib.suppress(OSError):
                 path.unlink(missing_ok=True)  # reported by the caller; the task is redone
         self._pending = {(e.kind, e.task_id): e for e in entries}
+        self._files = journal_files(self.journal)
+        self._batch_no = next_batch_number(self.journal)
         if self.path.exists():
             return
         tmp = _hidden(self.path, f"{os.getpid()}.tmp")
@@ -300,18 +315,57 @@ class ResultWriter:
         newer = set(self._pending)
         return [e for e in self.stored if (e.kind, e.task_id) not in newer] + self.journalled
 
-    def add(self, kind: str, task_id: str, record: dict[str, Any], meta: dict[str, Any]) -> None:
-        """Journal one finished task durably (atomic, fsynced); StorageError if the
-        disk refuses it (the task then counts as unfinished)."""
-        entry = Entry(kind, task_id, record, meta)
-        write_entry(self.journal, entry)
-        self._pending[(kind, task_id)] = entry
+    def add(self, kind: str, task_id: str, record: dict[str, Any], meta: dict[str, Any]) -> int:
+        """Queue one finished task for the journal's next batch, committing the batch
+        when it is full; returns how many results that commit made durable (0: none
+        yet). StorageError if the disk refuses it (its tasks then count as
+        unfinished)."""
+        self._batch.append(Entry(kind, task_id, record, meta))
+        self._batch_bytes += sum(getattr(v, "nbytes", 0) for v in record.values())
+        if len(self._batch) >= COMMIT_ENTRIES or self._batch_bytes >= COMMIT_BYTES:
+            return self.commit()
+        return 0
+
+    @property
+    def uncommitted(self) -> int:
+        """Results added but not yet durable."""
+        return len(self._batch)
+
+    def commit(self) -> int:
+        """Journal the queued results durably in one batch file (one write, one
+        fsync of it and of the directory); returns how many."""
+        if not self._batch:
+            return 0
+        entries, self._batch, self._batch_bytes = self._batch, [], 0
+        try:
+            path = write_batch(self.journal, self._batch_no, entries)
+        except StorageError:
+            self._batch = entries + self._batch  # still not durable: kept for a retry
+            raise
+        self._batch_no += 1
+        self._files.append(path)
+        for e in entries:
+            self._pending[(e.kind, e.task_id)] = e
+        return len(entries)
+
+    def entry(self, kind: str, task_id: str) -> Entry | None:
+        """One finished task with its data: queued, journalled or in the file."""
+        for e in reversed(self._batch):
+            if (e.kind, e.task_id) == (kind, task_id):
+                return e
+        found = self._pending.get((kind, task_id))
+        if found is not None:
+            return found
+        from .read import read_entry
+
+        return read_entry(self.path, kind, task_id)
 
     def checkpoint(self, attrs: dict[str, Any] | None = None) -> int:
         """Fold the journalled results into the HDF5 file atomically, appending in
         place to the shadow copy and renaming it over the file; returns how many.
         On a write error the file is unchanged, the journal kept, no temporary file
         is left and StorageError names the cause."""
+        self.commit()  # the journal first: a checkpoint that fails must lose nothing
         entries = list(self._pending.values())
         attrs = {**self._root_updates, **(attrs or {})}
         if not entries and not attrs:
@@ -331,10 +385,11 @@ class ResultWriter:
         if failure is not None:
             raise failure
         fsync_dir(self.path.parent)
-        for e in entries:
+        for path in self._files:  # every pending entry is in the file now
             with contextlib.suppress(OSError):
-                entry_path(self.journal, e.kind, e.task_id).unlink(missing_ok=True)
-            self._pending.pop((e.kind, e.task_id), None)
+                path.unlink(missing_ok=True)
+        self._files = []
+        self._pending = {}
         self._root_updates = {}
         if spare is not None:
             with contextlib.suppress(OSError):

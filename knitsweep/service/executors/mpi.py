@@ -1,20 +1,23 @@
-"""Where tasks run: in this process, in local processes, or on MPI ranks.
-
-All three share one small interface (after mpi4py.futures' pool abstraction):
-``submit(task, zero)``, ``next_reply(timeout) -> Reply | None``, ``capacity``,
-``in_flight`` and ``shutdown(abort)``. The runner does not know which it has,
-so most sweep tests need no ``mpiexec``.
+"""The MPI executor (``executors.Executor``): rank 0's side and the workers' loop.
 
 MPI protocol (rank 0 is the master, ranks 1..N-1 work), point to point only (no
 collective that a signalled rank could leave the others stuck in): the master
 compiles the kernels, then sends the job tagged JOB to every worker (``None``: no
-job, leave); then ``(task, zero)`` values tagged TASK go out and ``Reply`` values
-tagged REPLY come back; ``None`` tagged STOP ends a worker, which answers STOPPED
-before it leaves; a task a worker dropped on a signal comes back as ABANDONED.
-Each worker holds up to PREFETCH tasks, so it starts the next one without a round
-trip. Both sides wait with ``Iprobe`` and a short sleep (one ``Backoff``) instead
-of a blocking receive, because MPICH's blocking receive spins a core: with
-``mpirun -n 3`` on 2 cores the master must leave both cores to the workers.
+job, leave); then lists of ``(task, zero)`` values tagged TASK go out and lists of
+``Reply`` values tagged REPLY come back (batches: one message carries every task
+the master hands a worker at once, and every reply a worker has ready); ``None``
+tagged STOP ends a worker, which answers STOPPED before it leaves; tasks a worker
+dropped on a signal (or had not started at STOP) come back as a list of task ids
+tagged ABANDONED.
+
+Each worker holds a queue of about ``QUEUE_S`` seconds of work (at least PREFETCH
+tasks, at most MAX_DEPTH; the master measures the task times), so it starts the
+next task the moment it finishes one, and sends its replies when half its queue is
+done (or REPLY_EVERY_S has passed): the master refills the queue while the worker
+computes the other half, and no task waits on a round trip. Both sides wait with
+``Iprobe`` and a short sleep (one ``Backoff``) instead of a blocking receive,
+because MPICH's blocking receive spins a core: with ``mpirun -n 3`` on 2 cores the
+master must leave both cores to the workers.
 
 Interrupts (``signals``): srun and mpirun deliver SIGTERM/SIGINT to every rank. A
 worker that gets one abandons the task it computes, or, idle (also while it
@@ -30,21 +33,22 @@ srun and leaves shared-memory segments behind).
 from __future__ import annotations
 
 import collections
-import multiprocessing
-import queue
+import math
 import signal
 import socket
 import time
 
-from . import signals
-from .signals import Interrupted, launched_by_mpi
+from .. import signals
+from ..signals import Interrupted
+from ..worker import Reply, execute, kernels_cached, prepare, stderr_notice
 
-__all__ = ["MPIExecutor", "ProcessExecutor", "SerialExecutor", "launched_by_mpi",
-           "mpi_worker_loop", "release_workers"]  # fmt: skip
-from .worker import Reply, execute, prepare, stderr_notice
+__all__ = ["MPIExecutor", "mpi_worker_loop", "release_workers"]
 
 TASK, REPLY, STOP, STOPPED, ABANDONED, JOB, LEFT = 1, 2, 3, 4, 5, 6, 7
-PREFETCH = 2  # tasks held by each MPI worker: the one it computes and the next
+PREFETCH = 2  # tasks held by each MPI worker at least: the one it computes and the next
+MAX_DEPTH = 64  # … and at most
+QUEUE_S = 0.05  # seconds of work each worker holds (from the measured task times)
+REPLY_EVERY_S = 0.02  # a worker sends the replies it has at least this often
 LEAVE_WAIT_S = 10.0  # a worker that left on a signal waits this long for the master's STOP
 HURRY_S = 2.0  # a second signal while the workers stop: wait at most this much longer
 
@@ -64,111 +68,6 @@ class Backoff:
     def sleep(self) -> None:
         time.sleep(self.delay)
         self.delay = min(2.0 * self.delay, self.limit)
-
-
-class SerialExecutor:
-    """Runs each task in this process when the runner asks for the next reply."""
-
-    capacity = 1
-
-    def __init__(self, job) -> None:
-        self.job = job
-        self._queue: collections.deque = collections.deque()
-        with signals.interruptible():
-            prepare(job, stderr_notice)
-
-    @property
-    def in_flight(self) -> int:
-        return len(self._queue)
-
-    def submit(self, task, zero: dict | None) -> None:
-        self._queue.append((task, zero))
-
-    def next_reply(self, timeout: float) -> Reply | None:
-        if not self._queue:
-            time.sleep(min(timeout, 0.05))
-            return None
-        task, zero = self._queue.popleft()
-        with signals.interruptible():  # a signal abandons the task; it is redone on resume
-            return execute(self.job, task, zero, rank=0)
-
-    def interrupt(self, grace: float, on_reply) -> bool:
-        self._queue.clear()  # the task being computed was abandoned by the signal
-        return True
-
-    def shutdown(self, abort: bool = False) -> None:
-        self._queue.clear()
-
-
-def _process_worker_init(job) -> None:
-    # the master decides about interrupts; a worker just works
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    prepare(job)  # loads the kernels the master compiled, before the first task
-
-
-def _process_execute(job, task, zero, rank):
-    return execute(job, task, zero, rank)
-
-
-class ProcessExecutor:
-    """Local worker processes (``--workers N``), started with 'spawn'."""
-
-    def __init__(self, job, workers: int) -> None:
-        self.job = job
-        self.capacity = workers
-        with signals.interruptible():  # compile once here; the workers load numba's cache
-            prepare(job, stderr_notice)
-        with signals.deferred():  # a pool is not left half-started
-            ctx = multiprocessing.get_context("spawn")
-            self._pool = ctx.Pool(workers, initializer=_process_worker_init, initargs=(job,))
-        self._replies: queue.Queue = queue.Queue()
-        self._running = 0
-        self._next_rank = 0
-
-    @property
-    def in_flight(self) -> int:
-        return self._running
-
-    def submit(self, task, zero: dict | None) -> None:
-        self._next_rank = self._next_rank % self.capacity + 1
-        self._pool.apply_async(
-            _process_execute,
-            (self.job, task, zero, self._next_rank),
-            callback=self._replies.put,
-            error_callback=lambda e, t=task: self._replies.put(_lost(t, e)),
-        )
-        self._running += 1
-
-    def next_reply(self, timeout: float) -> Reply | None:
-        try:
-            reply = self._replies.get(timeout=timeout)
-        except queue.Empty:
-            return None
-        self._running -= 1
-        return reply
-
-    def interrupt(self, grace: float, on_reply) -> bool:
-        """Local workers are simply ended; their tasks are redone on resume."""
-        self._pool.terminate()
-        self._pool.join()
-        return True
-
-    def shutdown(self, abort: bool = False) -> None:
-        if abort:
-            self._pool.terminate()
-        else:
-            self._pool.close()
-        self._pool.join()
-
-
-def _lost(task, exc: BaseException) -> Reply:
-    error = {
-        "kind": type(exc).__name__,
-        "message": f"worker process failed: {exc}",
-        "traceback": "",
-    }
-    return Reply(task.task_id, None, error, -1, socket.gethostname(), 0.0)
 
 
 def release_workers(comm, code: int | None = None) -> None:
@@ -196,78 +95,128 @@ def leave_at_start_up(comm) -> None:
 
 class MPIExecutor:
     """Rank 0's side of the MPI protocol; ranks 1..N-1 run ``mpi_worker_loop``.
-    Creating it compiles the kernels (interruptible) and hands the job out."""
+    The first task compiles the kernels (interruptible) and hands the job out; a
+    run with nothing to compute releases the workers at once."""
 
     def __init__(self, job, comm) -> None:
         self.job = job
         self.comm = comm
         self._outstanding: dict[int, int] = dict.fromkeys(range(1, comm.Get_size()), 0)
+        self._queued: dict[int, list] = {rank: [] for rank in self._outstanding}  # not sent
+        self._ready: collections.deque = collections.deque()  # received, not yet taken
         self._left: set[int] = set()
         self._sends: list = []  # requests of tasks not yet received by their worker
         self._stopped = False
+        self._task_s: float | None = None  # running mean of the tasks' compute time
+        self._started = False
+
+    def _start(self) -> None:
         with signals.interruptible():  # compile once, into numba's cache, before the workers
             signals.test_point("compile")
-            prepare(job, stderr_notice)
+            if not kernels_cached():  # (cached: the workers load them, all at once)
+                prepare(self.job, stderr_notice)
             signals.test_point("broadcast")
         with signals.deferred():
             for rank in self._outstanding:
-                comm.send(job.model_dump_json(), dest=rank, tag=JOB)
+                self.comm.send(self.job.model_dump_json(), dest=rank, tag=JOB)
         signals.mpi_handshake_done()
+        self._started = True
+
+    @property
+    def depth(self) -> int:
+        """Tasks each worker holds: about QUEUE_S seconds of work, PREFETCH..MAX_DEPTH."""
+        if self._task_s is None:
+            return PREFETCH
+        return int(min(MAX_DEPTH, max(PREFETCH, math.ceil(QUEUE_S / max(self._task_s, 1e-6)))))
 
     @property
     def capacity(self) -> int:
-        # each worker holds its running task and one queued behind it, so that it
-        # starts the next one the moment it replies (no round trip to the master)
-        return PREFETCH * (len(self._outstanding) - len(self._left))
+        return self.depth * (len(self._outstanding) - len(self._left))
 
     @property
     def in_flight(self) -> int:
-        return sum(self._outstanding.values())
+        return sum(self._outstanding.values()) + len(self._ready)
 
     def submit(self, task, zero: dict | None) -> None:
         signals.test_point("handout")  # (deferred here: the master's loop sees it)
+        if not self._started:
+            self._start()
         live = [r for r in self._outstanding if r not in self._left]
         rank = min(live, key=self._outstanding.__getitem__)
-        # isend: a large task must not block the master until its worker is free
-        self._sends = [r for r in self._sends if not r.Test()]
-        self._sends.append(self.comm.isend((task, zero), dest=rank, tag=TASK))
+        self._queued[rank].append((task, zero))
         self._outstanding[rank] += 1
+        if len(self._queued[rank]) >= max(1, self.depth // 2):
+            self._flush(rank)
 
-    def next_reply(self, timeout: float) -> Reply | None:
+    def _flush(self, rank: int | None = None) -> None:
+        """Send the queued tasks, one message per worker (isend: a large batch must
+        not block the master until its worker takes it)."""
+        self._sends = [r for r in self._sends if not r.Test()]
+        for r in self._queued if rank is None else (rank,):
+            if self._queued[r]:
+                self._sends.append(self.comm.isend(self._queued[r], dest=r, tag=TASK))
+                self._queued[r] = []
+
+    def next_reply(self, timeout: float, idle=None) -> Reply | None:
         from mpi4py import MPI
 
+        if self._ready:
+            return self._ready.popleft()
+        self._flush()
         status = MPI.Status()
         deadline = time.monotonic() + timeout
         backoff = Backoff()
+        first = True
         while True:
             if self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=MPI.ANY_TAG, status=status):
                 source, tag = status.Get_source(), status.Get_tag()
                 if tag != LEFT:
-                    return self._take(source, tag)
+                    self._ready.extend(self._take(source, tag))
+                    return self._ready.popleft() if self._ready else None
                 signum = self.comm.recv(source=source, tag=LEFT)
                 self._left.add(source)  # it waits for STOP; the run stops as on a signal
                 signals.request(signum)
                 return None
+            if first and idle is not None:
+                idle()  # nothing came: the master commits before it waits
+                first = False
+                continue
             if time.monotonic() >= deadline:
                 return None
             backoff.sleep()
 
-    def _take(self, source: int, tag: int) -> Reply:
+    def _take(self, source: int, tag: int) -> list[Reply]:
         """Receive a REPLY or ABANDONED message; an abandoned task becomes a Reply
         with error kind 'abandoned', which the runner queues again."""
         message = self.comm.recv(source=source, tag=tag)
-        self._outstanding[source] = max(0, self._outstanding[source] - 1)
+        self._outstanding[source] = max(0, self._outstanding[source] - len(message))
         if tag == ABANDONED:
             error = {"kind": "abandoned", "message": "a signal stopped it", "traceback": ""}
-            return Reply(message, None, error, source, socket.gethostname(), 0.0)
+            host = socket.gethostname()
+            return [Reply(task_id, None, error, source, host, 0.0) for task_id in message]
+        for reply in message:
+            s = float(reply.seconds)
+            self._task_s = s if self._task_s is None else 0.8 * self._task_s + 0.2 * s
         return message
 
     def _stop_all(self, grace: float, on_reply=None, code: int = 0) -> bool:
         """STOP to every worker, then take replies (to ``on_reply``) and the
         workers' STOPPED answers for up to ``grace`` seconds (a further signal
-        shortens the wait); True if all answered."""
+        shortens the wait); True if all answered. Tasks not yet sent are dropped
+        (they are redone on resume)."""
         from mpi4py import MPI
 
+        if not self._started:  # the workers still wait for the job: there is none
+            release_workers(self.comm, code or None)
+            self._started = True
+            return True
+        for rank, tasks in self._queued.items():
+            self._outstanding[rank] -= len(tasks)
+            tasks.clear()
+        while self._ready:
+            reply = self._ready.popleft()
+            if on_reply is not None:
+                on_reply(reply)
         waiting = set(self._outstanding)
         with signals.deferred():
             for rank in waiting:
@@ -290,9 +239,9 @@ class MPIExecutor:
                 if tag == STOPPED:
                     waiting.discard(source)
             else:
-                reply = self._take(source, tag)
-                if on_reply is not None:
-                    on_reply(reply)
+                for reply in self._take(source, tag):
+                    if on_reply is not None:
+                        on_reply(reply)
         if not waiting:  # every worker received all it was sent, STOP last
             for request in self._sends:
                 request.Wait()
@@ -336,10 +285,10 @@ def _probe(comm, status, backoff: Backoff) -> bool:
     return True
 
 
-def _worker(comm) -> None:
+def _worker(comm) -> int | None:
     from mpi4py import MPI
 
-    from .jobs import JobSpec
+    from ..jobs import JobSpec
 
     status = MPI.Status()
     backoff = Backoff()
@@ -360,26 +309,57 @@ def _worker(comm) -> None:
             prepare(job)  # rank 0 has compiled the kernels into numba's cache
     except Interrupted:
         return _leave(comm, status, backoff)
+    return _serve(comm, job, status, backoff)
+
+
+def _serve(comm, job, status, backoff: Backoff) -> int | None:
+    """Compute the tasks the master sends, from a local queue; replies go back in
+    batches (half the last batch of tasks done, REPLY_EVERY_S passed, or the queue
+    empty: never while the master could be waiting on them for nothing)."""
+    from mpi4py import MPI
+
     rank = comm.Get_rank()
+    queue: collections.deque = collections.deque()
+    replies: list[Reply] = []
+    low = 0  # send the replies when the queue is down to this many tasks
+    sent_at = time.monotonic()
+
+    def send_replies() -> None:
+        nonlocal replies, sent_at
+        if replies:
+            comm.send(replies, dest=0, tag=REPLY)
+            replies = []
+        sent_at = time.monotonic()
+
     while True:
-        if not _probe(comm, status, backoff):
-            return _leave(comm, status, backoff)
-        message = comm.recv(source=0, tag=status.Get_tag())
-        if status.Get_tag() == STOP:
-            comm.send(None, dest=0, tag=STOPPED)
-            return message  # the run's exit code
-        task, zero = message
-        if comm.Iprobe(source=0, tag=STOP):
-            comm.send(task.task_id, dest=0, tag=ABANDONED)  # stopping: not started
-            continue
+        while not queue or comm.Iprobe(source=0, tag=MPI.ANY_TAG, status=status):
+            if not queue:
+                send_replies()  # before waiting: the master needs them
+                if not _probe(comm, status, backoff):
+                    return _leave(comm, status, backoff)
+            tag = status.Get_tag()
+            message = comm.recv(source=0, tag=tag)
+            if tag == STOP:
+                send_replies()
+                if queue:  # stopping: not started
+                    comm.send([task.task_id for task, _ in queue], dest=0, tag=ABANDONED)
+                comm.send(None, dest=0, tag=STOPPED)
+                return message  # the run's exit code
+            if tag == TASK:
+                queue.extend(message)
+                low = len(queue) // 2
+        task, zero = queue.popleft()
         try:
             with signals.interruptible():
                 signals.test_point("handout")
                 reply = execute(job, task, zero, rank)
         except Interrupted:
-            comm.send(task.task_id, dest=0, tag=ABANDONED)
+            send_replies()
+            comm.send([task.task_id] + [t.task_id for t, _ in queue], dest=0, tag=ABANDONED)
             return _leave(comm, status, backoff)
-        comm.send(reply, dest=0, tag=REPLY)
+        replies.append(reply)
+        if len(queue) <= low or time.monotonic() - sent_at >= REPLY_EVERY_S:
+            send_replies()
 
 
 def _leave(comm, status, backoff: Backoff) -> None:
@@ -400,6 +380,6 @@ def _leave(comm, status, backoff: Backoff) -> None:
             comm.send(None, dest=0, tag=STOPPED)
             return
         if tag == TASK:
-            comm.send(message[0].task_id, dest=0, tag=ABANDONED)
+            comm.send([task.task_id for task, _ in message], dest=0, tag=ABANDONED)
         elif tag == JOB and (message is None or isinstance(message, int)):
             return  # the master stopped before handing out the job
