@@ -134,3 +134,29 @@ def test_estimators_on_a_stitch_and_a_fixed_seed():
     v = voxel_volumes(cp, x[-2], x[-1], R_YARN, 0.08)
     # the voxels' end caps at the joins with the same-row neighbours add volume
     assert v.V_uncomp > a.V_uncomp and v.phi > a.phi
+
+
+def test_render_contact_volumes(tmp_path):
+    from typer.testing import CliRunner
+
+    from knitsweep.cli import app
+    from knitsweep.config import StitchParams
+    from knitsweep.formats import shipped_state
+    from knitsweep.report.contact_volumes import contact_volume_points
+    from knitsweep.report.render import stitch_from_state
+
+    stitch = stitch_from_state(shipped_state(1), StitchParams(L_mm=11.6, k_mN_per_mm2=0.1))
+    clouds = contact_volume_points(stitch, 1 << 12)
+    # every class of Fig. 6a-d is there in a relaxed stitch
+    assert all(len(clouds[k]) > 0 for k in ("self", "same_row", "nn_above", "nn_below",
+                                            "nnn_column"))  # fmt: skip
+    out = tmp_path / "cv.png"
+    state = tmp_path / "s.dat"
+    state.write_text("\n".join(repr(float(v)) for v in shipped_state(1)) + "\n")
+    res = CliRunner().invoke(app, ["render", "--state", str(state), "--L", "11.6", "--k", "0.1",
+                                   "--contact-volumes", "--samples", "2048", "--out", str(out)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert out.stat().st_size > 10_000
+    bad = CliRunner().invoke(app, ["render", "--state", str(state), "--contact-volumes",
+                                   "--samples", "1000", "--out", str(out)])  # fmt: skip
+    assert bad.exit_code == 2 and "samples = 1000" in bad.output

@@ -32,7 +32,7 @@ def _segment_distance(x0, x1, x2, a, b, q):
 
 @njit(cache=True, parallel=False)
 def nearest_pieces(x, s0, a, b, s_mid, piece, closed_length, chunk_lo, chunk_hi, centre,
-                   radius, block_lo, block_hi, block_centre, block_radius, r, window, d_own,
+                   radius, chunk_s_lo, chunk_s_hi, block_lo, block_hi, block_centre, block_radius, r, window, d_own,
                    d_other, p_other):  # fmt: skip
     """For each query point, the distance to the stitch's own piece and to the others.
 
@@ -43,7 +43,9 @@ def nearest_pieces(x, s0, a, b, s_mid, piece, closed_length, chunk_lo, chunk_hi,
     closed_length: arc length of a closed own piece (> 0: arc distances wrap), else 0.
     Chunks c: segments chunk_lo[c] .. chunk_hi[c] - 1 inside the sphere centre[c],
     radius[c]; blocks k: chunks block_lo[k] .. block_hi[k] - 1 inside the sphere
-    block_centre[k], block_radius[k] (a second level of culling). Segments of the own row whose midpoint lies within ``window`` mm of
+    block_centre[k], block_radius[k] (a second level of culling); chunk_s_lo,
+    chunk_s_hi (C,): the arc range of a chunk's segment midpoints (NaN off the own
+    row), so that a chunk wholly inside the skipped window is not visited. Segments of the own row whose midpoint lies within ``window`` mm of
     s0 along the yarn are skipped (the query's own branch of the tube).
 
     Writes d_own (N,): distance to the own piece's centre-line; d_other (N,): to the
@@ -70,6 +72,9 @@ def nearest_pieces(x, s0, a, b, s_mid, piece, closed_length, chunk_lo, chunk_hi,
                 e1 = x1 - centre[c, 1]
                 e2 = x2 - centre[c, 2]
                 if np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - radius[c] > r:
+                    continue
+                if (excl and closed_length == 0.0 and chunk_s_lo[c] > s0[i] - window
+                        and chunk_s_hi[c] < s0[i] + window):  # fmt: skip
                     continue
                 for q in range(chunk_lo[c], chunk_hi[c]):
                     if excl and not np.isnan(s_mid[q]):

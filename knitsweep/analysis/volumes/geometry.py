@@ -34,7 +34,8 @@ class Pieces:
     Attributes: a, b (M, 3) segment ends (mm); s_mid (M,) arc coordinate of each
     segment's midpoint along its row's yarn (NaN on other rows); piece (M,) int;
     offsets (P, 2) int, image (m, n) of each piece (row 0 is (0, 0)); chunk_lo,
-    chunk_hi (C,) int and centre (C, 3), radius (C,) mm: the chunks; block_lo,
+    chunk_hi (C,) int and centre (C, 3), radius (C,) mm: the chunks; chunk_s_lo,
+    chunk_s_hi (C,): the arc range of each chunk's midpoints (NaN off row 0); block_lo,
     block_hi, block_centre, block_radius: blocks of BLOCK chunks, likewise; arc_t (K,) and
     arc_s (K,): the own piece's vertices' global parameter t in [0, S] and arc
     coordinate (mm); length (mm): the own piece's arc length (by the polyline);
@@ -50,6 +51,8 @@ class Pieces:
     chunk_hi: np.ndarray
     centre: np.ndarray
     radius: np.ndarray
+    chunk_s_lo: np.ndarray
+    chunk_s_hi: np.ndarray
     block_lo: np.ndarray
     block_hi: np.ndarray
     block_centre: np.ndarray
@@ -131,23 +134,24 @@ def build_pieces(cp: np.ndarray, a_x: float, a_y: float, r: float, spacing: floa
         start += len(mid)
     a, b = np.concatenate(a), np.concatenate(b)
     lo_hi = np.array(chunks, dtype=np.int64)
-    centre = np.empty((len(chunks), 3))
-    radius = np.empty(len(chunks))
-    for c, (i, j) in enumerate(chunks):
-        ends = np.concatenate([a[i:j], b[j - 1 : j]])
-        centre[c] = 0.5 * (ends.min(axis=0) + ends.max(axis=0))
-        radius[c] = float(np.max(np.linalg.norm(ends - centre[c], axis=1)))
-    blocks = [(i, min(i + BLOCK, len(chunks))) for i in range(0, len(chunks), BLOCK)]
-    b_centre = np.empty((len(blocks), 3))
-    b_radius = np.empty(len(blocks))
-    for k, (i, j) in enumerate(blocks):
-        b_centre[k] = 0.5 * ((centre[i:j] - radius[i:j, None]).min(axis=0)
-                             + (centre[i:j] + radius[i:j, None]).max(axis=0))  # fmt: skip
-        b_radius[k] = float(np.max(np.linalg.norm(centre[i:j] - b_centre[k], axis=1) + radius[i:j]))
-    bl = np.array(blocks, dtype=np.int64)
-    return Pieces(a, b, np.concatenate(s_mid), np.concatenate(piece).astype(np.int64),
+    # chunk boxes (segment starts plus the last end), spheres around them
+    last = b[lo_hi[:, 1] - 1]
+    c_lo = np.minimum(np.minimum.reduceat(a, lo_hi[:, 0], axis=0), last)
+    c_hi = np.maximum(np.maximum.reduceat(a, lo_hi[:, 0], axis=0), last)
+    centre = 0.5 * (c_lo + c_hi)
+    radius = 0.5 * np.linalg.norm(c_hi - c_lo, axis=1)
+    starts = np.arange(0, len(chunks), BLOCK)
+    b_lo = np.minimum.reduceat(centre - radius[:, None], starts, axis=0)
+    b_hi = np.maximum.reduceat(centre + radius[:, None], starts, axis=0)
+    b_centre = 0.5 * (b_lo + b_hi)
+    b_radius = 0.5 * np.linalg.norm(b_hi - b_lo, axis=1)
+    bl = np.column_stack([starts, np.minimum(starts + BLOCK, len(chunks))])
+    s_all = np.concatenate(s_mid)
+    s_lo = np.minimum.reduceat(s_all, lo_hi[:, 0])
+    s_hi = np.maximum.reduceat(s_all, lo_hi[:, 0])
+    return Pieces(a, b, s_all, np.concatenate(piece).astype(np.int64),
                   np.array(offsets, dtype=np.int64), np.ascontiguousarray(lo_hi[:, 0]),
-                  np.ascontiguousarray(lo_hi[:, 1]), centre, radius,
+                  np.ascontiguousarray(lo_hi[:, 1]), centre, radius, s_lo, s_hi,
                   np.ascontiguousarray(bl[:, 0]), np.ascontiguousarray(bl[:, 1]), b_centre,
                   b_radius, ts, arc, length, length if closed else 0.0)  # fmt: skip
 
@@ -166,6 +170,6 @@ def distances(pieces: Pieces, x: np.ndarray, s0: np.ndarray | None, r: float,
     who = np.empty(n, dtype=np.int64)
     nearest_pieces(x, s0, pieces.a, pieces.b, pieces.s_mid, pieces.piece, pieces.closed_length,
                    pieces.chunk_lo, pieces.chunk_hi, pieces.centre, pieces.radius,
-                   pieces.block_lo, pieces.block_hi, pieces.block_centre, pieces.block_radius,
+                   pieces.chunk_s_lo, pieces.chunk_s_hi, pieces.block_lo, pieces.block_hi, pieces.block_centre, pieces.block_radius,
                    float(r), float(window), d_own, d_other, who)  # fmt: skip
     return d_own, d_other, who
