@@ -57,10 +57,12 @@ def _nearest_L(entries: list[Any], direction: str, L_mm: float) -> Any | None:
     return min(pulls, key=lambda e: abs(float(e.meta["L_mm"]) - L_mm), default=None)
 
 
-def figS11_contact_forces_strain(red: Reduction, notes: list[str]) -> Any:
+def figS11_contact_forces_strain(red: Reduction, notes: list[str],
+                                 upto: float | None = None) -> Any:  # fmt: skip
     """Pair forces by class against strain at the L nearest 10.5 mm, pulled in x (top)
     and y (bottom), components x, y, z (columns), in the paper's sign convention
-    (positive assists linear elastic behaviour)."""
+    (positive assists linear elastic behaviour); ``upto``: strains up to it only (the
+    forces grow by two orders of magnitude towards the end of a sweep)."""
     entries = sweeps_with_states(red)
     if not entries:
         raise SkipFigure("needs sweeps that store their states ([store] states = true)")
@@ -71,6 +73,9 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str]) -> Any:
     for row, (d, e) in enumerate(sorted(picked.items())):
         strain, f = pair_forces_along(red, e)
         signed = f * LINEAR_ELASTIC_SIGN[d][None, None, :]
+        if upto is not None:
+            keep = strain <= upto * (1.0 + 1e-9)
+            strain, signed = strain[keep], signed[keep]
         notes.append(f"{d} pull at L = {float(e.meta['L_mm']):g} mm, {len(strain)} steps")
         for col, a in enumerate("xyz"):
             ax = axes[row, col]

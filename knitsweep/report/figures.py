@@ -45,6 +45,9 @@ FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
     "figS_packing_fraction_L.png": figS_packing_fraction_L,
     "figS_packing_fraction_strain.png": figS_packing_fraction_strain,
     "figS11_contact_forces_strain.png": figS11_contact_forces_strain,
+    "figS11_contact_forces_strain_small.png": partial(
+        figS11_contact_forces_strain, upto=SMALL_STRAIN
+    ),
 }
 """File name → figure function (paper figure in the name)."""
 
