@@ -117,7 +117,19 @@ def _figure(a, voxel_rows, qmc_rows) -> None:
     ax.set_xlabel("voxel side l (mm)")
     ax.set_ylabel("V_total = V_uncomp − V_comp/2 (mm³)")
     ax.set_title(f"stitch volume, zero force, L = {a.L:g} mm, k = {a.k:g} mN/mm²", fontsize=11)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="center right")
+    fine = voxel_rows[-1][2]
+    ax.text(
+        0.02,
+        0.5,
+        f"voxels − tube at l = {fine.resolution:g} mm: V_uncomp {fine.V_uncomp - q.V_uncomp:+.3f} "
+        f"(4/3 π r³ = {4 / 3 * np.pi * 0.74**3:.3f}: the two end caps),\n"
+        f"V_comp {fine.V_comp - q.V_comp:+.3f}, V_total {fine.V_total - q.V_total:+.3f} mm³ "
+        f"(φ {fine.phi - q.phi:+.4f})",
+        transform=ax.transAxes,
+        fontsize=8,
+        color="0.3",
+    )
     fig.savefig(a.out, dpi=150)
 
 
