@@ -71,6 +71,10 @@ def document(a: Any, red: dict, jobs: dict[str, str], base: Any) -> list[str]:
         "",
         *si.jobs_table({n: by_job[n] for n in jobs if n in by_job}, jobs),
         "",
+        "Not run for this comparison: `paper_phase_kB.toml` (896 points, a cluster job; "
+        "`paper_Btrans_adaptive.toml` brackets the same transitions adaptively) and "
+        "`paper_radius_fixed_ratio.toml` (Fig. 2e-f's radius sweep, no table to compare with).",
+        "",
     ]
     # ---- Table S4 ------------------------------------------------------------------
     rows = _s4_rows([k01, *s4])
@@ -233,9 +237,8 @@ def document(a: Any, red: dict, jobs: dict[str, str], base: Any) -> list[str]:
               "Against the paper: with the tube estimate, φ at zero force falls through 0.85 "
               "where the k = 0.1 fabric unjams (both lines above), the paper's 'φ ≈ 0.85 marks "
               "the end of jamming'; along the L = 10.5 mm sweeps it reaches 0.85 near the "
-              "paper's (ε_x, ε_y) = (0.325, 0.177), far past the jamming transition, and φ "
-              "shows no characteristic value at the transition along strain, as the paper "
-              "says. The voxel method as the SI defines it gives φ higher by the end caps, "
+              "paper's (ε_x, ε_y) = (0.325, 0.177), far past the jamming transition, as the "
+              "paper found. The voxel method as the SI defines it gives φ higher by the end caps, "
               "and would put 0.85 beyond L = 12.2 mm. φ has a few jumps along the sweeps "
               "(largest change between steps beside the median above), as the paper's does.", "",
               "Voxel convergence (`benchmarks/bench_volumes.py`, L = 12.2 mm, zero force): the "

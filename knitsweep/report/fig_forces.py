@@ -76,7 +76,6 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
         if upto is not None:
             keep = strain <= upto * (1.0 + 1e-9)
             strain, signed = strain[keep], signed[keep]
-        notes.append(f"{d} pull at L = {float(e.meta['L_mm']):g} mm, {len(strain)} steps")
         for col, a in enumerate("xyz"):
             ax = axes[row, col]
             for j, cls in enumerate(CONTACT_CLASSES):

@@ -40,7 +40,7 @@ def crossing(xs: Any, ys: Any, level: float) -> float | None:
 def figS_packing_fraction_L(red: Reduction, notes: list[str]) -> Any:
     """φ of the zero-force state against L/r for each series (error bars: one
     standard error of the estimator), with the paper's φ ≈ 0.85 and (L/r)_trans in x
-    and y; the L/r where φ falls through 0.85 is noted."""
+    and y; ✕ marks the L/r where φ falls through 0.85."""
     rows = [r for r in red.points if r.get("packing_fraction") is not None]
     if not rows:
         raise SkipFigure("the results file stores no packing fraction "
@@ -56,8 +56,10 @@ def figS_packing_fraction_L(red: Reduction, notes: list[str]) -> Any:
                     marker=MARKERS[i % len(MARKERS)], ms=4, capsize=2,
                     label=label_of(red, key) or "zero force")  # fmt: skip
         at = crossing(x, y, PHI_END_OF_JAMMING)
-        notes.append(f"φ = {PHI_END_OF_JAMMING:g} at L/r = {at:.2f}" if at is not None
-                     else f"φ does not fall through {PHI_END_OF_JAMMING:g}")  # fmt: skip
+        if at is not None:
+            ax.plot([at], [PHI_END_OF_JAMMING], "x", color=f"C{i % 10}", ms=9, mew=2)
+            ax.annotate(f"L/r = {at:.2f}", (at, PHI_END_OF_JAMMING), textcoords="offset points",
+                        xytext=(6, 6), fontsize=9, color=f"C{i % 10}")  # fmt: skip
         for d in "xy":
             t = red.transition_of.get((key, d))
             if t is not None and t.status == "transition":
