@@ -234,6 +234,11 @@ def document(a: Any, red: dict, jobs: dict[str, str], base: Any) -> list[str]:
               "![φ at zero force against L/r](packing_fraction_L.png)", "",
               "![φ along the sweeps](packing_fraction_strain.png)", "",
               "![stitch volume against voxel side](volume_vs_voxel.png)", "",
+              "![φ along the L = 10.5 mm x pull, voxels of two sizes and the tube estimate]"
+              "(packing_fraction_voxels_L10.5.png)", "",
+              "*φ along the L = 10.5 mm x pull (the paper's voxel-size figure, panel b; "
+              "`benchmarks/bench_volumes_sweep.py`): voxels of 0.04 and 0.02 mm at every 5th "
+              "and 15th step, the stored tube estimate at every step.*", "",
               "Against the paper: with the tube estimate, φ at zero force falls through 0.85 "
               "where the k = 0.1 fabric unjams (both lines above), the paper's 'φ ≈ 0.85 marks "
               "the end of jamming'; along the L = 10.5 mm sweeps it reaches 0.85 near the "
