@@ -11,6 +11,7 @@ import compare_paper_si as si
 import numpy as np
 
 from knitsweep.analysis.paper import (
+    PHI_END_STRAINS_L10_5,
     TABLE_S1_SIGMA0_L,
     TABLE_S1_YSEC_L,
     TABLE_S3,
@@ -104,6 +105,8 @@ def document(a: Any, red: dict, jobs: dict[str, str], base: Any) -> list[str]:
     if k0 is not None and 0.001 in rows:
         t = rows[0.001]
         first_unjammed = t["L_trans_mm"]
+        zero_gap = min((r["L_mm"] for r in k0.sweeps if r["direction"] == "x"
+                        and r["delta_E_c"] == 0.0), default=float("nan"))  # fmt: skip
         d += [
             f"knitsweep's line at k = 0.001 has {t['fit_slope_mJ_per_mm'] / TABLE_S4[0.001].slope_mJ_per_mm:.2f}× "
             f"the paper's slope and reaches zero at {t['fit_zero_L_mm']:.2f} mm (the paper's line at "
@@ -119,13 +122,15 @@ def document(a: Any, red: dict, jobs: dict[str, str], base: Any) -> list[str]:
             "",
             "The `paper` preset gives gaps of the same size (largest difference above), so the "
             "row is not the authors' minimiser's noise on this model. Where the gap vanishes "
-            "roughly agrees with the row (its line's zero, 11.02 mm, against knitsweep's gap "
-            "falling below the threshold at 10.9 mm and to zero at 11.1 mm); its size does not: "
+            f"roughly agrees with the row (its line's zero, {TABLE_S4[0.001].zero_L_mm:.2f} mm, "
+            f"against knitsweep's gap falling below the threshold at {first_unjammed:.1f} mm "
+            f"and to zero at {zero_gap:.1f} mm); its size does not: "
             "knitsweep's gap is several times below the row's line at the dense end and "
             "scattered there (not monotone in L), because at k = 0.001 the shells are "
             "compressed almost to the cores (ζ above) and the contact energy is the steep "
-            "end of the power law, sensitive to small rearrangements. The row's slope is 0.45× "
-            "the paper's own k = 0.1 row for a k 100× smaller, where knitsweep's is "
+            "end of the power law, sensitive to small rearrangements. The row's slope is "
+            f"{TABLE_S4[0.001].slope_mJ_per_mm / TABLE_S4[0.1].slope_mJ_per_mm:.2f}× the "
+            "paper's own k = 0.1 row for a k 100× smaller, where knitsweep's is "
             f"{t['fit_slope_mJ_per_mm'] / rows[0.1]['fit_slope_mJ_per_mm']:.2f}×; most likely it "
             "was computed with other settings than the rest of the table (grid, starts or "
             "parameters the SI does not give), and it is the one row knitsweep does not "
@@ -242,7 +247,8 @@ def document(a: Any, red: dict, jobs: dict[str, str], base: Any) -> list[str]:
               "Against the paper: with the tube estimate, φ at zero force falls through 0.85 "
               "where the k = 0.1 fabric unjams (both lines above), the paper's 'φ ≈ 0.85 marks "
               "the end of jamming'; along the L = 10.5 mm sweeps it reaches 0.85 near the "
-              "paper's (ε_x, ε_y) = (0.325, 0.177), far past the jamming transition, as the "
+              f"paper's (ε_x, ε_y) = ({PHI_END_STRAINS_L10_5['x']:g}, {PHI_END_STRAINS_L10_5['y']:g}), "
+              "far past the jamming transition, as the "
               "paper found. The voxel method as the SI defines it gives φ higher by the end caps, "
               "and would put 0.85 beyond L = 12.2 mm. φ has a few jumps along the sweeps "
               "(largest change between steps beside the median above), as the paper's does.", "",
