@@ -33,12 +33,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
+import paper_doc
 
-from knitsweep.analysis import GAP_THRESHOLD, fit_line, offset_stress
+from knitsweep.analysis import fit_line, offset_stress
 from knitsweep.analysis.paper import (
     TABLE_S1_SIGMA0_L,
     TABLE_S1_YSEC_L,
@@ -77,29 +79,30 @@ def table_s4(reds: list[Reduction]) -> list[str]:
            "paper | (L/r)_trans | ΔL/r | all-jammed slope (÷ paper) |",
            "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
     seen = set()
-    for red in reds:
-        for t in red.transitions:
-            k = t["k_mN_per_mm2"]
-            if t["direction"] != "x" or k in seen or t["fit_n_points"] is None:
-                continue
-            seen.add(k)
-            p = TABLE_S4.get(k)
-            rows = [r for r in _x_rows(red, k) if r["jammed"] and (
-                t["L_over_r_trans"] is None or r["L_over_r"] < t["L_over_r_trans"])]  # fmt: skip
-            every = fit_line(np.array([r["L_mm"] for r in rows]),
-                             np.array([r["delta_E_c"] for r in rows]))  # fmt: skip
-            ratio = f"{every.slope / p.slope_mJ_per_mm:.2f}" if p else "–"
-            out.append(
-                f"| {k:g} | {t['fit_L_lo_mm']:.1f}–{t['fit_L_hi_mm']:.1f} ({t['fit_n_points']}) | "
-                f"{t['fit_slope_mJ_per_mm']:.3e} | {_e(p and p.slope_mJ_per_mm)} | "
-                f"{t['fit_intercept_mJ']:.4f} | {_e(p and p.intercept_mJ, '.4f')} | "
-                f"{_e(t['fit_zero_L_mm'], '.3f')} | {_e(p and p.zero_L_mm, '.3f')} | "
-                f"{t['fit_max_abs_residual_mJ']:.2e} | {_e(p and p.max_abs_residual_mJ, '.2e')} | "
-                f"{t['fit_mean_abs_residual_mJ']:.2e} | {_e(p and p.mean_abs_residual_mJ, '.2e')} | "
-                f"{t['fit_mse_mJ2']:.2e} | {_e(p and p.mse_mJ2, '.2e')} | "
-                f"{_e(t['L_over_r_trans'], '.2f')} | {_e(t['delta_L_over_r'], '.3f')} | "
-                f"{every.slope:.3e} ({ratio}) |"
-            )
+    pairs = sorted(((t["k_mN_per_mm2"], i, t) for i, red in enumerate(reds) for t in red.transitions),
+                   key=lambda v: (v[0], v[1]))  # fmt: skip
+    for k, i, t in pairs:
+        red = reds[i]
+        if t["direction"] != "x" or k in seen or t["fit_n_points"] is None:
+            continue
+        seen.add(k)
+        p = TABLE_S4.get(k)
+        rows = [r for r in _x_rows(red, k) if r["jammed"] and (
+            t["L_over_r_trans"] is None or r["L_over_r"] < t["L_over_r_trans"])]  # fmt: skip
+        every = fit_line(np.array([r["L_mm"] for r in rows]),
+                         np.array([r["delta_E_c"] for r in rows]))  # fmt: skip
+        ratio = f"{every.slope / p.slope_mJ_per_mm:.2f}" if p else "–"
+        out.append(
+            f"| {k:g} | {t['fit_L_lo_mm']:.1f}–{t['fit_L_hi_mm']:.1f} ({t['fit_n_points']}) | "
+            f"{t['fit_slope_mJ_per_mm']:.3e} | {_e(p and p.slope_mJ_per_mm)} | "
+            f"{t['fit_intercept_mJ']:.4f} | {_e(p and p.intercept_mJ, '.4f')} | "
+            f"{_e(t['fit_zero_L_mm'], '.3f')} | {_e(p and p.zero_L_mm, '.3f')} | "
+            f"{t['fit_max_abs_residual_mJ']:.2e} | {_e(p and p.max_abs_residual_mJ, '.2e')} | "
+            f"{t['fit_mean_abs_residual_mJ']:.2e} | {_e(p and p.mean_abs_residual_mJ, '.2e')} | "
+            f"{t['fit_mse_mJ2']:.2e} | {_e(p and p.mse_mJ2, '.2e')} | "
+            f"{_e(t['L_over_r_trans'], '.2f')} | {_e(t['delta_L_over_r'], '.3f')} | "
+            f"{every.slope:.3e} ({ratio}) |"
+        )
     return out
 
 
@@ -162,7 +165,7 @@ def table_s3(red: Reduction) -> list[str]:
 
 def sigma0_coverage(reds: list[Reduction]) -> list[str]:
     out = ["| file | sweeps | σ0 on FD stress (before) | σ0 on envelope (now) | "
-           "discontinuous (switching drops) | without σ0 now |", "|---|---:|---:|---:|---:|---|"]  # fmt: skip
+           "discontinuous (switching drops) | without σ0 now (direction, L mm: no linear regime) |", "|---|---:|---:|---:|---:|---|"]  # fmt: skip
     for red in reds:
         before = 0
         for e in iter_entries(red.path, with_data=True):
@@ -170,7 +173,7 @@ def sigma0_coverage(reds: list[Reduction]) -> list[str]:
                 o = offset_stress(e.record["strain"], e.record["stress"], **FD_STRESS_SMOOTHING)
                 before += o.sigma0 is not None
         now = [r for r in red.sweeps if r["sigma0_N_per_mm"] is not None]
-        missing = [f"{r['direction']} L={r['L_mm']:g}: {r['sigma0_reason']}" for r in red.sweeps
+        missing = [f"{r['direction']} {r['L_mm']:g}" for r in red.sweeps
                    if r["sigma0_N_per_mm"] is None]  # fmt: skip
         disc = sum(bool(r["stress_discontinuous"]) for r in red.sweeps)
         out.append(f"| {red.path.name} | {len(red.sweeps)} | {before} | {len(now)} | {disc} | "
@@ -179,14 +182,14 @@ def sigma0_coverage(reds: list[Reduction]) -> list[str]:
 
 
 def table_s1(red: Reduction) -> list[str]:
-    out = ["| direction | L (mm) | L/r | σ0 (N/mm) | Table S1 | ratio | Y_sec (N/mm) | "
-           "Table S1 | ratio |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+    out = ["| direction | L (mm) | L/r | jammed | σ0 (N/mm) | Table S1 | ratio | Y_sec (N/mm) | "
+           "Table S1 | ratio |", "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
     for d in "xy":
         (a0, b0), (a1, b1) = TABLE_S1_SIGMA0_L[d], TABLE_S1_YSEC_L[d]
         for r in _x_rows(red, 0.6, d):
             s0, ys = a0 * np.exp(b0 * r["L_over_r"]), a1 * np.exp(b1 * r["L_over_r"])
             mine = r["sigma0_N_per_mm"]
-            out.append(f"| {d} | {r['L_mm']:g} | {r['L_over_r']:.2f} | {_e(mine, '.4g')} | "
+            out.append(f"| {d} | {r['L_mm']:g} | {r['L_over_r']:.2f} | {r['jammed']} | {_e(mine, '.4g')} | "
                        f"{s0:.4g} | {_e(mine and mine / s0, '.2f')} | {r['Y_sec_N_per_mm']:.4g} | "
                        f"{ys:.4g} | {r['Y_sec_N_per_mm'] / ys:.2f} |")  # fmt: skip
     return out
@@ -258,28 +261,54 @@ def write_test_data(k01: Reduction, s4: list[Reduction], path: Path) -> None:
     path.write_text(json.dumps(data, indent=1) + "\n")
 
 
+JOBS = {  # job name -> what it computes, in the order docs/paper.md lists them
+    "paper_k0.1_L_sweep": "k = 0.1, x and y: Figs. 1b, 2, 3, 5, 6g-h, Table S3",
+    "paper_table_s4": "x pulls at k = 0.2 … 2 (7 k): Table S4, Fig. 4a-b",
+    "paper_table_s4_more": "x pulls at k = 0.8 … 1.7 (6 k): Table S4",
+    "paper_table_s4_wide": "x pulls at k = 3, 4 to L = 16 mm: Table S4",
+    "paper_table_s4_k0.001": "x pulls at k = 0.001 from L = 9.5 mm: Table S4's first row",
+    "paper_table_s4_k0.001_paper_preset": "the same with the `paper` preset (SLSQP)",
+    "paper_sigma0_k0.6": "Table 1 values, x and y: Table S1",
+    "paper_table_s2_x": "Table S2's x rows, step 0.01 mm",
+    "paper_table_s2_y": "Table S2's y rows with step 0.002 mm",
+    "paper_table_s2_y_k1.5": "Table S2's y row with step 0.01 mm",
+    "paper_packing_fraction": "k = 0.1, x and y, φ and states stored: SI Contact Volumes, "
+                              "Figs. 6a-f, S11, Table S3 RMS",
+    "paper_Btrans_adaptive": "(L/r)_trans against B at four k, adaptive: Fig. S6 (Fig. 4c)",
+    "paper_sweeps_k": "Y_sec, σ0 against k at L = 12.2 mm: Fig. S5a-b",
+    "paper_sweeps_B": "Y_sec, σ0 against B: Fig. S5c-d",
+    "paper_sweeps_rcore": "Y_sec, σ0 against r_core: Fig. S5e-f",
+    "paper_linear_regime_L10.7": "stress-strain at L = 10.7 mm over k: Disappearing Linear Elasticity",
+    "paper_z_strain": "z strain to σ = 0.5 N/mm: Fig. S12",
+}  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--k01", type=Path, required=True)
     ap.add_argument("--s4", type=Path, nargs="*", default=[])
     ap.add_argument("--k06", type=Path)
+    ap.add_argument("--s2", type=Path, nargs="*", default=[], help="the Table S2 jobs' files")
+    ap.add_argument("--pf", type=Path, help="jobs/paper_packing_fraction.toml's file")
+    ap.add_argument("--btrans", type=Path, help="jobs/paper_Btrans_adaptive.toml's file")
+    ap.add_argument("--sweeps", type=Path, nargs="*", default=[],
+                    help="the k, B and r_core sweeps' files (paper_sweeps_*.h5)")  # fmt: skip
+    ap.add_argument("--linear", type=Path, help="jobs/paper_linear_regime_L10.7.toml's file")
+    ap.add_argument("--zstrain", type=Path, help="jobs/paper_z_strain.toml's file")
+    ap.add_argument(
+        "--k0001-paper", type=Path, help="jobs/paper_table_s4_k0.001_paper_preset.toml's file"
+    )
+    ap.add_argument("--markdown", type=Path, help="also write the whole comparison here")
     ap.add_argument("--test-data", type=Path)
     a = ap.parse_args()
-    k01 = reduce_results(a.k01)
-    s4 = [reduce_results(p) for p in a.s4]
-    k06 = reduce_results(a.k06) if a.k06 else None
-    print(f"gap threshold (the paper's gap error) {GAP_THRESHOLD:g} mJ\n")
-    print("## Table S4: line through the linear jammed regime of ΔE_c (x)\n")
-    print("\n".join(table_s4([k01, *s4])))
-    print("\n## Table S3: contact forces at zero strain, k = 0.1 mN/mm²\n")
-    print("\n".join(table_s3(k01)))
-    print("\n## σ0 coverage\n")
-    print("\n".join(sigma0_coverage([k01, *s4, *([k06] if k06 else [])])))
-    if k06 is not None:
-        print("\n## Table S1 at k = 0.6 mN/mm²\n")
-        print("\n".join(table_s1(k06)))
-    print("\n## Zero-strain markers at k = 0.1 mN/mm²\n")
-    print("\n".join(markers(k01)))
+    red = {p: reduce_results(p) for p in [a.k01, *a.s4, a.k06, *a.s2, a.pf, a.btrans, *a.sweeps,
+                                          a.linear, a.zstrain, a.k0001_paper] if p is not None}  # fmt: skip
+    k01, s4 = red[a.k01], [red[p] for p in a.s4]
+    doc = paper_doc.document(a, red, JOBS, sys.modules[__name__])
+    print("\n".join(doc))
+    if a.markdown:
+        a.markdown.write_text("\n".join(doc) + "\n")
+        print(f"\nwrote {a.markdown}")
     if a.test_data:
         write_test_data(k01, s4, a.test_data)
         print(f"\nwrote {a.test_data}")

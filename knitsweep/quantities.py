@@ -166,6 +166,8 @@ STEP_QUANTITIES = dict(
         _q("states", "1", "state vector (lengths mm, angles rad; see state_entry)"),
         _q("control_points", "mm", "Bézier control points of the 8 segments"),
         _q("contact_forces", "N", "contact forces by class: -dE_c/da_x, -dE_c/da_y, z push"),
+        _q("packing_fraction", "1", "packing fraction V_total/V_cell (tube quasi-Monte Carlo)"),
+        _q("packing_fraction_error", "1", "standard error of the packing fraction"),
     )
 )
 """Per-step datasets of a sweep (the first dimension is ``step``)."""
@@ -193,6 +195,8 @@ START_QUANTITIES = dict(
         _q("merged_into", "1", "the start whose continuation this one joined (-1: none)"),
         _q("merged_at", "1", "the continuation stage where it joined (-1: never)"),
         _q("contact_forces", "N", "contact forces by class of the winner"),
+        _q("packing_fraction", "1", "packing fraction V_total/V_cell of each start's state"),
+        _q("packing_fraction_error", "1", "standard error of the packing fraction"),
     )
 )
 """Per-start datasets of a point (the first dimension is ``start``)."""

@@ -79,6 +79,11 @@ def _sweep_arrays(direction: str, x: float, g: float, contact_forces: bool) -> d
     }
     out["total_energy"] = out["bending_energy"] + out["contact_energy"]
     out["stress_envelope"] = out["stress"].copy()
+    out["packing_fraction"] = 0.9 - 0.004 * (x - 20.0) - 0.1 * strain  # [store] packing_fraction
+    out["packing_fraction_error"] = np.full(n, 1e-3)
+    states = np.tile(shipped_state(1), (n, 1))  # [store] states: a real stitch, for the forces
+    states[:, 28], states[:, 29] = a_x, a_y
+    out["states"] = states
     if contact_forces:
         out["contact_forces"] = np.tile(_forces(x), (n, 1, 1))
     return out
@@ -123,6 +128,8 @@ def write_results(
                 pg["contact_energy"] = np.array([0.01])
                 pg.attrs["winner"] = 0
                 pg.attrs["thickness"] = 2.3
+                pg["packing_fraction"] = np.array([0.9 - 0.004 * (x - 20.0)])
+                pg["packing_fraction_error"] = np.array([1e-3])
                 if contact_forces:
                     pg["contact_forces"] = _forces(x)
                 n_points += 1

@@ -159,7 +159,7 @@ def test_render_stored_states_and_control_points(tmp_path):
     with h5py.File(path, "a") as f:
         g = f["sweeps/s0.1_22_x"]
         n = len(g["strain"])
-        g["states"] = np.tile(x, (n, 1))
+        g["states"][...] = np.tile(x, (n, 1))  # (the factory stores states)
         g["a_x"][...] = x[28]
         g["a_y"][...] = x[29]
         h = f["sweeps/s0.1_22_y"]
@@ -238,7 +238,8 @@ def test_formats_and_journal_widths(tmp_path):
         for fmt in ("png", "pdf", "svg"):
             assert (tmp_path / "fig" / f"{stem}.{fmt}").stat().st_size > 1000, (stem, fmt)
         with Image.open(o.path) as im:  # 3.4 in at 300 dpi (6h: too dense, the page's 7 in)
-            assert im.size[0] == round((7.0 if stem.startswith("fig6h") else 3.4) * 300), stem
+            wide = stem.startswith(("fig6h", "figS11"))  # (S11: six panels, too)
+            assert im.size[0] == round((7.0 if wide else 3.4) * 300), stem
     assert (tmp_path / "fig" / "fig3_energy_gaps.pdf").read_bytes().startswith(b"%PDF")
     assert min(v for k, v in JOURNAL_RC.items() if "size" in k and "marker" not in k) >= 7
 

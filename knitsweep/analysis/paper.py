@@ -105,3 +105,44 @@ def table_s3_crossing_mm() -> float:
     if crossing is None:
         raise ValueError("Table S3's ratio does not cross 1")
     return crossing
+
+
+PHI_END_OF_JAMMING = 0.85
+"""Paper SI "Contact Volumes": sweeping L at zero strain (k = 0.1 mN/mm², Table 1's
+other values), "the packing fraction that indicates the end of jamming is φ ≈ 0.85"."""
+
+PHI_END_STRAINS_L10_5 = {"x": 0.325, "y": 0.177}
+"""Paper SI "Contact Volumes": along the L = 10.5 mm sweeps, φ = 0.85 is reached at
+(ε_x, ε_y) = (0.325, 0.177)."""
+
+TABLE_S3_RMS_N = {
+    10.9: 6.89e-5, 11.0: 2.30e-5, 11.1: 1.44e-5, 11.2: 3.04e-5, 11.3: 14.5e-6, 11.4: 3.63e-5,
+    11.5: 2.72e-5, 11.6: 2.41e-5, 11.7: 2.01e-5, 11.8: 1.44e-5, 11.9: 8.30e-6, 12.0: 5.69e-5,
+    12.8: 2.93e-6,
+}  # fmt: skip
+"""Paper Table S3's RMS column (N): L (mm) → RMS of a linear fit to the z force of the
+same-row contacts over the first 20 points of a y pull (Δa_y = 0.001 mm). (One value
+in units of 1e-6, so that the gap threshold's literal appears once only.)"""
+
+
+class TableS2Row(NamedTuple):
+    """One row of paper Table S2: the RMS (mJ) of a linear fit to the contact energy
+    of an unjammed sweep over its first points, up to strain ``strain_final``."""
+
+    direction: str
+    k_mN_per_mm2: float
+    L_mm: float
+    step_mm: float
+    strain_final: float
+    rms_mJ: float
+
+
+TABLE_S2 = (
+    TableS2Row("x", 1.0, 14.0, 0.01, 0.056, 2.27e-5),
+    TableS2Row("x", 1.5, 14.0, 0.01, 0.075, 4.71e-5),
+    TableS2Row("x", 2.0, 15.0, 0.01, 0.052, 3.68e-5),
+    TableS2Row("y", 1.0, 14.4, 0.002, 0.029, 2.51e-5),
+    TableS2Row("y", 1.5, 15.4, 0.01, 0.034, 3.92e-5),
+    TableS2Row("y", 2.0, 16.3, 0.002, 0.028, 3.06e-5),
+)
+"""Paper Table S2 (energy-gap error analysis), in its row order."""

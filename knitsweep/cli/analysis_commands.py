@@ -141,9 +141,15 @@ def render(
     width: Annotated[int, typer.Option("--width", help="rendering resolution, pixels across")] = 1100,
     highlight: Annotated[bool, typer.Option("--highlight", help="wash out all stitches but the "
                                             "unit cell")] = False,
+    contact_volumes: Annotated[bool, typer.Option(
+        "--contact-volumes", help="draw the stitch's contact volumes by class instead (paper "
+        "Fig. 6a-e)")] = False,
+    samples: Annotated[int, typer.Option(
+        "--samples", help="--contact-volumes: tube points, a power of 2")] = 1 << 15,
 ) -> None:  # fmt: skip
-    """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a: a task of a results
-    file (point, or sweep at --step) or a state file."""
+    """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a, or with
+    --contact-volumes their contact volumes (Fig. 6a-e): a task of a results file (point,
+    or sweep at --step) or a state file."""
     from ..errors import InputError
     from ..report import render as rendering
 
@@ -156,11 +162,24 @@ def render(
             raise InputError("--L, --B, --k, --p, --r, --r-core, --stitch and --config apply to "
                              "--state; "
                              "a results file holds its own parameters")  # fmt: skip
-        path, stitch = rendering.render(
-            out, results=results, task=task, step=step, state=state, params=params,
-            radius=radius, cells=cells, side=side, elevation_deg=elevation, width_px=width,
-            highlight=highlight,
-        )  # fmt: skip
+        if contact_volumes:
+            from ..report.contact_volumes import render_contact_volumes
+
+            path, stitch = render_contact_volumes(
+                out,
+                results=results,
+                task=task,
+                step=step,
+                state=state,
+                params=params,
+                samples=samples,
+            )
+        else:
+            path, stitch = rendering.render(
+                out, results=results, task=task, step=step, state=state, params=params,
+                radius=radius, cells=cells, side=side, elevation_deg=elevation, width_px=width,
+                highlight=highlight,
+            )  # fmt: skip
     typer.echo(f"wrote {path}: {stitch.label}")
 
 

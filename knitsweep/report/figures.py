@@ -13,6 +13,7 @@ from typing import Any
 
 from ..formats import make_output_dir, replace_file
 from .fig_energy import fig3_energy_gaps, fig4a_gap_fit, fig4b_deltaL_vs_k, fig4c_phase_diagram
+from .fig_forces import figS11_contact_forces_strain
 from .fig_mechanics import (
     SMALL_STRAIN,
     fig1b_stress_strain,
@@ -23,6 +24,7 @@ from .fig_mechanics import (
     fig6g_thickness_strain_x,
     fig6h_contact_force_ratio,
 )
+from .fig_volumes import figS_packing_fraction_L, figS_packing_fraction_strain
 from .plotting import FigureOptions, SkipFigure, style
 from .reduce import Reduction
 
@@ -41,6 +43,12 @@ FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
     "fig6g_thickness_strain_x.png": fig6g_thickness_strain_x,
     "fig6g_thickness_strain_x_small.png": partial(fig6g_thickness_strain_x, upto=SMALL_STRAIN),
     "fig6h_contact_force_ratio.png": fig6h_contact_force_ratio,
+    "figS_packing_fraction_L.png": figS_packing_fraction_L,
+    "figS_packing_fraction_strain.png": figS_packing_fraction_strain,
+    "figS11_contact_forces_strain.png": figS11_contact_forces_strain,
+    "figS11_contact_forces_strain_small.png": partial(
+        figS11_contact_forces_strain, upto=SMALL_STRAIN
+    ),
 }
 """File name → figure function (paper figure in the name)."""
 

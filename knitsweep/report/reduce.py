@@ -56,7 +56,8 @@ class SweepCurves:
     """Per-step arrays of one analysed sweep, shape (n,) each, for the figures.
 
     ``strain`` (dimensionless), ``stress`` (N/mm), ``area_strain`` and
-    ``thickness_strain`` (dimensionless), ``bending_energy``/``contact_energy`` (mJ).
+    ``thickness_strain`` (dimensionless), ``bending_energy``/``contact_energy`` (mJ),
+    ``packing_fraction`` (dimensionless; None unless the job stored it).
     """
 
     task_id: str
@@ -71,6 +72,7 @@ class SweepCurves:
     thickness_strain: np.ndarray
     bending_energy: np.ndarray
     contact_energy: np.ndarray
+    packing_fraction: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -173,6 +175,10 @@ def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dic
             "E_c_rest_mJ": float(rec["contact_energy"][winner]),
             "thickness0_mm": plain_value(meta.get("thickness")),
         }
+        phi = rec.get("packing_fraction")
+        if phi is not None and len(phi) > winner:
+            row["packing_fraction"] = plain_value(phi[winner])
+            row["packing_fraction_error"] = plain_value(rec["packing_fraction_error"][winner])
     stored = rec.get("contact_forces")
     row |= force_columns(stored)
     row |= pair_force_columns(best if stored is not None else None, meta, fidelity)
@@ -248,8 +254,13 @@ def _analyse_sweep(
         thickness_strain=thickness_strain(arrays["thickness"]),
         bending_energy=arrays["bending_energy"],
         contact_energy=arrays["contact_energy"],
+        packing_fraction=_optional_array(rec.get("packing_fraction")),
     )
     return row, curves
+
+
+def _optional_array(value: Any) -> np.ndarray | None:
+    return None if value is None else np.asarray(value, dtype=float)
 
 
 def _problem(kind: str, row: Mapping[str, Any], meta: Mapping[str, Any], why: str) -> dict:

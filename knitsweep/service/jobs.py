@@ -69,6 +69,9 @@ class Store(BaseModel):
         False, description="contact forces by class (self, same row, NN/NNN column) per step"
     )
     geometry: bool = Field(False, description="control points (8, 6, 3) at every strain step")
+    packing_fraction: bool = Field(
+        False, description="packing fraction φ (quasi-Monte Carlo over the tube) of every state"
+    )
 
 
 class RunSettings(BaseModel):
@@ -266,6 +269,8 @@ class JobSpec(BaseModel):
             d["grid"]["ties"] = ties
         if self.grid.zip:
             d["grid"]["zip"] = self.grid.zip
+        if not self.store.packing_fraction:  # (absent when off: earlier job hashes stay)
+            del d["store"]["packing_fraction"]
         return d
 
     @property

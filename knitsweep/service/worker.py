@@ -137,7 +137,28 @@ def run_point(job: JobSpec, task: PointTask) -> dict[str, Any]:
         record["thickness"] = model.thickness(best.x)
         if job.store.contact_forces:
             record["contact_forces"] = model.contact_forces_by_class(best.x)
+    if job.store.packing_fraction:
+        record |= _packing_fractions(model, [r.x for r in zf.relaxations])
     return record
+
+
+def _packing_fractions(model: Any, states: Any) -> dict[str, np.ndarray]:
+    """``packing_fraction`` and ``packing_fraction_error`` (n,) of states (n, n_state)
+    (docs/model.md §9, paper SI "Contact Volumes"); NaN where a state is not finite."""
+    from ..analysis.volumes import packing_fraction
+
+    phi = np.full(len(states), np.nan)
+    err = np.full(len(states), np.nan)
+    seen: dict[bytes, tuple[float, float]] = {}  # merged chains repeat a state
+    for i, x in enumerate(states):
+        x = np.asarray(x, dtype=float)
+        if np.all(np.isfinite(x)):
+            key = x.tobytes()
+            if key not in seen:
+                seen[key] = packing_fraction(model.control_points(x), x[-2], x[-1],
+                                             model.params.r_mm)  # fmt: skip
+            phi[i], err[i] = seen[key]
+    return {"packing_fraction": phi, "packing_fraction_error": err}
 
 
 # ---- sweeps ---------------------------------------------------------------------
@@ -162,8 +183,10 @@ def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, 
     states = record.pop("states")
     if job.store.states:
         record["states"] = states
-    if job.store.geometry or job.store.contact_forces:
+    if job.store.geometry or job.store.contact_forces or job.store.packing_fraction:
         model = CellModel(params, job.fidelity)
+        if job.store.packing_fraction:
+            record |= _packing_fractions(model, states)
         if job.store.geometry:
             record["control_points"] = np.array([model.control_points(x) for x in states])
         if job.store.contact_forces:

@@ -1,0 +1,38 @@
+"""Contact volumes and the packing fraction of a stitch (paper SI "Contact Volumes",
+Figs. 6a–f; docs/model.md §9): the paper's voxel method and a quasi-Monte-Carlo
+estimator over the tube with an error estimate. Inputs are a state's control points
+(``CellModel.control_points``, (8, 6, 3) mm), its periods and the yarn radius.
+
+Uses numba (the distance search) and scipy (Sobol points); not imported by
+``knitsweep.analysis`` itself.
+"""
+
+from .estimators import (
+    STORED_SAMPLES,
+    STORED_SCRAMBLES,
+    TubeSamples,
+    Volumes,
+    contact_class,
+    packing_fraction,
+    qmc_volumes,
+    tube_samples,
+    voxel_volumes,
+)
+from .geometry import Pieces, arc_length, build_pieces, cell_depth, centre_line
+
+__all__ = [
+    "STORED_SAMPLES",
+    "STORED_SCRAMBLES",
+    "Pieces",
+    "TubeSamples",
+    "Volumes",
+    "arc_length",
+    "build_pieces",
+    "cell_depth",
+    "centre_line",
+    "contact_class",
+    "packing_fraction",
+    "qmc_volumes",
+    "tube_samples",
+    "voxel_volumes",
+]

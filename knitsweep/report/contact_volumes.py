@@ -1,0 +1,138 @@
+"""Pictures of a stitch's contact volumes, like the paper's Fig. 6a–f: the parts of the
+stitch's yarn tube that overlap another part of the yarn, as semi-transparent clouds of
+points, by contact class (self green, same row magenta, NN same column above lavender
+and below cyan, NNN same column yellow), around the stitch's centre-line.
+
+The points are the tube estimator's (``analysis.volumes.tube_samples``: scrambled Sobol
+points in tube coordinates, seed 0) that lie in an overlap; their density follows the
+tube's volume element, so a cloud shows the volume it stands for (docs/model.md §9).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..config import StitchParams
+from ..errors import InputError
+from .render import OUT_SUFFIXES, Stitch, cell_path, stitch_from_results, stitch_from_state
+
+VOLUME_COLOUR = {  # paper Fig. 6a–d
+    "self": "#2ca02c",
+    "same_row": "#c51bd6",
+    "nn_above": "#9a8ee6",
+    "nn_below": "#17becf",
+    "nnn_column": "#d4a20f",
+    "other": "#888888",
+}
+VOLUME_LABEL = {
+    "self": "self",
+    "same_row": "same row",
+    "nn_above": "NN same column, row above",
+    "nn_below": "NN same column, row below",
+    "nnn_column": "NNN same column",
+    "other": "other",
+}
+PANELS = (
+    ("(a) self contact", ("self",)),
+    ("(b) same-row contacts", ("same_row",)),
+    ("(c) NN same-column contacts", ("nn_above", "nn_below")),
+    ("(d) NNN same-column contacts", ("nnn_column",)),
+    ("(e) all contact volumes", tuple(VOLUME_COLOUR)),
+)
+MAX_SAMPLES = 1 << 20
+
+
+def contact_volume_points(stitch: Stitch, samples: int = 1 << 15) -> dict[str, np.ndarray]:
+    """Label → points (n, 3), mm, of the stitch's tube that lie in a contact volume of
+    that kind (labels of :data:`VOLUME_COLOUR`; a point in several is drawn in the
+    class of its nearest other stitch, a self overlap first)."""
+    from scipy.stats import qmc
+
+    from ..analysis.volumes import build_pieces, contact_class, tube_samples
+
+    cp = np.asarray(stitch.control_points, dtype=float)
+    pieces = build_pieces(cp, stitch.a_x, stitch.a_y, stitch.r_mm)
+    u = qmc.Sobol(3, scramble=True, seed=np.random.default_rng(0)).random(samples)
+    ts = tube_samples(cp, pieces, stitch.r_mm, u)
+    labels = np.full(len(u), "", dtype=object)
+    for p in np.unique(ts.other[ts.other >= 0]):
+        m, n = (int(v) for v in pieces.offsets[p])
+        cls = contact_class(m, n)
+        if cls == "nn_column":
+            cls = "nn_above" if n > 0 else "nn_below"
+        labels[ts.other == p] = cls
+    labels[ts.self_overlap] = "self"
+    return {k: ts.x[labels == k] for k in VOLUME_COLOUR}
+
+
+def draw_contact_volumes(stitch: Stitch, out: str | Path, samples: int = 1 << 15) -> Path:
+    """Five panels (a–e as the paper's Fig. 6a–e) of the stitch's contact volumes to
+    ``out`` (.png, .pdf, .svg); ``samples`` tube points in all (a power of 2)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    clouds = contact_volume_points(stitch, samples)
+    path = cell_path(stitch.control_points, 24)
+    fig = Figure(figsize=(16.0, 4.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    lo, hi = path.min(axis=0) - stitch.r_mm, path.max(axis=0) + stitch.r_mm
+    for i, (name, kinds) in enumerate(PANELS):
+        ax = fig.add_subplot(1, len(PANELS), i + 1, projection="3d")
+        ax.plot(*path.T, color="0.25", lw=1.2)
+        for k in kinds:
+            pts = clouds[k]
+            if len(pts):
+                ax.scatter(*pts.T, s=3.0, color=VOLUME_COLOUR[k], alpha=0.3, linewidths=0,
+                           label=VOLUME_LABEL[k] if len(kinds) > 1 else None)  # fmt: skip
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_zlim(lo[2], hi[2])
+        ax.set_box_aspect(tuple(hi - lo))
+        ax.view_init(elev=50, azim=-75)
+        ax.set_title(name, fontsize=10)
+        ax.tick_params(labelsize=7)
+        ax.set_xlabel("x (mm)", fontsize=8)
+        ax.set_ylabel("y (mm)", fontsize=8)
+        ax.set_zlabel("z (mm)", fontsize=8)
+    handles = [fig.axes[-1].plot([], [], "o", color=VOLUME_COLOUR[k], label=VOLUME_LABEL[k])[0]
+               for k in VOLUME_COLOUR if len(clouds[k])]  # fmt: skip
+    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), frameon=False,
+               fontsize=9)  # fmt: skip
+    fig.suptitle(f"contact volumes: {stitch.label}", fontsize=11)
+    out = Path(out)
+    fig.savefig(out, dpi=150, facecolor="white")
+    return out
+
+
+def render_contact_volumes(out: str | Path, *, results: str | Path | None = None,
+                           task: str | None = None, step: int | None = None,
+                           state: str | Path | None = None, params: StitchParams | None = None,
+                           samples: int = 1 << 15) -> tuple[Path, Stitch]:  # fmt: skip
+    """``knitsweep render --contact-volumes``: the stitch of a results-file task (point,
+    or sweep at ``step``) or of a state file, its contact volumes drawn to ``out``.
+
+    Raises:
+        InputError: bad output suffix, samples not a power of 2 in 2^10..2^20, both or
+            neither source, unknown task or bad step.
+    """
+    out = Path(out)
+    if out.suffix.lower() not in OUT_SUFFIXES:
+        raise InputError(f"out = '{out}': must end in {', '.join(OUT_SUFFIXES)}")
+    if not (1 << 10 <= samples <= MAX_SAMPLES and samples & (samples - 1) == 0):
+        raise InputError(f"samples = {samples}: must be a power of 2 in 1024..{MAX_SAMPLES}")
+    if (results is None) == (state is None):
+        raise InputError("give either --results FILE --task ID, or --state FILE")
+    if results is not None:
+        if task is None:
+            raise InputError("--results needs --task ID (a point or sweep id)")
+        stitch = stitch_from_results(results, task, step)
+    else:
+        from ..formats import read_state
+
+        if step is not None:
+            raise InputError("--step applies to a sweep of a results file, not to --state")
+        stitch = stitch_from_state(read_state(state), params or StitchParams(),
+                                   f"state {Path(state).name}")  # fmt: skip
+    return draw_contact_volumes(stitch, out, samples), stitch

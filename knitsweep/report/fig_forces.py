@@ -1,0 +1,104 @@
+"""Contact forces by class along a strain sweep (paper SI "Contact Forces", the figure
+of forces against strain, panels a–e; docs/model.md §9), from the states a job stores
+with ``[store] states = true``, and the RMS column of Table S3 from the same forces.
+
+The forces are the paper's pair forces between sampled yarn points
+(``CellModel.contact_pair_forces_by_class``, N; both contacts of a class added), with
+the paper's sign convention for that figure: positive assists linear elastic
+behaviour when the fabric is stretched in the given direction. Linear elastic
+behaviour is extension along the pulled axis, Poisson contraction across it, and out
+of plane the unjammed response: expansion under x pulls, contraction under y pulls
+(paper Fig. 6g, Fig. S12b). So a force that extends the fabric along a counts with
+the sign ``LINEAR_ELASTIC_SIGN[direction][a]``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..analysis import fit_line
+from ..config import StitchParams
+from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
+from ..store.format import SWEEPS
+from .fig_mechanics import CLASS_COLOUR, CLASS_LABEL
+from .force_columns import job_fidelity
+from .plotting import STRAIN, SkipFigure, new_figure, title
+from .reduce import Reduction
+
+LINEAR_ELASTIC_SIGN = {"x": np.array([1.0, -1.0, 1.0]), "y": np.array([-1.0, 1.0, -1.0])}
+"""Sign that turns 'extends the fabric along x, y, z' into the paper's 'assists linear
+elastic behaviour' for a pull in x or y (module docstring)."""
+
+PAPER_L_MM = 10.5
+"""The paper's contact-force sweeps: L = 10.5 mm (jammed in both directions)."""
+
+
+def sweeps_with_states(red: Reduction) -> list[Any]:
+    """Done sweeps of the reduction that store every step's state."""
+    return [e for e in red.entries if e.kind == SWEEPS and e.meta.get("status") == "done"
+            and "states" in e.record]  # fmt: skip
+
+
+def pair_forces_along(red: Reduction, entry: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(strain (n,), pair forces by class (n, 5, 3) N, positive extends the fabric) of
+    one stored sweep, from its states."""
+    from ..model import CellModel  # numba: only for files that store the states
+
+    model = CellModel(StitchParams.from_flat(entry.meta), job_fidelity(red.roots[0]))
+    states = np.asarray(entry.record["states"], dtype=float)
+    return (np.asarray(entry.record["strain"], dtype=float),
+            np.array([model.contact_pair_forces_by_class(x) for x in states]))  # fmt: skip
+
+
+def _nearest_L(entries: list[Any], direction: str, L_mm: float) -> Any | None:
+    pulls = [e for e in entries if e.meta.get("direction") == direction]
+    return min(pulls, key=lambda e: abs(float(e.meta["L_mm"]) - L_mm), default=None)
+
+
+def figS11_contact_forces_strain(red: Reduction, notes: list[str],
+                                 upto: float | None = None) -> Any:  # fmt: skip
+    """Pair forces by class against strain at the L nearest 10.5 mm, pulled in x (top)
+    and y (bottom), components x, y, z (columns), in the paper's sign convention
+    (positive assists linear elastic behaviour); ``upto``: strains up to it only (the
+    forces grow by two orders of magnitude towards the end of a sweep)."""
+    entries = sweeps_with_states(red)
+    if not entries:
+        raise SkipFigure("needs sweeps that store their states ([store] states = true)")
+    picked = {d: _nearest_L(entries, d, PAPER_L_MM) for d in "xy"}
+    picked = {d: e for d, e in picked.items() if e is not None}
+    fig = new_figure(13.0, 3.4 * len(picked) + 1.0, wide=True)
+    axes = np.atleast_2d(fig.subplots(len(picked), 3, squeeze=False))
+    for row, (d, e) in enumerate(sorted(picked.items())):
+        strain, f = pair_forces_along(red, e)
+        signed = f * LINEAR_ELASTIC_SIGN[d][None, None, :]
+        if upto is not None:
+            keep = strain <= upto * (1.0 + 1e-9)
+            strain, signed = strain[keep], signed[keep]
+        for col, a in enumerate("xyz"):
+            ax = axes[row, col]
+            for j, cls in enumerate(CONTACT_CLASSES):
+                ax.plot(strain, signed[:, j, col], color=CLASS_COLOUR[cls], lw=1.5,
+                        label=CLASS_LABEL[cls])  # fmt: skip
+            ax.axhline(0.0, color="0.6", lw=0.8)
+            ax.set_xlabel(STRAIN[d])
+            ax.set_ylabel(f"force along {a} (N), + assists linear elasticity")
+            ax.set_title(f"pulled in {d}, L = {float(e.meta['L_mm']):g} mm: {a} component")
+    axes[0, 0].legend(frameon=True, framealpha=0.9)
+    title(fig, red, "Contact (pair) forces by class along the sweeps")
+    return fig
+
+
+def same_row_z_rms(red: Reduction, points: int = 20) -> dict[float, float]:
+    """Paper Table S3's RMS column: for each y pull that stores its states, the RMS
+    (N) of the residuals of a straight line fitted to the z pair force of the
+    same-row contacts against strain over the first ``points`` steps."""
+    out = {}
+    for e in sweeps_with_states(red):
+        if e.meta.get("direction") != "y" or len(e.record["strain"]) < points:
+            continue
+        strain, f = pair_forces_along(red, e)
+        fz = f[:points, CONTACT_CLASSES.index("same_row"), 2]
+        out[round(float(e.meta["L_mm"]), 6)] = float(np.sqrt(fit_line(strain[:points], fz).mse))
+    return dict(sorted(out.items()))
