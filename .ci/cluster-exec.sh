@@ -10,7 +10,7 @@
 # first word is the node, and the remaining words are joined with spaces and run
 # by `sh -c` on the node, as sshd would. The environment is passed on as it is
 # (hydra sends the ranks' environment through its own protocol anyway); the
-# working directory is kept if the node can see it, else it is /.
+# working directory is kept if the node has it, else it is /.
 set -euo pipefail
 
 RUN_DIR=${CLUSTER_RUN_DIR:-/run/knitsweep-cluster}
@@ -36,6 +36,7 @@ pid=$(tr -dc '0-9' <"$pidfile")
     exit 255
 }
 (($#)) || set -- "${SHELL:-/bin/sh}" -l
-wd=$PWD
-nsenter --target "$pid" --mount -- test -d "$wd" || wd=/
-exec nsenter --target "$pid" --mount --uts --net --wd="$wd" -- /bin/sh -c "$*"
+# (nsenter --wd would resolve the directory here, not on the node)
+export CLUSTER_EXEC_WD=$PWD
+exec nsenter --target "$pid" --mount --uts --net -- /bin/sh -c \
+    'cd "$CLUSTER_EXEC_WD" 2>/dev/null || cd /; unset CLUSTER_EXEC_WD; eval "$1"' sh "$*"

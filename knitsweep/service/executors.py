@@ -8,7 +8,8 @@ so most sweep tests need no ``mpiexec``.
 MPI protocol (rank 0 is the master, ranks 1..N-1 work), point to point only (no
 collective that a signalled rank could leave the others stuck in): the master
 compiles the kernels, then sends the job tagged JOB to every worker (``None``: no
-job, leave); then ``(task, zero)`` values tagged TASK go out and ``Reply`` values
+job, leave), which loads them (a worker on another node, with a node-local cache,
+compiles them: one rank per node, the others wait, ``worker.compile_lock``); then ``(task, zero)`` values tagged TASK go out and ``Reply`` values
 tagged REPLY come back; ``None`` tagged STOP ends a worker, which answers STOPPED
 before it leaves; a task a worker dropped on a signal comes back as ABANDONED.
 Each worker holds up to PREFETCH tasks, so it starts the next one without a round
@@ -331,12 +332,12 @@ def _worker(comm) -> None:
     if message is None:  # the master refused the job before any work
         return None
     job = JobSpec.model_validate_json(message)
+    rank = comm.Get_rank()
     try:
-        with signals.interruptible():
-            prepare(job)  # rank 0 has compiled the kernels into numba's cache
+        with signals.interruptible():  # loads the cache rank 0 filled, if this node shares it;
+            prepare(job, _rank_notice(rank))  # else one rank of the node compiles
     except Interrupted:
         return _leave(comm, status, backoff)
-    rank = comm.Get_rank()
     while True:
         if not _probe(comm, status, backoff):
             return _leave(comm, status, backoff)
@@ -355,6 +356,12 @@ def _worker(comm) -> None:
             comm.send(task.task_id, dest=0, tag=ABANDONED)
             return _leave(comm, status, backoff)
         comm.send(reply, dest=0, tag=REPLY)
+
+
+def _rank_notice(rank: int):
+    """``stderr_notice`` with this worker's rank and host in front."""
+    host = socket.gethostname()
+    return lambda message: stderr_notice(f"rank {rank} on {host}: {message}")
 
 
 def _leave(comm, status, backoff: Backoff) -> None:
