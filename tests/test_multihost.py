@@ -302,7 +302,7 @@ def mpirun_across(scratch, procs, job, n=4, hosts="knit1:2,knit2:2"):
                          start_new_session=True)  # fmt: skip
     procs.append(p)
     try:
-        stdout, stderr = p.communicate(timeout=400)
+        stdout, stderr = p.communicate(timeout=900)  # a cold compile on a busy machine
     finally:
         watcher.stop()
     assert p.returncode == 0, f"mpirun exited with {p.returncode}:\n{stdout}\n{stderr}"
