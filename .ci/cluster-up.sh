@@ -113,10 +113,9 @@ if healthy; then
     log "cluster already up: ${NAMES[*]}"
     exit 0
 fi
-if [[ -e $RUN_DIR ]] || ip netns list 2>/dev/null | grep -qw "$SWITCH"; then
-    log "tearing down a half-started cluster first"
-    bash "$HERE/cluster-down.sh"
-fi
+# whatever is there of a cluster (half-started, unhealthy, of another size, or
+# left behind without its run directory) goes first
+bash "$HERE/cluster-down.sh" || die "could not remove what is left of an earlier cluster"
 
 # --------------------------------------------------------------------------
 # 1. Packages (the same as .ci/slurm-up.sh, plus iproute2 and util-linux)

@@ -13,6 +13,7 @@ and fails, never skips, if it cannot. Every process a test starts is killed by
 its fixtures, also when the test fails, and every job it submits is cancelled.
 """
 
+import contextlib
 import json
 import os
 import shutil
@@ -111,16 +112,34 @@ def cluster():
     tests failed), or a failure that says why."""
     if os.geteuid() != 0:
         pytest.fail("the multihost tests need root (namespaces, SLURM daemons); run as root")
-    proc = subprocess.run(["bash", str(UP)], capture_output=True, text=True, timeout=600)
+    env = {**os.environ, "CLUSTER_NODES": str(len(NODES))}
+    proc = subprocess.run(["bash", str(UP)], env=env, capture_output=True, text=True, timeout=600)
     if proc.returncode != 0:
         pytest.fail(f"{UP} failed (exit {proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
     started_here = "cluster already up" not in proc.stdout
+    holders = [holder(n) for n in NODES]
     yield {"started_here": started_here}
     if started_here:
         down = subprocess.run(["bash", str(DOWN)], capture_output=True, text=True, timeout=180)
         assert down.returncode == 0, f"{DOWN}: {down.stdout}\n{down.stderr}"
         netns = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
         assert "knit-switch" not in netns and not RUN_DIR.exists(), "the cluster was not removed"
+        assert not any(Path(f"/proc/{p}").exists() for p in holders), f"node holders {holders} live"
+        assert not cluster_processes(), f"cluster processes left: {cluster_processes()}"
+
+
+def cluster_processes():
+    """Pids of processes that have a node's mounts (its /etc/slurm)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                info = Path(f"/proc/{entry}/mountinfo").read_text()
+            except OSError:
+                continue
+            if "knitsweep-cluster/etc-slurm /etc/slurm " in info:
+                found.append(int(entry))
+    return found
 
 
 @pytest.fixture(scope="session")
@@ -140,18 +159,39 @@ def head_cache(cluster, tiny_reference):
 
 
 @pytest.fixture
-def procs():
+def procs(cluster):
     """Processes a test starts (in new sessions): killed, with their process
-    groups, at the end of the test whatever happened."""
+    groups, at the end of the test whatever happened; then every process still
+    carrying a test run's marker (KNITSWEEP_TEST_RUN: ranks and proxies hydra
+    started on the other nodes)."""
     started = []
     yield started
     for p in started:
         if p.poll() is None:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.killpg(p.pid, 9)
-            except ProcessLookupError:
-                pass
             p.wait(timeout=30)
+    for pid in marked_processes():
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, 9)
+    deadline = time.monotonic() + 10
+    while marked_processes() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not marked_processes(), f"processes of the test's runs survived: {marked_processes()}"
+
+
+def marked_processes():
+    """Pids of processes whose environment holds KNITSWEEP_TEST_RUN (runs of these tests)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit() and int(entry) != os.getpid():
+            try:
+                env = Path(f"/proc/{entry}/environ").read_bytes()
+            except OSError:
+                continue
+            if b"\0KNITSWEEP_TEST_RUN=" in b"\0" + env:
+                found.append(int(entry))
+    return found
 
 
 @pytest.fixture
@@ -368,6 +408,15 @@ def jobs(cluster):
     yield ids
     for job_id in ids:
         on_node("knit1", ["scancel", job_id], check=False)
+    deadline = time.monotonic() + 90  # KillWait is 30 s
+    for job_id in ids:
+        while time.monotonic() < deadline:
+            state = job_record(job_id).get("JobState")
+            if state in FINAL or state is None:
+                break
+            time.sleep(0.25)
+        else:
+            pytest.fail(f"job {job_id} still {job_record(job_id).get('JobState')} after scancel")
 
 
 def sbatch(jobs, args, cwd, env):

@@ -60,17 +60,23 @@ def wall_time_budget(seconds: float):
 def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> None:
     """Compile (or load from numba's cache) the kernels this job's tasks use;
     ``notice`` hears first if that means compiling (see ``compile_kernels``), or
-    waiting for another process that compiles them (``compile_lock``)."""
+    waiting for another process that compiles them (``compile_lock``). The lock
+    is only taken while the cache lacks the kernels: ranks that find them cached
+    load them side by side."""
+    from .. import kernels
     from ..model import compile_kernels
 
-    with compile_lock(notice):
-        compile_kernels(job.fidelity, notice)
+    if not kernels.cached():
+        with compile_lock(notice):
+            if not kernels.cached():  # nobody compiled them while this one waited
+                compile_kernels(job.fidelity, notice)
+    compile_kernels(job.fidelity, notice)  # loads them (at once if compiled just now)
 
 
 @contextlib.contextmanager
 def compile_lock(notice: Callable[[str], None] | None = None):
     """Hold the lock file beside numba's kernel cache (``<cache dir>.lock``) while
-    the kernels are compiled or loaded. With a node-local cache (``NUMBA_CACHE_DIR``
+    the kernels are compiled. With a node-local cache (``NUMBA_CACHE_DIR``
     on a node's /tmp, as the SLURM templates set it) the first rank of a node to
     come compiles, once, and the node's other ranks wait and then load its
     cache, instead of every rank compiling at once. Blocking, but a signal
