@@ -124,8 +124,18 @@ def cluster():
         assert down.returncode == 0, f"{DOWN}: {down.stdout}\n{down.stderr}"
         netns = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
         assert "knit-switch" not in netns and not RUN_DIR.exists(), "the cluster was not removed"
-        assert not any(Path(f"/proc/{p}").exists() for p in holders), f"node holders {holders} live"
+        assert not any(map(alive, holders)), f"node holders {holders} live"
         assert not cluster_processes(), f"cluster processes left: {cluster_processes()}"
+
+
+def alive(pid):
+    """Whether ``pid`` runs (a zombie, dead but not yet reaped by init, does not)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    state = next(line.split()[1] for line in status.splitlines() if line.startswith("State:"))
+    return state not in ("Z", "X")
 
 
 def cluster_processes():
