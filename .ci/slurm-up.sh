@@ -74,12 +74,15 @@ trap 'die "command failed (exit $?) at line $LINENO: $BASH_COMMAND"' ERR
 
 # PIDs of running processes whose name is $1 (Debian's alternatives make
 # /usr/sbin/slurmd point at slurmd-wlm, so accept that name too). /proc only, so
-# it works without procps.
+# it works without procps. Processes in another network namespace (the nodes of
+# .ci/cluster-up.sh) are not this host's daemons.
 pids_of() {
-    local name=$1 p comm state
+    local name=$1 p comm state here
+    here=$(readlink /proc/self/ns/net)
     for p in /proc/[0-9]*; do
         comm=$(cat "$p/comm" 2>/dev/null) || continue
         [[ $comm == "$name" || $comm == "$name-wlm" ]] || continue
+        [[ $(readlink "$p/ns/net" 2>/dev/null) == "$here" ]] || continue
         # Skip zombies and processes that are exiting (e.g. the parent of a
         # daemonizing fork).
         state=$(awk '/^State:/ {print $2; exit}' "$p/status" 2>/dev/null) || continue

@@ -59,10 +59,57 @@ def wall_time_budget(seconds: float):
 
 def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> None:
     """Compile (or load from numba's cache) the kernels this job's tasks use;
-    ``notice`` hears first if that means compiling (see ``compile_kernels``)."""
+    ``notice`` hears first if that means compiling (see ``compile_kernels``), or
+    waiting for another process that compiles them (``compile_lock``). The lock
+    is only taken while the cache lacks the kernels: ranks that find them cached
+    load them side by side."""
+    from .. import kernels
     from ..model import compile_kernels
 
-    compile_kernels(job.fidelity, notice, (job.stitch,))
+    if not kernels.cached():
+        with compile_lock(notice):
+            if not kernels.cached():  # nobody compiled them while this one waited
+                compile_kernels(job.fidelity, notice, (job.stitch,))
+    compile_kernels(
+        job.fidelity, notice, (job.stitch,)
+    )  # loads them (at once if compiled just now)
+
+
+@contextlib.contextmanager
+def compile_lock(notice: Callable[[str], None] | None = None):
+    """Hold the lock file beside numba's kernel cache (``<cache dir>.lock``) while
+    the kernels are compiled. With a node-local cache (``NUMBA_CACHE_DIR``
+    on a node's /tmp, as the SLURM templates set it) the first rank of a node to
+    come compiles, once, and the node's other ranks wait and then load its
+    cache, instead of every rank compiling at once. Blocking, but a signal
+    interrupts the wait (under ``signals.interruptible``). Without a writable
+    cache directory there is nothing to share, so no lock."""
+    import fcntl
+    import os
+
+    import numba
+
+    from .. import kernels  # sets numba.config.CACHE_DIR
+
+    path = numba.config.CACHE_DIR.rstrip(os.sep) + ".lock"
+    try:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+    except OSError:
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if notice is not None and not kernels.cached():
+                notice(
+                    f"waiting for another process of this host to compile the kernels (lock {path})"
+                )
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def kernels_cached() -> bool:

@@ -306,7 +306,9 @@ def _worker(comm) -> int | None:
     try:
         with signals.interruptible():
             signals.test_point("compile")
-            prepare(job)  # rank 0 has compiled the kernels into numba's cache
+            # loads the cache rank 0 filled, if this node shares it; else one rank of
+            # the node compiles (``worker.compile_lock``) and the others wait
+            prepare(job, _rank_notice(comm.Get_rank()))
     except Interrupted:
         return _leave(comm, status, backoff)
     return _serve(comm, job, status, backoff)
@@ -360,6 +362,12 @@ def _serve(comm, job, status, backoff: Backoff) -> int | None:
         replies.append(reply)
         if len(queue) <= low or time.monotonic() - sent_at >= REPLY_EVERY_S:
             send_replies()
+
+
+def _rank_notice(rank: int):
+    """``stderr_notice`` with this worker's rank and host in front."""
+    host = socket.gethostname()
+    return lambda message: stderr_notice(f"rank {rank} on {host}: {message}")
 
 
 def _leave(comm, status, backoff: Backoff) -> None:

@@ -1,0 +1,553 @@
+"""Runs whose ranks sit on different hosts, on the namespace cluster of
+``.ci/cluster-up.sh``: nodes knit1 and knit2, each with its own hostname, address
+on a private bridge, /tmp, /dev/shm, munged and slurmd (slurmctld on knit1).
+
+What the nodes share is the machine's file system outside /tmp (the code and
+this virtualenv, like a shared software install) and the cluster's shared
+scratch, ``/var/lib/knitsweep-cluster/shared``. The numba kernel cache is
+node-local (``/tmp/knitsweep-numba-root``: what the SLURM template sets).
+
+The tests marked ``multihost`` need root; the ``cluster`` fixture starts the
+cluster if it is not up (and then stops it, with every namespace, at the end)
+and fails, never skips, if it cannot. Every process a test starts is killed by
+its fixtures, also when the test fails, and every job it submits is cancelled.
+"""
+
+import contextlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import h5py
+import pytest
+from conftest import TINY, assert_same_results
+
+import knitsweep
+from knitsweep import service
+
+REPO = Path(__file__).resolve().parents[1]
+VENV = Path(sys.executable).parent.parent
+UP, DOWN, EXEC = (REPO / ".ci" / f"cluster-{s}.sh" for s in ("up", "down", "exec"))
+BASE = Path("/var/lib/knitsweep-cluster")
+RUN_DIR = Path("/run/knitsweep-cluster")
+SHARED = BASE / "shared"  # the same path on every node
+NODES = ("knit1", "knit2")
+NODE_CACHE = "/tmp/knitsweep-numba-root"  # NUMBA_CACHE_DIR on a node (the template's default)
+FINAL = {"COMPLETED", "FAILED", "CANCELLED", "TIMEOUT", "NODE_FAIL", "OUT_OF_MEMORY",
+         "PREEMPTED", "BOOT_FAIL", "DEADLINE"}  # fmt: skip
+COMPILING = "compiling numerical kernels"
+WAITING = "waiting for another process of this host to compile the kernels"
+
+pytestmark = [pytest.mark.multihost, pytest.mark.mpi]
+
+
+# ---- the nodes ---------------------------------------------------------------------
+def holder(node):
+    """The pid holding ``node``'s namespaces."""
+    return int((RUN_DIR / f"holder-{node}.pid").read_text())
+
+
+def node_tmp(node) -> Path:
+    """``node``'s /tmp as this (the machine's) namespace sees it."""
+    return BASE / "nodes" / node / "tmp"
+
+
+def namespaces(pid):
+    """(uts, mnt, net) namespace ids of a process."""
+    return tuple(os.readlink(f"/proc/{pid}/ns/{ns}") for ns in ("uts", "mnt", "net"))
+
+
+def enter(node, cwd="/"):
+    """The command prefix that runs a command on ``node`` in ``cwd`` (a path on the
+    node: nsenter's own --wd would resolve it here)."""
+    nsenter = ["nsenter", "-t", str(holder(node)), "-m", "-u", "-n", "--"]
+    return [*nsenter, "/bin/sh", "-c", 'cd "$0" && exec "$@"', str(cwd)]
+
+
+def on_node(node, argv, cwd="/", env=None, timeout=120, check=True):
+    """Run ``argv`` on ``node`` (its namespaces), like ``ssh node argv``."""
+    proc = subprocess.run([*enter(node, cwd), *map(str, argv)], env=env or run_env(), capture_output=True,
+                          text=True, timeout=timeout)  # fmt: skip
+    if check:
+        assert proc.returncode == 0, f"on {node}: {argv}: {proc.stdout}\n{proc.stderr}"
+    return proc
+
+
+def run_env(**extra):
+    """This venv and this checkout on PATH/PYTHONPATH; no KNITSWEEP_* or SLURM_*
+    settings of the caller; the node-local kernel cache."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("KNITSWEEP_", "SLURM_", "PMI"))}
+    source = str(Path(knitsweep.__file__).resolve().parents[1])
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [source, env.get("PYTHONPATH")]))
+    env["PATH"] = f"{VENV / 'bin'}{os.pathsep}{env.get('PATH', '/usr/bin:/bin')}"
+    env["KNITSWEEP_VENV"] = str(VENV)
+    env["NUMBA_CACHE_DIR"] = NODE_CACHE
+    env.pop("TMPDIR", None)
+    env.update(extra)
+    return env
+
+
+def kernel_cache(node) -> Path:
+    """``node``'s kernel cache directory, as this namespace sees it."""
+    code = "import numba, knitsweep.kernels; print(numba.config.CACHE_DIR)"
+    inside = on_node(node, [sys.executable, "-c", code]).stdout.strip()
+    assert inside.startswith("/tmp/"), inside
+    return node_tmp(node) / inside.removeprefix("/tmp/")
+
+
+def cached_on(node) -> bool:
+    code = "from knitsweep import kernels; print(kernels.cached())"
+    return on_node(node, [sys.executable, "-c", code]).stdout.strip() == "True"
+
+
+@pytest.fixture(scope="session")
+def cluster():
+    """The cluster up (started here if it was not; then stopped here, also when
+    tests failed), or a failure that says why."""
+    if os.geteuid() != 0:
+        pytest.fail("the multihost tests need root (namespaces, SLURM daemons); run as root")
+    env = {**os.environ, "CLUSTER_NODES": str(len(NODES))}
+    proc = subprocess.run(["bash", str(UP)], env=env, capture_output=True, text=True, timeout=600)
+    if proc.returncode != 0:
+        pytest.fail(f"{UP} failed (exit {proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
+    started_here = "cluster already up" not in proc.stdout
+    holders = [holder(n) for n in NODES]
+    yield {"started_here": started_here}
+    if started_here:
+        down = subprocess.run(["bash", str(DOWN)], capture_output=True, text=True, timeout=180)
+        assert down.returncode == 0, f"{DOWN}: {down.stdout}\n{down.stderr}"
+        netns = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+        assert "knit-switch" not in netns and not RUN_DIR.exists(), "the cluster was not removed"
+        assert not any(map(alive, holders)), f"node holders {holders} live"
+        assert not cluster_processes(), f"cluster processes left: {cluster_processes()}"
+
+
+def alive(pid):
+    """Whether ``pid`` runs (a zombie, dead but not yet reaped by init, does not)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    state = next(line.split()[1] for line in status.splitlines() if line.startswith("State:"))
+    return state not in ("Z", "X")
+
+
+def cluster_processes():
+    """Pids of processes that have a node's mounts (its /etc/slurm)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                info = Path(f"/proc/{entry}/mountinfo").read_text()
+            except OSError:
+                continue
+            if "knitsweep-cluster/etc-slurm /etc/slurm " in info:
+                found.append(int(entry))
+    return found
+
+
+@pytest.fixture(scope="session")
+def head_cache(cluster, tiny_reference):
+    """knit1 (the head node, where knitsweep was installed) has compiled kernels:
+    the ones this test process compiled, copied to its node-local cache. knit2's
+    cache is left as it is (empty on a fresh cluster)."""
+    import numba
+
+    import knitsweep.kernels  # noqa: F401  (sets numba.config.CACHE_DIR)
+
+    target = kernel_cache("knit1")
+    if not target.exists():
+        shutil.copytree(numba.config.CACHE_DIR, target)
+    assert cached_on("knit1")
+    return target
+
+
+@pytest.fixture
+def procs(cluster):
+    """Processes a test starts (in new sessions): killed, with their process
+    groups, at the end of the test whatever happened; then every process still
+    carrying a test run's marker (KNITSWEEP_TEST_RUN: ranks and proxies hydra
+    started on the other nodes)."""
+    started = []
+    yield started
+    for p in started:
+        if p.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, 9)
+            p.wait(timeout=30)
+    for pid in marked_processes():
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, 9)
+    deadline = time.monotonic() + 10
+    while marked_processes() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not marked_processes(), f"processes of the test's runs survived: {marked_processes()}"
+
+
+def marked_processes():
+    """Pids of processes whose environment holds KNITSWEEP_TEST_RUN (runs of these tests)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit() and int(entry) != os.getpid():
+            try:
+                env = Path(f"/proc/{entry}/environ").read_bytes()
+            except OSError:
+                continue
+            if b"\0KNITSWEEP_TEST_RUN=" in b"\0" + env:
+                found.append(int(entry))
+    return found
+
+
+@pytest.fixture
+def scratch(cluster, request):
+    """A fresh directory in knit1's private /tmp: (host view, node view)."""
+    name = f"mh-{request.node.name[:40]}-{uuid.uuid4().hex[:6]}"
+    outside = node_tmp("knit1") / name
+    outside.mkdir()
+    yield outside, Path("/tmp") / name
+    shutil.rmtree(outside, ignore_errors=True)
+
+
+# ---- watching the ranks: where they run, what they open -----------------------------
+class RankWatcher(threading.Thread):
+    """Scans /proc every 20 ms for knitsweep ranks carrying ``marker`` in their
+    environment: each rank's node (by its UTS namespace, i.e. not what the rank
+    says) and every file under ``watched`` (node paths) it has open."""
+
+    def __init__(self, marker, watched):
+        super().__init__(daemon=True)
+        self.marker = f"KNITSWEEP_TEST_RUN={marker}".encode()
+        self.watched = [str(w) for w in watched]
+        self.node_of_uts = {namespaces(holder(n))[0]: n for n in NODES}
+        self.ranks = {}  # pid -> (rank, node)
+        self.opened = {}  # rank -> set of paths
+        self.done = threading.Event()
+        self._skip = {}  # pid -> the command line it had when found not to be a rank
+
+    def run(self):
+        while not self.done.is_set():
+            self.scan()
+            time.sleep(0.02)
+        self.scan()
+
+    def scan(self):
+        for entry in os.listdir("/proc"):
+            if not entry.isdigit():
+                continue
+            pid = int(entry)
+            try:
+                if pid not in self.ranks:
+                    # a rank is forked by hydra's proxy (or slurmstepd) and then
+                    # execs python: look again whenever a process's command changes
+                    cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
+                    if self._skip.get(pid) == cmd:
+                        continue
+                    self._identify(pid, cmd)
+                if pid in self.ranks:
+                    rank = self.ranks[pid][0]
+                    for fd in os.listdir(f"/proc/{pid}/fd"):
+                        target = os.readlink(f"/proc/{pid}/fd/{fd}")
+                        if any(target.startswith(w) for w in self.watched):
+                            self.opened.setdefault(rank, set()).add(target)
+            except OSError:  # gone meanwhile
+                continue
+
+    def _identify(self, pid, cmdline):
+        cmd = cmdline.split(b"\0")
+        python = Path(cmd[0].decode(errors="replace")).name.startswith("python")
+        if not python or b"knitsweep" not in cmd or b"run" not in cmd:
+            self._skip[pid] = cmdline
+            return
+        env = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
+        if self.marker not in env:
+            self._skip[pid] = cmdline
+            return
+        env = dict(e.split(b"=", 1) for e in env if b"=" in e)
+        # hydra's PMI_RANK first: under mpirun in SLURM, SLURM_PROCID numbers its proxies
+        rank = env.get(b"PMI_RANK", env.get(b"SLURM_PROCID"))
+        if rank is None:
+            return  # not an MPI rank (yet)
+        node = self.node_of_uts.get(namespaces(pid)[0], "the machine itself")
+        self.ranks[pid] = (int(rank), node)
+
+    def stop(self):
+        self.done.set()
+        self.join(timeout=10)
+
+    def node_of_rank(self):
+        return {rank: node for rank, node in self.ranks.values()}
+
+
+def placements(path):
+    """{(kind, task id): (rank, host)} as the results file records them."""
+    with h5py.File(path, "r") as f:
+        return {(kind, tid): (int(g.attrs["rank"]), str(g.attrs["host"]))
+                for kind in ("points", "sweeps") for tid, g in f[kind].items()}  # fmt: skip
+
+
+def assert_placed_where_computed(out, watcher, nodes_used=NODES):
+    """Every task's recorded host is the node its rank ran on (seen in /proc), and
+    tasks ran on each of ``nodes_used``; no rank but 0 opened the results files."""
+    where = watcher.node_of_rank()
+    placed = placements(out)
+    for key, (rank, host) in placed.items():
+        assert rank in where, f"{key}: rank {rank} was never seen running ({where})"
+        assert host == where[rank], (
+            f"{key}: recorded on {host}, but rank {rank} ran on {where[rank]}"
+        )
+    assert {host for _, host in placed.values()} == set(nodes_used), placed
+    assert where[0] == "knit1", where
+    assert watcher.opened.get(0), f"the scan never saw the master's files open: {watcher.opened}"
+    others = {r: p for r, p in watcher.opened.items() if r != 0}
+    assert not others, f"ranks other than the master opened the results: {others}"
+
+
+# ---- the cluster itself ---------------------------------------------------------------
+def test_nodes_are_separate_hosts(cluster):
+    """Own hostname, own address on the bridge, own /tmp; one munge key."""
+    names = {n: on_node(n, ["hostname"]).stdout.strip() for n in NODES}
+    assert names == {n: n for n in NODES}
+    addrs = {n: on_node(n, ["ip", "-4", "-o", "addr", "show", "eth0"]).stdout.split()[3]
+             for n in NODES}  # fmt: skip
+    assert addrs == {"knit1": "10.226.26.11/24", "knit2": "10.226.26.12/24"}, addrs
+    assert len({namespaces(holder(n)) for n in NODES}) == 2
+    marker = f"only-on-knit1-{uuid.uuid4().hex}"
+    (node_tmp("knit1") / marker).write_text("x")
+    try:
+        assert on_node("knit1", ["test", "-e", f"/tmp/{marker}"], check=False).returncode == 0
+        assert on_node("knit2", ["test", "-e", f"/tmp/{marker}"], check=False).returncode == 1
+        assert not Path("/tmp", marker).exists()
+    finally:
+        (node_tmp("knit1") / marker).unlink()
+    state = on_node("knit1", ["sinfo", "-h", "-N", "-o", "%N %T"]).stdout.split("\n")
+    assert sorted(line.split()[0] for line in state if line) == list(NODES)
+    hosts = on_node("knit1", ["srun", "-N", "2", "--ntasks-per-node=1", "hostname"]).stdout
+    assert sorted(hosts.split()) == list(NODES)
+
+
+# ---- mpirun across two nodes (hydra's ssh launcher entering the nodes) ---------------
+def mpirun_across(scratch, procs, job, n=4, hosts="knit1:2,knit2:2"):
+    """``mpirun`` on knit1 with ranks on knit1 and knit2; job file and results in
+    knit1's private /tmp (knit2 cannot see them). Returns (process, out file as
+    seen from here, the watcher)."""
+    outside, inside = scratch
+    shutil.copy(job, outside / "job.toml")
+    marker = uuid.uuid4().hex
+    watcher = RankWatcher(marker, [inside])
+    argv = ["mpirun", "-launcher", "ssh", "-launcher-exec", EXEC, "-hosts", hosts, "-n", n,
+            sys.executable, "-m", "knitsweep", "run", inside / "job.toml", "--out",
+            inside / "out.h5", "--executor", "mpi", "--quiet"]  # fmt: skip
+    watcher.start()
+    # hydra starts every rank in mpirun's working directory, so mpirun runs in one
+    # that every node has (/tmp: each its own); the paths of the run are absolute
+    p = subprocess.Popen([*enter("knit1", "/tmp"), *map(str, argv)],
+                         env=run_env(KNITSWEEP_TEST_RUN=marker),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)  # fmt: skip
+    procs.append(p)
+    try:
+        stdout, stderr = p.communicate(timeout=900)  # a cold compile on a busy machine
+    finally:
+        watcher.stop()
+    assert p.returncode == 0, f"mpirun exited with {p.returncode}:\n{stdout}\n{stderr}"
+    return stderr, outside / "out.h5", watcher
+
+
+def test_cold_node_compiles_once_while_its_other_rank_waits(head_cache, scratch, procs,
+                                                             tiny_reference):  # fmt: skip
+    """knit2 never compiled: one of its two ranks compiles into its node-local
+    cache while the other waits for it; knit1's ranks load the head's cache."""
+    cold = kernel_cache("knit2")
+    shutil.rmtree(cold.parent, ignore_errors=True)
+    assert not cached_on("knit2")
+    stderr, out, watcher = mpirun_across(scratch, procs, TINY)
+    where = watcher.node_of_rank()
+    assert sorted(where.items()) == [(0, "knit1"), (1, "knit1"), (2, "knit2"), (3, "knit2")]
+    lines = stderr.splitlines()
+    compiled = [line for line in lines if COMPILING in line]
+    waited = [line for line in lines if WAITING in line]
+    assert len(compiled) == 1 and compiled[0].split(":")[0] in ("rank 2 on knit2",
+                                                                "rank 3 on knit2"), stderr  # fmt: skip
+    assert len(waited) == 1 and waited[0].split(":")[0] in ("rank 2 on knit2",
+                                                            "rank 3 on knit2"), stderr  # fmt: skip
+    assert compiled[0].split(":")[0] != waited[0].split(":")[0]
+    assert cached_on("knit2") and cold.is_dir()
+    assert_same_results(tiny_reference, out)
+    assert_placed_where_computed(out, watcher)
+
+
+def test_ranks_on_two_nodes_match_the_serial_run(head_cache, scratch, procs, tiny_reference):
+    """3 workers on 2 nodes: the file is bit-identical to the serial run's, each
+    task's host is the node its rank ran on, and only the master opened it."""
+    _, out, watcher = mpirun_across(scratch, procs, TINY)
+    s = service.status(out)
+    assert (s["done"], s["failed"], s["total"], s["run_status"]) == (6, 0, 6, "complete"), s
+    assert_same_results(tiny_reference, out)
+    assert_placed_where_computed(out, watcher)
+    with h5py.File(out, "r") as f:
+        assert str(f.attrs["host"]) == "knit1"  # the master's node
+
+
+# ---- SLURM: the shipped template on two nodes ------------------------------------------
+def bigger_job(directory, n_points):
+    L = ", ".join(f"{11.0 + 0.05 * i:.2f}" for i in range(n_points))
+    job = directory / "bigger.toml"
+    job.write_text(TINY.read_text().replace("[11.4, 12.0]", f"[{L}]"))
+    return job
+
+
+@pytest.fixture
+def shared_dir(cluster, request):
+    """A fresh directory in the cluster's shared scratch (the same path on every node)."""
+    d = SHARED / f"{request.node.name[:40]}-{uuid.uuid4().hex[:6]}"
+    d.mkdir(parents=True)
+    yield d
+    shutil.rmtree(d, ignore_errors=True)
+
+
+@pytest.fixture
+def jobs(cluster):
+    """SLURM job ids a test submits: cancelled at its end whatever happened."""
+    ids = []
+    yield ids
+    for job_id in ids:
+        on_node("knit1", ["scancel", job_id], check=False)
+    deadline = time.monotonic() + 90  # KillWait is 30 s
+    for job_id in ids:
+        while time.monotonic() < deadline:
+            state = job_record(job_id).get("JobState")
+            if state in FINAL or state is None:
+                break
+            time.sleep(0.25)
+        else:
+            pytest.fail(f"job {job_id} still {job_record(job_id).get('JobState')} after scancel")
+
+
+def sbatch(jobs, args, cwd, env):
+    proc = on_node("knit1", ["sbatch", "--parsable", *args], cwd=cwd, env=env)
+    job_id = proc.stdout.strip().split(";")[0]
+    jobs.append(job_id)
+    return job_id
+
+
+def job_record(job_id):
+    proc = on_node("knit1", ["scontrol", "show", "job", "-o", job_id])
+    return dict(w.split("=", 1) for w in proc.stdout.split() if "=" in w)
+
+
+def wait_job(job_id, done, log, timeout=300.0, what="to finish"):
+    t0 = time.monotonic()
+    while True:
+        record = job_record(job_id)
+        if done(record):
+            return record
+        if time.monotonic() - t0 > timeout:
+            text = log.read_text() if log.exists() else "(no log)"
+            pytest.fail(f"job {job_id} did not get {what} in {timeout:.0f} s: {record}\n{text}")
+        time.sleep(0.25)
+
+
+def finished(record):
+    return record["JobState"] in FINAL
+
+
+@pytest.mark.parametrize("launcher", ["srun", "mpirun"])
+def test_template_on_two_nodes(head_cache, shared_dir, jobs, tiny_reference, launcher):
+    """``sbatch --nodes=2`` of the shipped MPI template, with srun or hydra's mpirun
+    (which starts its proxies on the nodes through SLURM)."""
+    shutil.copy(TINY, shared_dir / "tiny.toml")
+    out, log = shared_dir / "tiny.h5", shared_dir / "job.out"
+    marker = uuid.uuid4().hex
+    watcher = RankWatcher(marker, [shared_dir])
+    env = run_env(KNITSWEEP_LAUNCHER=launcher, KNITSWEEP_TEST_RUN=marker)
+    env.pop("NUMBA_CACHE_DIR")  # the template's own node-local default
+    watcher.start()
+    try:
+        job_id = sbatch(jobs, ["--nodes=2", "--ntasks=3", "--ntasks-per-node=2", f"--output={log}",
+                               "--time=00:10:00", REPO / "slurm" / "knitsweep-mpi.sbatch",
+                               "tiny.toml", out], shared_dir, env)  # fmt: skip
+        record = wait_job(job_id, finished, log)
+    finally:
+        watcher.stop()
+    text = log.read_text()
+    assert (record["JobState"], record["ExitCode"]) == ("COMPLETED", "0:0"), text
+    assert record["NodeList"] == "knit[1-2]" and record["BatchHost"] == "knit1", record
+    assert "on 2 node(s), 3 tasks" in text and "knitsweep exited with code 0" in text
+    assert f"NUMBA_CACHE_DIR={NODE_CACHE}" in text
+    assert service.status(out)["run_status"] == "complete"
+    assert_same_results(tiny_reference, out)
+    assert_placed_where_computed(out, watcher)
+
+
+@pytest.fixture(scope="module")
+def bigger(tmp_path_factory):
+    """A 10-point job (30 tasks) and its serial results."""
+    tmp = tmp_path_factory.mktemp("bigger_mh")
+    job = bigger_job(tmp, 10)
+    out = tmp / "reference.h5"
+    assert service.run(job, out, executor="serial", show_progress=False).counts["done"] == 30
+    return job, out
+
+
+def wait_for_progress(out, job_id, finished_tasks=1, timeout=300.0):
+    path = out.with_name(out.name + ".progress.json")
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        try:
+            c = json.loads(path.read_text())
+            if c["done"] + c["failed"] + c["not_knittable"] >= finished_tasks:
+                return
+        except (FileNotFoundError, ValueError, KeyError):
+            pass
+        if finished(job_record(job_id)):
+            text = log.read_text() if (log := out.with_name("job.out")).exists() else "(no log)"
+            pytest.fail(f"job {job_id} ended before it could be interrupted:\n{text}")
+        time.sleep(0.1)
+    text = log.read_text() if (log := out.with_name("job.out")).exists() else "(no log)"
+    pytest.fail(f"job {job_id}: no progress in {timeout:.0f} s:\n{text}")
+
+
+def test_walltime_signal_requeues_and_resumes_on_two_nodes(head_cache, shared_dir, jobs,
+                                                            bigger):  # fmt: skip
+    """The walltime signal (``--signal=B:TERM@120``: SIGTERM to the batch shell,
+    sent here with ``scancel --batch``) stops a 2-node run mid-way; the template
+    requeues it and the requeued job resumes the same file to the serial results.
+    Launched with hydra's mpirun: srun's pmi2 plugin (SLURM 22.05) garbled MPICH's
+    long address exchange across nodes in 2 of 5 runs (slurm/README.md §10)."""
+    job, reference = bigger
+    shutil.copy(job, shared_dir / "bigger.toml")
+    out, log = shared_dir / "bigger.h5", shared_dir / "job.out"
+    env = run_env(KNITSWEEP_REQUEUE="1", KNITSWEEP_LAUNCHER="mpirun")
+    env.pop("NUMBA_CACHE_DIR")
+    job_id = sbatch(jobs, ["--nodes=2", "--ntasks=3", "--ntasks-per-node=2", f"--output={log}",
+                           "--time=00:10:00", REPO / "slurm" / "knitsweep-mpi.sbatch",
+                           "bigger.toml", out], shared_dir, env)  # fmt: skip
+    wait_for_progress(out, job_id)
+    on_node("knit1", ["scancel", "--signal=TERM", "--batch", job_id])
+    wait_job(job_id, lambda r: r["Restarts"] == "1" and r["JobState"] in ("PENDING", "RUNNING"),
+             log, timeout=120, what="requeued")  # fmt: skip
+    text = log.read_text()
+    assert "on 2 node(s), 3 tasks" in text
+    assert "knitsweep exited with code 3" in text and f"requeueing job {job_id}" in text
+    with h5py.File(out, "r") as f:
+        assert str(f.attrs["run_status"]) == "interrupted"
+    first = service.status(out)
+    assert 1 <= first["done"] < first["total"] == 30, first
+    time.sleep(3)  # see tests/test_slurm.py: the old credential's revocation must be past
+    on_node("knit1", ["scontrol", "update", f"JobId={job_id}", "StartTime=now"])
+    record = wait_job(job_id, finished, log)
+    text = log.read_text()
+    assert (record["JobState"], record["ExitCode"], record["Restarts"]) == ("COMPLETED", "0:0",
+                                                                            "1"), text  # fmt: skip
+    assert f"job {job_id} (restart 1) on 2 node(s)" in text
+    assert f"({first['done']} already finished)" in text
+    s = service.status(out)
+    assert (s["done"], s["run_status"]) == (30, "complete"), s
+    assert_same_results(reference, out)
+    assert {host for _, host in placements(out).values()} == set(NODES)
