@@ -91,10 +91,14 @@ _METADATA = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}
 
 
 def write_figures(
-    red: Reduction, out_dir: str | Path, options: FigureOptions | None = None
+    red: Reduction,
+    out_dir: str | Path,
+    options: FigureOptions | None = None,
+    done: Callable[[FigureOutcome], None] | None = None,
 ) -> list[FigureOutcome]:
     """Write every figure of :data:`FIGURES` that the reduction has data for, in each
-    of ``options.formats``; one outcome per figure (its path: the first format)."""
+    of ``options.formats``; one outcome per figure (its path: the first format),
+    each told to ``done`` as soon as its files are written."""
     options = options or FigureOptions()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -110,4 +114,6 @@ def write_figures(
             extra = tuple(f"also {p.name}" for p in paths[1:])
             outcome = FigureOutcome(name, paths[0], None, outcome.notes + extra)
         outcomes.append(outcome)
+        if done is not None:
+            done(outcome)
     return outcomes

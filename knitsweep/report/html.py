@@ -13,7 +13,7 @@ from __future__ import annotations
 import base64
 import html
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -99,14 +99,20 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _figures(results: Results, options: FigureOptions) -> tuple[list[str], list[str]]:
-    """(<figure> blocks with inline PNGs, lines for the figures that were skipped)."""
+def _figures(
+    results: Results, options: FigureOptions, progress: Callable[[str], None] | None = None
+) -> tuple[list[str], list[str]]:
+    """(<figure> blocks with inline PNGs, lines for the figures that were skipped);
+    ``progress`` hears each figure as it is drawn."""
     from .figures import FIGURES, render_figure
 
     blocks, skipped = [], []
-    for name, make in FIGURES.items():
+    for i, (name, make) in enumerate(FIGURES.items()):
         outcome, files = render_figure(results.reduction, name, make, options)
         png = files.get("png")
+        if progress is not None:
+            what = "drew" if png is not None else "skipped"
+            progress(f"[{i + 1}/{len(FIGURES)}] {what} {name}")
         if png is None:
             skipped.append(f"{html.escape(name)}: {html.escape(outcome.reason or '')}")
             continue
@@ -120,12 +126,16 @@ def _figures(results: Results, options: FigureOptions) -> tuple[list[str], list[
     return blocks, skipped
 
 
-def report_html(results: Results, title: str | None = None) -> str:
-    """The page for ``results`` (from ``knitsweep.load``)."""
+def report_html(
+    results: Results, title: str | None = None, progress: Callable[[str], None] | None = None
+) -> str:
+    """The page for ``results`` (from ``knitsweep.load``); ``progress`` hears each
+    figure as it is drawn."""
     red = results.reduction
     title = title or f"knitsweep report: {red.job_name}"
 
-    blocks, skipped = _figures(results, FigureOptions(formats=("png",), style="knitsweep"))
+    options = FigureOptions(formats=("png",), style="knitsweep")
+    blocks, skipped = _figures(results, options, progress)
     roots = red.roots
     status = (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}</p>"
               if red.partial else "<p>All planned tasks are present; every run is complete.</p>")  # fmt: skip
@@ -184,9 +194,13 @@ def _pretty(job_json: str) -> str:
 
 
 def write_report(
-    paths: Sequence[str | Path], out: str | Path, threshold: float = GAP_THRESHOLD
+    paths: Sequence[str | Path],
+    out: str | Path,
+    threshold: float = GAP_THRESHOLD,
+    progress: Callable[[str], None] | None = None,
 ) -> Path:
-    """Read ``paths`` (``knitsweep.load``) and write the report page to ``out``.
+    """Read ``paths`` (``knitsweep.load``) and write the report page to ``out``;
+    ``progress`` hears when the files are read and each figure as it is drawn.
 
     Raises:
         InputError: an unreadable results file, or ``out`` not ending in .html.
@@ -197,7 +211,9 @@ def write_report(
     if not out.parent.is_dir():
         raise InputError(f"out = '{out}': directory {out.parent} does not exist")
     results = load(*paths, threshold=threshold)
-    text = report_html(results)
+    if progress is not None:
+        progress(results.reduction.status_line)
+    text = report_html(results, progress=progress)
     tmp = out.with_name(f".{out.name}.tmp")
     tmp.write_text(text, encoding="utf-8")
     tmp.replace(out)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -44,9 +44,12 @@ def write_csv(path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequence[s
     return path
 
 
-def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
+def write_tables(
+    results: Results, out_dir: str | Path, written_one: Callable[[Path], None] | None = None
+) -> list[Path]:
     """Write transitions.csv, sweeps.csv, points.csv and problems.csv into ``out_dir``:
-    the DataFrames of ``knitsweep.load`` (same columns, same order) plus ``partial``.
+    the DataFrames of ``knitsweep.load`` (same columns, same order) plus ``partial``;
+    ``written_one`` hears each path as soon as it is written.
 
     Returns:
         The paths written, in the order of :data:`TABLES`.
@@ -59,6 +62,8 @@ def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
         rows = [{k: _missing(v) for k, v in row.items()} for row in frame.to_dict("records")]
         rows = [{**r, "partial": results.partial} for r in rows]
         written.append(write_csv(out / name, rows, [*frame.columns, "partial"]))
+        if written_one is not None:
+            written_one(written[-1])
     return written
 
 

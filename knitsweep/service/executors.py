@@ -75,7 +75,7 @@ class SerialExecutor:
         self.job = job
         self._queue: collections.deque = collections.deque()
         with signals.interruptible():
-            prepare(job, stderr_notice)
+            self.compile_seconds = prepare(job, stderr_notice)
 
     @property
     def in_flight(self) -> int:
@@ -118,7 +118,7 @@ class ProcessExecutor:
         self.job = job
         self.capacity = workers
         with signals.interruptible():  # compile once here; the workers load numba's cache
-            prepare(job, stderr_notice)
+            self.compile_seconds = prepare(job, stderr_notice)
         with signals.deferred():  # a pool is not left half-started
             ctx = multiprocessing.get_context("spawn")
             self._pool = ctx.Pool(workers, initializer=_process_worker_init, initargs=(job,))
@@ -191,7 +191,7 @@ class MPIExecutor:
         self._sends: list = []  # requests of tasks not yet received by their worker
         self._stopped = False
         with signals.interruptible():  # compile once, into numba's cache, before the workers
-            prepare(job, stderr_notice)
+            self.compile_seconds = prepare(job, stderr_notice)
         with signals.deferred():
             for rank in self._outstanding:
                 comm.send(job.model_dump_json(), dest=rank, tag=JOB)

@@ -41,6 +41,9 @@ from .progress import RunProgress, task_line
 from .signals import EXIT_INTERRUPTED, Interrupted
 from .worker import Reply
 
+EXIT_TASKS_FAILED = 4
+"""Exit code of a run that finished but whose file holds failed tasks (README)."""
+
 
 @dataclass
 class RunSummary:
@@ -52,10 +55,15 @@ class RunSummary:
     seconds: float = 0.0
     failures: list[str] = field(default_factory=list)
     storage_error: str = ""
+    compile_seconds: float = 0.0  # compiling the kernels before the run (a cold install)
 
     @property
     def exit_code(self) -> int:
-        return EXIT_INTERRUPTED if self.interrupted else 0
+        """3 if interrupted, 4 if any task of the file failed (this run's or an earlier
+        one's not retried), else 0; a not-knittable point is a result, not a failure."""
+        if self.interrupted:
+            return EXIT_INTERRUPTED
+        return EXIT_TASKS_FAILED if self.counts.get(FAILED, 0) else 0
 
 
 def parse_shard(text: str | None) -> tuple[int, int] | None:
@@ -327,7 +335,7 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
     for path, why in writer.malformed:
         print(f"warning: journal entry {path.name} was malformed ({why}): its task is "
               "recomputed", file=sys.stderr, flush=True)  # fmt: skip
-    summary = RunSummary(out, 0)
+    summary = RunSummary(out, 0, compile_seconds=float(getattr(executor, "compile_seconds", 0.0)))
     status = "interrupted"
     master = None
     stopped_cleanly = True

@@ -57,12 +57,22 @@ def wall_time_budget(seconds: float):
         signal.signal(signal.SIGALRM, previous)
 
 
-def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> None:
+def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
     """Compile (or load from numba's cache) the kernels this job's tasks use;
-    ``notice`` hears first if that means compiling (see ``compile_kernels``)."""
+    ``notice`` hears first if that means compiling (see ``compile_kernels``).
+    Returns the seconds spent compiling (0.0 when every kernel was cached)."""
     from ..model import compile_kernels
 
-    compile_kernels(job.fidelity, notice)
+    compiled = []
+
+    def heard(message: str) -> None:
+        compiled.append(message)
+        if notice is not None:
+            notice(message)
+
+    t0 = time.perf_counter()
+    compile_kernels(job.fidelity, heard)
+    return time.perf_counter() - t0 if compiled else 0.0
 
 
 def stderr_notice(message: str) -> None:
