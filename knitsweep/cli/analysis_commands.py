@@ -77,7 +77,6 @@ def phase_diagram(
             check_output_dir(out, "--out")
         options = FigureOptions(tuple(f.strip() for f in formats.split(",") if f.strip()), width,
                                 not no_title, style)  # fmt: skip
-        typer.echo(f"reading {', '.join(map(str, results))} …", err=True)
         # as JSON: the object alone on stdout, each file on stderr as it is written
         progress = (lambda line: line.startswith("wrote ") and typer.echo(line, err=True)
                     ) if as_json else typer.echo  # fmt: skip
@@ -111,7 +110,6 @@ def report(
     from ..report.html import write_report
 
     with user_errors():
-        typer.echo(f"reading {', '.join(map(str, results))} …", err=True)
         path = write_report(results, out, GAP_THRESHOLD if threshold is None else threshold,
                             progress=lambda line: typer.echo(line, err=True))  # fmt: skip
     typer.echo(f"wrote {path}")

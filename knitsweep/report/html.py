@@ -104,11 +104,11 @@ def _figures(
 ) -> tuple[list[str], list[str]]:
     """(<figure> blocks with inline PNGs, lines for the figures that were skipped);
     ``progress`` hears each figure as it is drawn."""
-    from .figures import FIGURES, render_figure
+    from .figures import FIGURES, render_figures
 
     blocks, skipped = [], []
-    for i, (name, make) in enumerate(FIGURES.items()):
-        outcome, files = render_figure(results.reduction, name, make, options)
+    for i, (name, outcome, files) in enumerate(render_figures(results.reduction, options)):
+        make = FIGURES[name]
         png = files.get("png")
         if progress is not None:
             what = "drew" if png is not None else "skipped"
