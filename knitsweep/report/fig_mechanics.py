@@ -35,7 +35,9 @@ from .plotting import (
     label_of,
     legend_columns,
     limit_panels,
+    narrow,
     new_figure,
+    panel_title,
     series_keys,
     series_rows,
     title,
@@ -81,7 +83,9 @@ def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...],
     keys = sorted({c.series for c in red.curves if c.direction in present})
     keys = limit_panels(keys, what, notes)
     n = len(keys) * len(present)
-    ncols = len(present) if len(present) > 1 else min(len(keys), 2)
+    ncols = len(present) if len(present) > 1 else 1 if narrow() else min(len(keys), 2)
+    if narrow() and " $" in ylabel:  # the symbol alone: a narrow panel is short
+        ylabel = "$" + ylabel.split(" $", 1)[1]
     fig = new_figure(max(7.6, 4.9 * ncols + 1.2), 3.3 * -(-n // ncols) + 1.3)
     axes = grid_of_panels(fig, n, ncols)
     cmap, norm = L_colours(red)
@@ -106,8 +110,7 @@ def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...],
             ax.set_ylim(lo - pad if lo < 0.0 else 0.0, hi + pad)
         if zero_line:
             ax.axhline(0.0, color="0.55", lw=1.0, zorder=0)
-        lab = label_of(red, key)
-        ax.set_title(f"pulled in {d}" + (f"; {lab}" if lab else ""))
+        panel_title(ax, f"pulled in {d}", label_of(red, key))
         ax.set_xlabel(STRAIN[d])
         ax.set_ylabel(ylabel)
     jammed_legend(fig, present, list(extra.values()))
@@ -187,8 +190,11 @@ def _series_legend(ax: Any, red: Reduction, keys: list, loc: str = "best") -> No
     handles = [Line2D([], [], color="0.35", marker=MARKERS[i % len(MARKERS)],
                       ls=LINESTYLES[i % len(LINESTYLES)], label=label_of(red, k))
                for i, k in enumerate(keys)]  # fmt: skip
-    if len(keys) > 1:
-        ax.add_artist(ax.legend(handles=handles, loc=loc, frameon=False))
+    if len(keys) > 1:  # an artist of its own: the axes' legend stays free for another
+        from matplotlib.legend import Legend
+
+        ax.add_artist(Legend(ax, handles, [h.get_label() for h in handles], loc=loc,
+                             frameon=False))  # fmt: skip
 
 
 def fig2ef_secant_offset(red: Reduction, notes: list[str]) -> Any:
@@ -228,10 +234,16 @@ def fig2ef_secant_offset(red: Reduction, notes: list[str]) -> Any:
     ax_y.set_ylabel(r"secant modulus $Y_{\rm sec}$ (N/mm)")
     ax_s.set_ylabel(r"offset stress $\sigma_0$ (N/mm)")
     ax_y.set_title(r"(e) $Y_{\rm sec} = \sigma(0.02)/0.02$")
-    ax_s.set_title(r"(f) $\sigma_0$: intercept of the softened-regime line")
+    ax_s.set_title(r"(f) $\sigma_0$: intercept of the" + ("\n" if narrow() else " ")
+                   + "softened-regime line")  # fmt: skip
     for ax in (ax_y, ax_s):
         ax.set_xlabel(L_OVER_R)
-        ax.set_ylim(bottom=0.0)
+        low = min((float(np.min(ln.get_ydata())) for ln in ax.get_lines() if len(ln.get_ydata())),
+                  default=0.0)  # fmt: skip
+        if low >= 0.0:  # a negative σ0 stays in view, below a zero line
+            ax.set_ylim(bottom=0.0)
+        else:
+            ax.axhline(0.0, color="0.55", lw=0.8, zorder=0)
     handles = [Line2D([], [], color=DIRECTION_COLOUR[d], lw=2, label=f"pulled in {d}")
                for d in ("x", "y")]  # fmt: skip
     if no_regime:

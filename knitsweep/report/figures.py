@@ -22,7 +22,7 @@ from .fig_mechanics import (
     fig6g_thickness_strain_x,
     fig6h_contact_force_ratio,
 )
-from .plotting import FigureOptions, SkipFigure, style
+from .plotting import FigureOptions, SkipFigure, finish, style
 from .reduce import Reduction
 
 FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
@@ -42,6 +42,39 @@ FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
     "fig6h_contact_force_ratio.png": fig6h_contact_force_ratio,
 }
 """File name → figure function (paper figure in the name)."""
+
+CAPTIONS: dict[str, str] = {
+    "fig1b_stress_strain.png": "Stress against strain for each yarn length L (colour), pulled "
+    "in x and in y; solid curves are jammed, dashed ones unjammed (paper Fig. 1b).",
+    "fig1b_stress_strain_small.png": "The same curves up to 10 % strain, where a jammed fabric "
+    "is stiff; dots are the computed steps, with the secant and offset-stress fits.",
+    "fig2ef_Ysec_sigma0.png": "Secant modulus at 2 % strain (left) and offset stress (right) "
+    "against L/r, pulled in x (purple) and y (blue); a cross at zero marks a sweep without a "
+    "linear regime (paper Fig. 2e, f).",
+    "fig3_energy_gaps.png": "Energy gaps against L/r: contact (coral) and bending (blue); the "
+    "fabric is jammed while the gap of its direction exceeds the threshold (dotted); the "
+    "shaded band is the transition bracket (paper Fig. 3).",
+    "fig3_energy_gaps_log.png": "The energy gaps on a logarithmic scale; hollow markers are "
+    "gaps below the drawing floor (paper Fig. S15).",
+    "fig4a_gap_fit.png": "The jamming gap of each series with the straight line through its "
+    "linear jammed run; ΔL/r is the distance from the line's zero to the transition, "
+    "negative when the zero lies beyond it (paper Fig. 4a, Table S4).",
+    "fig4b_deltaL_vs_k.png": "Transition width ΔL/r against the compression constant k "
+    "(paper Fig. 4b).",
+    "fig4c_phase_diagram.png": "Phase diagram: where the fabric is jammed in x and y, only in "
+    "y, or unjammed, with the transition lines of each direction (paper Fig. 4c).",
+    "fig5a_aspect_ratio.png": "Aspect ratio a_y/a_x of the relaxed stitch against (L/r)², "
+    "coloured by regime (paper Fig. 5a).",
+    "fig5b_area_strain_y.png": "Area strain of pulls in y: unjammed fabrics lose area at "
+    "first, jammed ones do not (paper Fig. 5b).",
+    "fig5b_area_strain_y_small.png": "Area strain of pulls in y up to 10 % strain.",
+    "fig6g_thickness_strain_x.png": "Thickness strain of pulls in x: jammed fabrics first "
+    "thin, unjammed ones thicken (paper Fig. 6g).",
+    "fig6g_thickness_strain_x_small.png": "Thickness strain of pulls in x up to 10 % strain.",
+    "fig6h_contact_force_ratio.png": "Ratio of the x and y contact forces at zero strain "
+    "against L/r (paper Fig. 6h).",
+}
+"""What each figure shows, for a reader (the HTML report's captions)."""
 
 
 @dataclass(frozen=True)
@@ -76,7 +109,7 @@ def render_figure(
     files = {}
     with style(options):
         try:
-            fig = make(red, notes)
+            fig = finish(make(red, notes))
         except SkipFigure as e:
             return FigureOutcome(name, None, str(e), tuple(notes)), {}
         for fmt in options.formats:

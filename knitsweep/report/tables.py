@@ -106,7 +106,7 @@ def transitions_text(red: Reduction) -> str:
     if red.constants:
         lines.append("fixed: " + series_label(red.constants, red.constants))
     head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying), "status", "(L/r)_trans",
-            "bracket", "L_trans/mm", "ΔL/r", "fit slope/mm", "fit intercept", "fit L/mm",
+            "bracket", "L_trans (mm)", "ΔL/r", "fit slope (mJ/mm)", "fit intercept (mJ)", "fit L (mm)",
             "n_jam", "missing"]  # fmt: skip
     body = []
     for t in red.transitions:
