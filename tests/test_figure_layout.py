@@ -56,6 +56,8 @@ def layout_problems(fig) -> list[str]:
         label = repr(t.get_text()[:40])
         if b.x0 < -EDGE_PX or b.y0 < -EDGE_PX or b.x1 > W + EDGE_PX or b.y1 > H + EDGE_PX:
             out.append(f"{label} past the edge: {b.bounds} in {W:.0f} x {H:.0f}")
+        if any(line.replace("\\$", "").count("$") % 2 for line in t.get_text().split("\n")):
+            out.append(f"{label}: a line breaks a $math$ span (its source would show)")
         if t.get_fontsize() < 7.0 - 1e-9:
             out.append(f"{label}: {t.get_fontsize():.1f} pt")
     for (t1, b1), (t2, b2) in combinations(texts, 2):
@@ -94,7 +96,9 @@ def test_the_overlap_check_finds_overlaps():
     ax.set_title("a title far too long for a figure two inches wide")
     ax.text(0.5, 0.5, "one")
     ax.text(0.5, 0.5, "two")
+    ax.set_xlabel("onset $(L/r)_{\\rm\ntrans}$")
     problems = layout_problems(fig)
+    assert any("breaks a $math$ span" in p for p in problems)
     assert any("past the edge" in p for p in problems)
     assert any("'one' overlaps 'two'" in p for p in problems)
 

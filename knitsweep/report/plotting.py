@@ -190,8 +190,6 @@ def title(fig: Any, red: Reduction, text: str) -> None:
     """Figure title: what it shows and the fixed parameters; for a partial results
     file, a first line saying so, and the whole title in red. Without titles
     (``FigureOptions.title``) a partial file still gets its warning line."""
-    import textwrap
-
     options = current_options()
     fixed = series_label(red.constants, red.constants)
     lines = [text] + ([fixed] if fixed else []) if options.title else []
@@ -203,7 +201,11 @@ def title(fig: Any, red: Reduction, text: str) -> None:
 
     size = FontProperties(size=matplotlib.rcParams["figure.titlesize"]).get_size_in_points()
     chars = max(20, int(fig.get_figwidth() * 72.0 / (0.55 * size * 1.2)))
-    lines = [w for line in lines for w in textwrap.wrap(line, chars)]
+    lines = [
+        w
+        for i, line in enumerate(lines)
+        for w in _wrap(line, chars, i > 0 and fixed and line == fixed)
+    ]
     if lines:
         fig.suptitle("\n".join(lines), fontsize=size * 1.2,
                      color=PARTIAL_COLOUR if red.partial else "black")  # fmt: skip
@@ -242,6 +244,28 @@ def finish(fig: Any) -> Any:
                 if type(axis.get_major_locator()) is AutoLocator:
                     axis.set_major_locator(MaxNLocator(nbins=n, steps=[1, 2, 5, 10]))
     return fig
+
+
+def _wrap(text: str, chars: int, parameters: bool = False) -> list[str]:
+    """``text`` in lines of about ``chars`` visible characters, broken only between
+    words, never inside a $math$ span nor (``parameters``: a 'k = 0.1 mN/mm², B = …'
+    list) inside one 'symbol = value unit'."""
+    import re
+
+    atoms = ([a + "," for a in text.split(", ")[:-1]] + [text.split(", ")[-1]] if parameters
+             else re.findall(r"\S*\$[^$]*\$\S*|\S+", text))  # fmt: skip
+
+    def visible(a: str) -> int:
+        return len(re.sub(r"\\[a-z]+|[{}_^$]", "", a))
+
+    lines, line = [], ""
+    for a in atoms:
+        if line and visible(line) + 1 + visible(a) > chars:
+            lines.append(line)
+            line = a
+        else:
+            line = f"{line} {a}" if line else a
+    return [*lines, line] if line else lines
 
 
 def series_keys(red: Reduction, direction: str | None = None) -> list[tuple[float, ...]]:
