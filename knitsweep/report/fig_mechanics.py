@@ -10,6 +10,7 @@ Stress in N/mm (2D), strains and L/r dimensionless, forces in N.
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -272,9 +273,13 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
         x2 = np.array([r["L_over_r"] ** 2 for r in pts])
         edges = np.concatenate([[x2[0] - (x2[1] - x2[0]) / 2], (x2[1:] + x2[:-1]) / 2,
                                 [x2[-1] + (x2[-1] - x2[-2]) / 2]])  # fmt: skip
-        for r, a, b in zip(pts, edges[:-1], edges[1:], strict=True):
-            if r["regime"] is not None:
-                ax.axvspan(a, b, color=REGIME_FILL[r["regime"]], alpha=0.55, lw=0)
+        spans = _regime_spans(red, keys[0], edges[0], edges[-1])
+        if spans is None:  # no transition in a direction: each point's own regime
+            spans = [(a, b, r["regime"]) for r, a, b in zip(pts, edges[:-1], edges[1:],
+                                                           strict=True)]  # fmt: skip
+        for a, b, regime in spans:
+            if regime is not None:
+                ax.axvspan(a, b, color=REGIME_FILL[regime], alpha=0.55, lw=0)
     regimes = set()
     for i, key in enumerate(keys):
         pts = sorted((r for r in rows if series_key(r) == key), key=lambda r: r["L_over_r"])
@@ -298,6 +303,25 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
     ax.legend(handles=handles, loc="best", frameon=True, framealpha=0.9)
     title(fig, red, "Zero-force stitch aspect ratio against $(L/r)^2$")
     return fig
+
+
+def _regime_spans(red: Reduction, key: tuple, lo: float, hi: float) -> list | None:
+    """(start, end, regime) along (L/r)² from ``lo`` to ``hi``, split at each
+    direction's (L/r)_trans² (the same boundaries as Fig. 4c); None unless both
+    directions have a transition inside the series."""
+    trans = {d: red.transition_of.get((key, d)) for d in ("x", "y")}
+    if any(t is None or t.status != "transition" for t in trans.values()):
+        return None
+    tx, ty = (trans[d].L_over_r_trans ** 2 for d in ("x", "y"))
+    cuts = sorted({lo, hi, *(b for b in (tx, ty) if lo < b < hi)})
+    spans = []
+    for a, b in itertools.pairwise(cuts):
+        m = 0.5 * (a + b)
+        jx, jy = m < tx, m < ty
+        regime = ("jammed_xy" if jx and jy else "jammed_y_only" if jy else
+                  "jammed_x_only" if jx else "unjammed")  # fmt: skip
+        spans.append((a, b, regime))
+    return spans
 
 
 def _table_s3_series(key: tuple) -> bool:
