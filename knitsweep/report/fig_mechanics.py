@@ -433,10 +433,13 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
                     Line2D([], [], ls="none", marker="D", mfc="white", mec="0.3",
                            label=r"Table S3 $|F_y|$")]  # fmt: skip
         text = _vs_table_s3(pts)
-        if text:
-            ax_c.text(0.02, 0.02, text, transform=ax_c.transAxes, fontsize="medium", color="0.25",
-                      va="bottom")  # fmt: skip
-    ax_c.legend(handles=handles, loc="upper right", frameon=True, framealpha=0.9, ncols=2)
+        if text:  # a caption line below the panels: inside, it would cover the curves
+            fig.supxlabel(text.replace(": ", ":\n", 1) if narrow() else text,
+                          fontsize=max(7.0, 0.85 * float(ax_c.xaxis.label.get_fontsize())),
+                          color="0.25")  # fmt: skip
+    # beside the panel, not over the curves that start high at small L/r
+    ax_c.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False,
+                ncols=1)  # fmt: skip
     ax_c.set_xlabel(L_OVER_R)
     ax_c.set_ylabel("pair force between sampled points (N), + extends")
     lab = label_of(red, keys[0])
