@@ -142,7 +142,11 @@ def render_figures(
     if workers is None:
         workers = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                       else os.cpu_count() or 1)  # fmt: skip
-    if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+    import threading
+
+    # fork only a single-threaded process (forking threads can deadlock the child)
+    forkable = "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1
+    if workers <= 1 or not forkable:
         for name in names:
             yield (name, *render_figure(red, name, FIGURES[name], options))
         return
