@@ -132,15 +132,15 @@ def test_render_point_and_sweep(tiny, tmp_path):
     point = next(e.task_id for e in entries if e.kind == "points")
     sweep = next(e.task_id for e in entries if e.kind == "sweeps")
     out = knitsweep("render", "--results", str(tiny), "--task", point[:6], "--out",
-                    str(tmp_path / "p.png"), "--width", "320")  # fmt: skip
+                    str(tmp_path / "p.png"), "--pixels", "320")  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith(f"wrote {tmp_path / 'p.png'}: zero-force stitch, L = ")
     assert_image(tmp_path / "p.png", 10_000)
     out = knitsweep("render", "--results", str(tiny), "--task", sweep, "--out",
-                    str(tmp_path / "s.png"), "--width", "320", "--radius", "0.5")  # fmt: skip
+                    str(tmp_path / "s.png"), "--pixels", "320", "--radius", "0.5")  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert_image(tmp_path / "s.png", 10_000)
-    out = knitsweep("render", "--results", str(tiny), "--task", sweep, "--step", "3",
+    out = knitsweep("render", "--results", str(tiny), "--task", sweep, "--strain-step", "3",
                     "--out", str(tmp_path / "s3.png"))  # fmt: skip
     assert out.returncode == 2
     assert out.stderr.strip().splitlines() == [
@@ -179,7 +179,7 @@ def test_render_state_file(tmp_path):
     write_state(state, shipped_state(1))
     out = knitsweep("render", "--state", str(state), "--L", "11.6", "--out",
                     str(tmp_path / "st.pdf"), "--cells", "2", "--side", "back",
-                    "--width", "400")  # fmt: skip
+                    "--pixels", "400")  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert (tmp_path / "st.pdf").stat().st_size > 10_000
 
@@ -190,7 +190,7 @@ def test_render_state_file(tmp_path):
         ([], "give either --results FILE --task ID, or --state FILE"),
         (["--state", "S", "--results", "R"], "give either"),
         (["--results", "R"], "--results needs --task"),
-        (["--state", "S", "--step", "2"], "--step applies to a sweep"),
+        (["--state", "S", "--strain-step", "2"], "--strain-step applies to a sweep"),
         (["--results", "R", "--task", "p", "--L", "11"], "apply to --state"),
         (["--state", "S", "--radius", "0"], "radius = 0.0: must be > 0"),
         (["--state", "S", "--side", "left"], "side = 'left'"),
@@ -237,9 +237,11 @@ def test_formats_and_journal_widths(tmp_path):
         stem = o.path.stem
         for fmt in ("png", "pdf", "svg"):
             assert (tmp_path / "fig" / f"{stem}.{fmt}").stat().st_size > 1000, (stem, fmt)
-        with Image.open(o.path) as im:  # 3.4 in at 300 dpi (6h: too dense, the page's 7 in)
-            wide = stem.startswith(("fig6h", "figS11"))  # (S11: six panels, too)
-            assert im.size[0] == round((7.0 if wide else 3.4) * 300), stem
+        # 3.4 in at 300 dpi; x and y side by side (3, 4a), 6h and S11 (six panels) are too
+        # dense: the page's 7 in
+        page = stem.startswith(("fig6h", "fig3", "fig4a", "figS11"))
+        with Image.open(o.path) as im:
+            assert im.size[0] == round((7.0 if page else 3.4) * 300), stem
     assert (tmp_path / "fig" / "fig3_energy_gaps.pdf").read_bytes().startswith(b"%PDF")
     assert min(v for k, v in JOURNAL_RC.items() if "size" in k and "marker" not in k) >= 7
 

@@ -58,16 +58,70 @@ def test_csv_tables_and_dataframes_share_their_names(tiny_reference, tmp_path):
         assert list(csv.columns) == [*frame.columns, "partial"], name
 
 
-def test_to_xarray_carries_units_and_long_names(tiny_reference):
-    ds = knitsweep.load(tiny_reference).to_xarray()
-    assert dict(ds.sizes)["sweep"] == 4 and dict(ds.sizes)["point"] == 2
-    assert ds["stress"].dims == ("sweep", "step")
+def test_to_xarray_over_the_grids_own_dimensions(tiny_reference, tmp_path):
+    res = knitsweep.load(tiny_reference)
+    ds = res.to_xarray()
+    assert ds.attrs["Conventions"].startswith("CF-")
+    assert dict(ds.sizes) == {"direction": 2, "L_mm": 2, "step": int(res.sweeps["n_steps"].max())}
+    assert ds["stress_N_per_mm"].dims == ("direction", "L_mm", "step")
+    assert ds["strain"].dims == ("direction", "L_mm", "step") and "strain" in ds.coords
+    assert ds["Y_sec_N_per_mm"].dims == ("direction", "L_mm")
+    assert ds["a_x0_mm"].dims == ("direction", "L_mm") and ds["point_status"].dims == ("L_mm",)
+    assert ds["L_over_r_trans"].dims == ("direction",)  # the transitions, per series
+    assert float(ds["k_mN_per_mm2"]) == 0.1  # one value: a scalar coordinate
     for name, var in {**ds.data_vars, **ds.coords}.items():
         assert "units" in var.attrs and "long_name" in var.attrs, name
-    assert ds["stress"].attrs["units"] == "N/mm"
-    assert ds["Y_sec_N_per_mm"].attrs["units"] == "N/mm"
-    x = ds.where(ds.direction == "x", drop=True)
-    assert x.sizes["sweep"] == 2 and np.all(np.isfinite(x["strain"].isel(step=0)))
+    assert ds["stress_N_per_mm"].attrs["units"] == "N/mm"
+    # integers stay integers, booleans booleans (every cell is present here)
+    assert ds["n_steps"].dtype.kind == "i" and ds["jammed"].dtype == bool
+    assert ds["winner"].dtype.kind == "i" and ds["winner"].encoding["_FillValue"] == -1
+    # the values are the tables' values, cell by cell
+    row = res.sweeps.iloc[0]
+    cell = ds.sel(direction=row["direction"], L_mm=row["L_mm"])
+    assert float(cell["Y_sec_N_per_mm"]) == row["Y_sec_N_per_mm"]
+    curve = res.select(direction=row["direction"], L_mm=row["L_mm"]).curves
+    np.testing.assert_array_equal(cell["stress_N_per_mm"][: len(curve)], curve["stress_N_per_mm"])
+    assert np.isnan(cell["stress_N_per_mm"][len(curve) :]).all()
+    assert (cell["winner"][len(curve) :] == -1).all()
+    ds.to_netcdf(tmp_path / "r.nc", engine="h5netcdf")  # a valid netCDF-4 file
+
+
+def test_to_xarray_keeps_types_with_fill_values_where_cells_are_missing(tiny_reference):
+    ds = knitsweep.load(tiny_reference).select(direction="x", L_mm=11.4).to_xarray()
+    full = knitsweep.load(tiny_reference).to_xarray()
+    assert ds.sizes["L_mm"] == 1 and full.sizes["L_mm"] == 2
+    res = knitsweep.load(tiny_reference)
+    three = list(res.sweeps["task_id"][:3])  # one (direction, L) cell without a sweep
+    part = res.select(task_id=three).to_xarray()
+    assert part.sizes == {"direction": 2, "L_mm": 2, "step": part.sizes["step"]}
+    assert part["jammed"].dtype == np.int8 and part["jammed"].attrs["flag_meanings"] == "false true"
+    assert (part["jammed"] == -1).sum() == 1 and part["n_steps"].dtype.kind == "i"
+
+
+def test_one_stress_strain_curve_per_L_in_one_line(tiny_reference, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    ds = knitsweep.load(tiny_reference).to_xarray()
+    lines = ds.stress_N_per_mm.sel(direction="x").plot.line(x="strain", hue="L_mm")
+    assert len(lines) == 2
+    assert np.array_equal(lines[0].get_xdata()[:3], ds.strain.sel(direction="x")[0, :3])
+
+
+def test_select_and_tables_sorted_by_direction_parameters_step(tiny_reference):
+    res = knitsweep.load(tiny_reference)
+    for table in (res.sweeps, res.curves):
+        order = table[["direction", "L_mm", *(["step"] if "step" in table else [])]]
+        assert order.equals(order.sort_values(list(order.columns)).reset_index(drop=True))
+    x = res.select(direction="x")
+    assert set(x.sweeps["direction"]) == {"x"} and len(x.points) == 2
+    one = res.select(L_mm=11.4, direction="x")
+    assert len(one.sweeps) == 1 and set(one.curves["L_mm"]) == {11.4}
+    assert len(res.select(L_mm=[11.4, 12.0]).sweeps) == 4
+    with pytest.raises(KeyError, match="no column colour"):
+        res.select(colour="red")
+    assert set(res.transitions["file"]) == {str(tiny_reference)}
+    assert {"L_mm", "k_mN_per_mm2", "file"} <= set(res.problems.columns)
 
 
 def test_every_dataset_of_a_run_is_self_describing(tiny_reference):

@@ -128,3 +128,19 @@ def test_observables_determined_needs_all_of_them():
     dipped = [0.0, -1.0, -0.5, -1e-6]  # not back above its zero-force value yet
     assert observables_determined(proto, strain, rising, dipped) is None
     assert observables_determined(SweepProtocol(), strain, rising, rising) is None  # curve
+
+
+@pytest.mark.parametrize("direction", ["x", "y"])
+def test_a_curve_ends_within_ten_percent_above_its_stop_stress(rest, direction):
+    """The large steps of a jammed curve would overshoot the stop stress several-fold;
+    the last step is taken again shorter until the curve ends within 10 % above it."""
+    from knitsweep.strain_sweep.sweep import STOP_OVERSHOOT
+
+    stop = 0.1
+    proto = SweepProtocol(step_mm=0.002, switch_strain=0.04, large_step_x_mm=0.1,
+                          large_step_y_mm=0.05, stop_stress_N_per_mm=stop)  # fmt: skip
+    s = strain_sweep(POINT, rest, direction, proto, FIDELITY)
+    assert s.stopped_by == "stop_stress", s.stop_reason
+    assert stop < s.stress_envelope[-1] <= STOP_OVERSHOOT * stop, s.stress_envelope[-3:]
+    steps = np.diff(s.a_x if direction == "x" else s.a_y)
+    assert steps[-1] < steps.max()  # the last step was refined

@@ -22,9 +22,19 @@ from .common import (
     app,
     check_range,
     compile_notice,
+    option,
     stitch_inputs,
     user_errors,
 )
+
+ThresholdOpt = Annotated[
+    float | None,
+    option(
+        "--threshold",
+        help="energy-gap threshold between jammed and unjammed (mJ)",
+        default="5·10⁻⁵, the paper's",
+    ),
+]
 
 
 @app.command("phase-diagram")
@@ -35,26 +45,22 @@ def phase_diagram(
     ],
     out: Annotated[
         Path | None,
-        typer.Option(
-            "--out", help="directory for the CSV and figure files [<first results>_phase_diagram]"
-        ),
+        option("--out", help="directory for the CSV and figure files",
+               default="<first results>_phase_diagram"),
     ] = None,
-    threshold: Annotated[
-        float | None,
-        typer.Option("--threshold", help="energy-gap threshold, mJ [the paper's 5·10⁻⁵]"),
-    ] = None,
+    threshold: ThresholdOpt = None,
     no_figures: Annotated[bool, typer.Option("--no-figures", help="write the tables only")] = False,
     formats: Annotated[
         str, typer.Option("--format", help="figure formats, comma-separated: png, pdf, svg")
     ] = "png",
     width: Annotated[
-        str, typer.Option("--width", help="auto, column (3.4 in) or page (7.0 in): journal "
-                          "widths with 7-8 pt fonts")
+        str, typer.Option("--width", help="figure width: auto, column (3.4 in) or page "
+                          "(7.0 in), journal widths with 7-8 pt fonts")
     ] = "auto",
     no_title: Annotated[bool, typer.Option("--no-title", help="figures without titles")] = False,
     style: Annotated[
-        str | None, typer.Option("--style", help="matplotlib style (name or file), or "
-                                 "'knitsweep' [default: your matplotlibrc]")
+        str | None, option("--style", help="matplotlib style (name or file), or knitsweep",
+                           default="your matplotlibrc")
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
@@ -72,8 +78,11 @@ def phase_diagram(
             check_output_dir(out, "--out")
         options = FigureOptions(tuple(f.strip() for f in formats.split(",") if f.strip()), width,
                                 not no_title, style)  # fmt: skip
+        # as JSON: the object alone on stdout, each file on stderr as it is written
+        progress = (lambda line: line.startswith("wrote ") and typer.echo(line, err=True)
+                    ) if as_json else typer.echo  # fmt: skip
         report = make_phase_diagram(results, out, threshold, figures=not no_figures,
-                                    options=options)  # fmt: skip
+                                    options=options, progress=progress)  # fmt: skip
     if as_json:
         red = report.reduction
         typer.echo(json.dumps({
@@ -86,8 +95,6 @@ def phase_diagram(
                         for f in report.figures},
         }))  # fmt: skip
         return
-    for line in report.lines():
-        typer.echo(line)
 
 
 @app.command()
@@ -96,10 +103,7 @@ def report(
     out: Annotated[Path, typer.Option("--out", help="the page to write (.html)")] = Path(
         "report.html"
     ),
-    threshold: Annotated[
-        float | None,
-        typer.Option("--threshold", help="energy-gap threshold, mJ [the paper's 5·10⁻⁵]"),
-    ] = None,
+    threshold: ThresholdOpt = None,
 ) -> None:  # fmt: skip
     """One self-contained HTML page of results files: figures inline, the transitions,
     sweep metrics and zero-force states, failures, the job specs and provenance."""
@@ -107,7 +111,8 @@ def report(
     from ..report.html import write_report
 
     with user_errors():
-        path = write_report(results, out, GAP_THRESHOLD if threshold is None else threshold)
+        path = write_report(results, out, GAP_THRESHOLD if threshold is None else threshold,
+                            progress=lambda line: typer.echo(line, err=True))  # fmt: skip
     typer.echo(f"wrote {path}")
 
 
@@ -121,7 +126,8 @@ def render(
         str | None, typer.Option("--task", help="point or sweep id in --results (a unique prefix)")
     ] = None,
     step: Annotated[
-        int | None, typer.Option("--step", help="strain step of a sweep [0: the zero-force state]")
+        int | None, option("--strain-step", help="which strain step of a sweep to draw (an "
+                           "index)", default="0, the zero-force state")
     ] = None,
     state: Annotated[
         Path | None, typer.Option("--state", help="a state (Init) file instead")
@@ -130,15 +136,15 @@ def render(
     r_core: RcOpt = None, stitch: StitchOpt = None, config: ConfigOpt = None,
     radius: Annotated[
         float | None,
-        typer.Option("--radius", help="tube radius to draw, mm [0.68 r: the paper's 0.5 mm "
-                     "for r = 0.74 mm]"),
+        option("--radius", help="tube radius to draw (mm)",
+               default="0.68 r, the paper's 0.5 mm for r = 0.74 mm"),
     ] = None,
     cells: Annotated[int, typer.Option("--cells", help="stitches per side of the picture")] = 3,
     side: Annotated[str, typer.Option("--side", help="face (knit side) or back (purl side)")] = "face",
     elevation: Annotated[
-        float, typer.Option("--elevation", help="view angle above the fabric plane, degrees")
+        float, typer.Option("--elevation", help="view angle above the fabric plane (°)")
     ] = 72.0,
-    width: Annotated[int, typer.Option("--width", help="rendering resolution, pixels across")] = 1100,
+    width: Annotated[int, typer.Option("--pixels", help="image width (pixels)")] = 1100,
     highlight: Annotated[bool, typer.Option("--highlight", help="wash out all stitches but the "
                                             "unit cell")] = False,
     contact_volumes: Annotated[bool, typer.Option(
@@ -149,7 +155,7 @@ def render(
 ) -> None:  # fmt: skip
     """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a, or with
     --contact-volumes their contact volumes (Fig. 6a-e): a task of a results file (point,
-    or sweep at --step) or a state file."""
+    or sweep at --strain-step) or a state file."""
     from ..errors import InputError
     from ..report import render as rendering
 
@@ -192,15 +198,17 @@ def accuracy(
                           "optionally 'preset:field=value+field=value'; errors are against the last")
     ] = "draft,paper,converged,fine",
     series: Annotated[
-        str | None, typer.Option("--series", help="L values (mm) of the (L/r)_trans series, "
-                                 "comma-separated [11.3,…,11.7: the k = 0.1 transition]")
+        str | None, option("--series", help="L values of the (L/r)_trans series, "
+                           "comma-separated (mm)", default="11.3,…,11.7, the k = 0.1 transition")
     ] = None,
     out: Annotated[Path, typer.Option("--out", help="directory for accuracy.csv/png")] = Path(
         "accuracy"
     ),
-    workers: Annotated[int, typer.Option("--workers", help="settings computed in parallel")] = 1,
-    reference: Annotated[str | None, typer.Option(
-        "--reference", help="the setting errors are measured against [the last]")] = None,
+    workers: Annotated[int, typer.Option("--workers", help="local worker processes (no MPI), "
+                       "one setting each")] = 1,
+    reference: Annotated[str | None, option(
+        "--reference", help="the setting errors are measured against",
+        default="the last")] = None,
 ) -> None:  # fmt: skip
     """Measure the speed/accuracy trade: one point at rising fidelity, with CPU time per
     relaxation, per sweep and per point and the error of each observable against the

@@ -11,45 +11,65 @@ from typing import Annotated
 import typer
 from pydantic import ValidationError
 
+HELP = {"help_option_names": ["-h", "--help"]}
+"""Every command takes -h as well as --help."""
+
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    context_settings=HELP,
     help="Simulate jammed stockinette fabric: energies, relaxations, strain sweeps, "
     "MPI parameter sweeps and phase diagrams (Gonzalez et al. 2025).",
 )
 
 
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"knitsweep {__version__}")
+        raise typer.Exit(0)
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: Annotated[bool, typer.Option("--version", "-V", callback=_version, is_eager=True,
+                       help="print the version and exit")] = False,
+) -> None:  # fmt: skip
     """knitsweep: stockinette unit-cell simulations (docs/model.md)."""
 
 
-# ---- shared options (paper units) -------------------------------------------------
-LOpt = Annotated[float | None, typer.Option("--L", help="yarn length per stitch L, mm [11.6]")]
-BOpt = Annotated[float | None, typer.Option("--B", help="bending modulus B, mN mm^2 [90]")]
-KOpt = Annotated[float | None, typer.Option("--k", help="compression constant k, mN/mm^2 [0.6]")]
-POpt = Annotated[float | None, typer.Option("--p", help="contact exponent p > 1 [2.4]")]
-ROpt = Annotated[float | None, typer.Option("--r", help="yarn radius r, mm [0.74]")]
-RcOpt = Annotated[float | None, typer.Option("--r-core", help="core radius r_core < r, mm [0.325]")]
-RegOpt = Annotated[
-    float | None,
-    typer.Option("--regularization", help="curvature-derivative regularisation, mN mm^4 [2]"),
-]
-SamplesOpt = Annotated[
-    int | None, typer.Option("--samples", help="contact samples per segment N [10]")
-]
-NodesOpt = Annotated[
-    int | None, typer.Option("--quadrature-nodes", help="Gauss–Legendre nodes per segment [32]")
-]
-ImagesOpt = Annotated[
-    str | None,
-    typer.Option("--images", help="periodic images: 'cutoff' (all that touch) or 'reference'"),
-]
-StitchOpt = Annotated[
-    str | None,
-    typer.Option("--stitch", help="stitch pattern (knitsweep.stitches.STITCH_NAMES) [stockinette]"),
-]
+def option(*names: str, help: str, default: str | None = None, **kw):
+    """A typer option whose help ends in ``[default: …]`` the way typer shows a real
+    default, for options whose default is None (taken from a preset, a config file
+    or paper Table 1). Conventions of every option: a lower-case description, the
+    unit in parentheses in the paper's notation (mm, mN/mm², mN·mm², N/mm, mJ, s)."""
+    text = help if default is None else f"{help} \\[default: {default}]"
+    return typer.Option(*names, help=text, show_default=default is None, **kw)
+
+
+# ---- shared options (paper units; defaults: paper Table 1) --------------------------
+LOpt = Annotated[float | None, option("--L", help="yarn length per stitch L (mm)",
+                                      default="11.6")]  # fmt: skip
+BOpt = Annotated[float | None, option("--B", help="bending modulus B (mN·mm²)", default="90")]
+KOpt = Annotated[float | None, option("--k", help="compression constant k (mN/mm²)",
+                                      default="0.6")]  # fmt: skip
+POpt = Annotated[float | None, option("--p", help="contact exponent p > 1", default="2.4")]
+ROpt = Annotated[float | None, option("--r", help="yarn radius r (mm)", default="0.74")]
+RcOpt = Annotated[float | None, option("--r-core", help="core radius r_core < r (mm)",
+                                       default="0.325")]  # fmt: skip
+RegOpt = Annotated[float | None, option("--regularization", help="curvature-derivative "
+                                        "regularisation (mN·mm⁴)", default="2")]  # fmt: skip
+SamplesOpt = Annotated[int | None, option("--samples", help="contact samples per segment N",
+                                          default="10")]  # fmt: skip
+NodesOpt = Annotated[int | None, option("--quadrature-nodes", help="Gauss–Legendre nodes per "
+                                        "segment", default="32")]  # fmt: skip
+ImagesOpt = Annotated[str | None, option("--images", help="periodic images: cutoff (all that "
+                                         "touch) or reference", default="cutoff")]  # fmt: skip
+StitchOpt = Annotated[str | None, option("--stitch", help="stitch pattern (one of "
+                                         "knitsweep.stitches.STITCH_NAMES)",
+                                         default="stockinette")]  # fmt: skip
 ConfigOpt = Annotated[
     Path | None,
     typer.Option("--config", help="an authors' *key value config file (jammed-knits format)"),

@@ -25,6 +25,7 @@ from .common import (
     _print_result,
     app,
     compile_notice,
+    option,
     stitch_inputs,
     user_errors,
 )
@@ -57,14 +58,15 @@ def energy(
 
 StateOpt = Annotated[
     Path | None,
-    typer.Option("--state", help="starting state (an Init file) [the stitch's shipped starts]"),
+    option("--state", help="starting state (an Init file)", default="the stitch's shipped starts"),
 ]
-StartsOpt = Annotated[int | None, typer.Option("--starts", help="starts per point [4]")]
+StartsOpt = Annotated[int | None, option("--starts", help="starts per point", default="4")]
 SeedOpt = Annotated[int, typer.Option("--seed", help="seed of the perturbed starts")]
-PresetOpt = Annotated[
-    str | None, typer.Option("--preset", help="fidelity preset: draft, paper, converged, fine")
-]
-FtolOpt = Annotated[float | None, typer.Option("--ftol", help="SLSQP energy tolerance (mJ)")]
+PresetOpt = Annotated[str | None, option("--preset", help="fidelity preset: draft, paper, "
+                                         "converged or fine", default="converged")]  # fmt: skip
+FtolOpt = Annotated[float | None, option("--ftol", help="precision goal on the energy (mJ): "
+                                         "the Newton decrement, or SLSQP's ftol with the "
+                                         "paper preset", default="the preset's")]  # fmt: skip
 
 
 @app.command()
@@ -117,17 +119,22 @@ def sweep(
     samples: SamplesOpt = None,
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     preset: PresetOpt = None, ftol: FtolOpt = None, starts: StartsOpt = None, seed: SeedOpt = 0,
-    step: Annotated[float | None, typer.Option("--step", help="small step h (mm) [0.001]")] = None,
-    stop_stress: Annotated[float | None, typer.Option("--stop-stress", help="N/mm [0.4]")] = None,
-    max_strain: Annotated[float | None, typer.Option("--max-strain", help="[1.0]")] = None,
+    step: Annotated[float | None, option("--step", help="small strain step h of the cell "
+                                         "period (mm)", default="the preset's")] = None,
+    stop_stress: Annotated[float | None, option("--stop-stress", help="stop once the stress "
+                                                "exceeds this (N/mm)", default="0.4")] = None,
+    max_strain: Annotated[float | None, option("--max-strain", help="stop at this strain",
+                                               default="1.0")] = None,
     compression: Annotated[bool, typer.Option("--compression", help="push instead of pull")] = False,
-    observables: Annotated[str | None, typer.Option(
+    observables: Annotated[str | None, option(
         "--observables", help="what the sweep must determine, comma-separated: curve, "
-        "secant_modulus, offset_stress, energy_gaps; it stops once they are [curve, with "
-        "any preset]")] = None,
-    step_control: Annotated[str | None, typer.Option(
-        "--step-control", help="fixed (the authors' steps) or adaptive [the preset's]")] = None,
-    out: Annotated[Path | None, typer.Option("--out", help="write the table: .csv or .h5")] = None,
+        "secant_modulus, offset_stress, energy_gaps; it stops once they are",
+        default="curve, with any preset")] = None,
+    step_control: Annotated[str | None, option(
+        "--step-control", help="fixed (the authors' steps) or adaptive",
+        default="the preset's")] = None,
+    out: Annotated[Path | None, option("--out", help="also write the table to this .csv or .h5 file",
+                                          default="printed only")] = None,
 ) -> None:  # fmt: skip
     """One point's strain sweep, with a progress bar; prints the stress–strain table."""
     from ..config import Numerics, StartSettings

@@ -9,8 +9,10 @@ from typing import Annotated
 import typer
 
 from .common import (
+    HELP,
     JsonOpt,
     app,
+    option,
     user_errors,
 )
 
@@ -18,38 +20,54 @@ from .common import (
 @app.command()
 def run(
     job: Annotated[Path, typer.Argument(help="job file (TOML), e.g. jobs/demo.toml")],
-    out: Annotated[Path | None, typer.Option("--out", help="results file [<job name>.h5]")] = None,
-    workers: Annotated[int, typer.Option("--workers", help="local worker processes (no MPI)")] = 1,
+    out: Annotated[Path | None, option("--out", help="results file",
+                                       default="<job name>.h5")] = None,
+    workers: Annotated[int, typer.Option("--workers", help="local worker processes (no MPI), one task each")] = 1,
     executor: Annotated[
-        str, typer.Option("--executor", help="auto (MPI under mpirun), serial, processes, mpi")
+        str, typer.Option("--executor", help="where tasks run: auto (MPI under mpirun), serial, "
+                          "processes or mpi")
     ] = "auto",
-    shard: Annotated[str | None, typer.Option("--shard", help="run shard i/N of the grid")] = None,
+    shard: Annotated[str | None, typer.Option("--shard", help="run shard i/N of the grid "
+                     "(e.g. 0/4), for knitsweep merge")] = None,
     retry_failed: Annotated[bool, typer.Option("--retry-failed", help="rerun failed tasks")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", help="no progress bar")] = False,
     max_tasks: Annotated[int | None, typer.Option("--max-tasks", help="confirm a job of more "
                          "than 20000 tasks (points + sweeps): run up to this many")] = None,
+    relabel: Annotated[bool, typer.Option("--relabel", help="write into a results file made "
+                       "by a job of another name or description, and give it this job's")] = False,
 ) -> None:  # fmt: skip
     """Run a job: every grid point's zero-force state and its x/y strain sweeps, into
-    one HDF5 file. Under mpirun -n N, rank 0 schedules and N-1 ranks work."""
+    one HDF5 file. Under mpirun -n N, rank 0 schedules and N-1 ranks work.
+
+    Exit codes: 0 every task done (or not knittable); 2 bad input, nothing computed;
+    3 interrupted (run it again to resume); 4 finished, but some tasks failed."""
     from .. import service
     from ..errors import InputError
+    from ..service.master import EXIT_TASKS_FAILED
 
     with user_errors():
         if executor not in ("auto", "serial", "processes", "mpi"):
             raise InputError(f"executor = {executor!r}: must be auto, serial, processes or mpi")
         summary = service.run(job, out, executor=executor, workers=workers, shard=shard,
                               retry_failed=retry_failed, show_progress=not quiet,
-                              max_tasks=max_tasks)  # fmt: skip
+                              max_tasks=max_tasks, relabel=relabel)  # fmt: skip
     if summary is None:  # an MPI worker rank
         return
     if summary.storage_error:  # the one line is printed; the run stopped as interrupted
         raise typer.Exit(summary.exit_code)
     c = summary.counts
+    seconds = summary.seconds  # (the compile, on a cold install, inside it)
+    compiled = (f" ({summary.compile_seconds:.1f} s of it compiling the kernels, cached from now "
+                "on)" if summary.compile_seconds else "")  # fmt: skip
     typer.echo(f"{summary.out}: {c['done']} done, {c['failed']} failed, {c['not_knittable']} not "
                f"knittable of {summary.total} tasks ({summary.skipped} already finished) in "
-               f"{summary.seconds:.1f} s", err=True)  # fmt: skip
+               f"{seconds:.1f} s{compiled}", err=True)  # fmt: skip
     for line in summary.failures[:10]:
         typer.echo(f"  failed: {line}", err=True)
+    if summary.exit_code == EXIT_TASKS_FAILED:
+        typer.echo(f"error: {c['failed']} of {summary.total} tasks failed (exit code "
+                   f"{EXIT_TASKS_FAILED}): see knitsweep status {summary.out}; rerun with "
+                   "--retry-failed to compute them again", err=True)  # fmt: skip
     raise typer.Exit(summary.exit_code)
 
 
@@ -156,7 +174,9 @@ def recover(
 
 # ---- knitsweep slurm … (batch scripts; knitsweep/service/slurm.py, slurm/README.md)
 slurm_app = typer.Typer(
-    no_args_is_help=True, help="SLURM batch scripts for knitsweep runs (slurm/README.md)."
+    no_args_is_help=True,
+    context_settings=HELP,
+    help="SLURM batch scripts for knitsweep runs (slurm/README.md).",
 )
 app.add_typer(slurm_app, name="slurm")
 
@@ -166,11 +186,12 @@ def slurm_render(
     job: Annotated[Path, typer.Argument(help="job file (TOML)")],
     out: Annotated[Path, typer.Option("--out", help="results file (mpi) or shard directory "
                                       "(array, merge)")],
-    template: Annotated[str, typer.Option("--template", help="mpi, array or merge")] = "mpi",
+    template: Annotated[str, typer.Option("--template", help="batch script: mpi, array or "
+                        "merge")] = "mpi",
     nodes: Annotated[int | None, typer.Option("--nodes", help="nodes (mpi)")] = None,
     ntasks: Annotated[int | None, typer.Option("--ntasks", help="MPI ranks, >= 2 (mpi)")] = None,
     time: Annotated[str | None, typer.Option("--time", help="walltime HH:MM:SS")] = None,
-    partition: Annotated[str | None, typer.Option("--partition", help="partition")] = None,
+    partition: Annotated[str | None, typer.Option("--partition", help="SLURM partition")] = None,
     launcher: Annotated[str | None, typer.Option("--launcher", help="srun or mpirun (mpi)")] = None,
     venv: Annotated[Path | None, typer.Option("--venv", help="virtualenv to activate")] = None,
     modules: Annotated[str | None, typer.Option("--modules", help="modules to load, "

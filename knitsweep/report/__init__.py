@@ -11,7 +11,7 @@ with :func:`.results.load`, so the command and the Python API cannot disagree.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -33,6 +33,7 @@ __all__ = [
     "phase_diagram",
     "problems_text",
     "reduce_results",
+    "summary_lines",
     "transitions_text",
     "write_tables",
 ]
@@ -52,13 +53,19 @@ class PhaseDiagramReport:
 
     def lines(self) -> list[str]:
         """The report as printed by the command."""
-        red = self.reduction
-        out = [red.status_line, "", transitions_text(red), ""]
-        out += problems_text(red)
-        out += [f"note: {n}" for n in red.notes]
+        out = summary_lines(self.reduction)
         out += [f"wrote {p}" for p in self.tables]
         out += [f.line for f in self.figures]
         return out
+
+
+def summary_lines(red: Reduction) -> list[str]:
+    """What the command prints once the files are read: the status line, the
+    transitions table, the problems and the notes."""
+    out = [red.status_line, "", transitions_text(red), ""]
+    out += problems_text(red)
+    out += [f"note: {n}" for n in red.notes]
+    return out
 
 
 def phase_diagram(
@@ -67,6 +74,7 @@ def phase_diagram(
     threshold: float = GAP_THRESHOLD,
     figures: bool = True,
     options: FigureOptions | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> PhaseDiagramReport:
     """Read results files and write their tables and figures.
 
@@ -78,18 +86,24 @@ def phase_diagram(
         threshold: energy-gap threshold, mJ (paper: ``GAP_THRESHOLD``).
         figures: write the figures (False: tables only).
         options: formats, width, titles and style of the figures.
+        progress: told each line of :meth:`PhaseDiagramReport.lines` as soon as it
+            is known: the summary once the files are read, then ``wrote …`` as each
+            table and figure file is written.
 
     Raises:
         InputError: unreadable or wrong-schema results file, threshold ≤ 0.
     """
     paths = [Path(results)] if isinstance(results, (str, Path)) else [Path(p) for p in results]
+    tell = progress or (lambda line: None)
     res = load(*paths, threshold=threshold)
+    for line in summary_lines(res.reduction):
+        tell(line)
     first = paths[0]
     out = Path(out_dir) if out_dir is not None else first.with_name(f"{first.stem}_phase_diagram")
-    tables = write_tables(res, out)
+    tables = write_tables(res, out, lambda path: tell(f"wrote {path}"))
     outcomes: list[FigureOutcome] = []
     if figures:
         from .figures import write_figures
 
-        outcomes = write_figures(res.reduction, out, options)
+        outcomes = write_figures(res.reduction, out, options, lambda o: tell(o.line))
     return PhaseDiagramReport(res, tables, outcomes)

@@ -34,8 +34,10 @@ from .plotting import (
     label_of,
     legend_columns,
     limit_panels,
+    narrow,
     new_figure,
     parameter_axis,
+    sci,
     series_keys,
     series_rows,
     title,
@@ -73,6 +75,8 @@ def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, 
     if t is not None and t.status != "transition":
         text = ("jammed at every L" if t.status == "jammed_throughout"
                 else "unjammed from the first L")  # fmt: skip
+        if narrow():
+            text = text.replace(" at ", "\nat ").replace(" from ", "\nfrom ")
         ax.text(0.98, 0.45 if log else 0.97, text, transform=ax.transAxes, ha="right",
                 va="center" if log else "top", fontsize="medium", color="0.25",
                 bbox={"fc": "white", "ec": "0.7", "pad": 2.5})  # fmt: skip
@@ -109,7 +113,8 @@ def _fit_line(ax: Any, t: Transition, colour: str, x_first: float, threshold: fl
         ax.annotate("", xy=(t.L_over_r_trans, y), xytext=(x0, y),
                     arrowprops={"arrowstyle": "<->", "color": "0.2", "lw": 1.2,
                                 "shrinkA": 0, "shrinkB": 0}, zorder=6)  # fmt: skip
-        ax.text(max(x0, t.L_over_r_trans), y, f"  ΔL/r = {t.delta_L_over_r:.3f}", ha="left",
+        ax.text(max(x0, t.L_over_r_trans), y, f"  ΔL/r = {t.delta_L_over_r:.3f}"
+                + ("\n  (zero beyond the transition)" if t.delta_L_over_r < 0 else ""), ha="left",
                 va="center", fontsize="medium", color="0.2",
                 bbox={"fc": "white", "ec": "none", "alpha": 0.8, "pad": 1.0})  # fmt: skip
 
@@ -122,7 +127,9 @@ def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any
         raise SkipFigure("needs a series with sweeps at ≥ 2 values of L")
     keys = limit_panels(keys, "fig3", notes)
     directions = sorted({c.direction for c in red.curves})
-    fig = new_figure(max(8.0, 5.2 * len(directions) + 0.4), 3.2 * len(keys) + 1.5)
+    # x and y side by side are too dense for one column: a page-wide figure
+    fig = new_figure(max(8.0, 5.2 * len(directions) + 0.4), 3.2 * len(keys) + 1.5,
+                     wide=len(directions) > 1)  # fmt: skip
     axes = fig.subplots(len(keys), len(directions), squeeze=False, sharex=True)
     handles: dict[str, Any] = {}
     for i, key in enumerate(keys):
@@ -161,8 +168,8 @@ def fig4a_gap_fit(red: Reduction, notes: list[str]) -> Any:
     if not panels:
         raise SkipFigure("needs a series with ≥ 2 jammed points (a jammed-regime fit)")
     panels = limit_panels(panels, "fig4a", notes)
-    ncols = min(len(panels), 2)
-    fig = new_figure(6.4 * ncols + 0.4, 4.2 * -(-len(panels) // ncols) + 1.4)
+    ncols = min(len(panels), 2)  # two panels a row: a page-wide figure
+    fig = new_figure(6.4 * ncols + 0.4, 4.2 * -(-len(panels) // ncols) + 1.4, wide=ncols > 1)
     handles: dict[str, Any] = {}
     for ax, (key, d) in zip(grid_of_panels(fig, len(panels), ncols), panels, strict=True):
         t = red.transition_of[(key, d)]
@@ -192,15 +199,19 @@ def fig4a_gap_fit(red: Reduction, notes: list[str]) -> Any:
         ax.set_xlabel(L_OVER_R)
         ax.set_ylabel(f"{GAP_LABEL[d]} (mJ)")
         lab = label_of(red, key)
-        ax.set_title(f"pulled in {d}" + (f", {lab}" if lab else "") + f"; fit of {t.fit.n_points} "
-                     f"points: slope {t.fit.slope / r_mm:.3e} mJ/mm,\nintercept "
-                     f"{t.fit.intercept:.4f} mJ, max |res| {t.fit.max_abs_residual:.1e} mJ"
-                     + (f", ΔL/r = {t.delta_L_over_r:.3f}" if t.delta_L_over_r is not None else ""),
-                     fontsize="medium")  # fmt: skip
+        width = t.delta_L_over_r
+        fit = (
+            f"{t.fit.n_points}-point fit: slope {sci(t.fit.slope / r_mm)} mJ/mm,\n"
+            f"intercept {sci(t.fit.intercept)} mJ"
+        )
+        head = f"pulled in {d}" + (f", {lab}" if lab else "")
+        tail = ("" if width is None else f"ΔL/r = {width:.3f}" + (
+            " (the line's zero lies past (L/r)$_{\\rm trans}$)" if width < 0 else ""))  # fmt: skip
+        ax.set_title("\n".join(filter(None, (head, fit, tail))), fontsize="medium")
         for h, name in zip(*ax.get_legend_handles_labels(), strict=True):
             handles.setdefault(name, h)
     fig.legend(handles.values(), handles.keys(), loc="outside lower center",
-               ncols=min(len(handles), 4), frameon=False)  # fmt: skip
+               ncols=legend_columns(min(len(handles), 3)), frameon=False)  # fmt: skip
     title(fig, red, "Jammed-regime line fit and transition width ΔL/r (paper Fig. 4a, Table S4)")
     return fig
 
@@ -238,10 +249,17 @@ def fig4b_deltaL_vs_k(red: Reduction, notes: list[str]) -> Any:
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_xlabel(r"compression constant $k$ (mN/mm$^2$)")
     ax.set_ylabel(r"transition width $\Delta L/r$")
-    ax.text(0.99, 0.02, "ΔL/r = (L/r)_trans − zero of the line through the linear jammed run;\n"
-            "error bars: +0, −one step of $L/r$; series offset slightly in $k$",
-            transform=ax.transAxes, ha="right", va="bottom", fontsize="medium", color="0.35")  # fmt: skip
+    note = (
+        "ΔL/r = (L/r)$_{\\rm trans}$ − zero of the line through the linear jammed run; "
+        "error bars: +0, −one step of $L/r$; series offset slightly in $k$"
+    )
     ax.legend(frameon=False)
+    # the note below the axes, as a caption line (inside it would cover the data)
+    fig.supxlabel(
+        note.replace("; ", ";\n") if narrow() else note.replace("; e", ";\ne"),
+        fontsize=max(7.0, 0.85 * float(ax.xaxis.label.get_fontsize())),
+        color="0.35",
+    )
     title(fig, red, r"Width of the jamming transition $\Delta L/r$ against $k$")
     return fig
 

@@ -10,6 +10,7 @@ Stress in N/mm (2D), strains and L/r dimensionless, forces in N.
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -35,7 +36,9 @@ from .plotting import (
     label_of,
     legend_columns,
     limit_panels,
+    narrow,
     new_figure,
+    panel_title,
     series_keys,
     series_rows,
     title,
@@ -81,7 +84,9 @@ def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...],
     keys = sorted({c.series for c in red.curves if c.direction in present})
     keys = limit_panels(keys, what, notes)
     n = len(keys) * len(present)
-    ncols = len(present) if len(present) > 1 else min(len(keys), 2)
+    ncols = len(present) if len(present) > 1 else 1 if narrow() else min(len(keys), 2)
+    if narrow() and " $" in ylabel:  # the symbol alone: a narrow panel is short
+        ylabel = "$" + ylabel.split(" $", 1)[1]
     fig = new_figure(max(7.6, 4.9 * ncols + 1.2), 3.3 * -(-n // ncols) + 1.3)
     axes = grid_of_panels(fig, n, ncols)
     cmap, norm = L_colours(red)
@@ -106,8 +111,7 @@ def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...],
             ax.set_ylim(lo - pad if lo < 0.0 else 0.0, hi + pad)
         if zero_line:
             ax.axhline(0.0, color="0.55", lw=1.0, zorder=0)
-        lab = label_of(red, key)
-        ax.set_title(f"pulled in {d}" + (f"; {lab}" if lab else ""))
+        panel_title(ax, f"pulled in {d}", label_of(red, key))
         ax.set_xlabel(STRAIN[d])
         ax.set_ylabel(ylabel)
     jammed_legend(fig, present, list(extra.values()))
@@ -187,8 +191,11 @@ def _series_legend(ax: Any, red: Reduction, keys: list, loc: str = "best") -> No
     handles = [Line2D([], [], color="0.35", marker=MARKERS[i % len(MARKERS)],
                       ls=LINESTYLES[i % len(LINESTYLES)], label=label_of(red, k))
                for i, k in enumerate(keys)]  # fmt: skip
-    if len(keys) > 1:
-        ax.add_artist(ax.legend(handles=handles, loc=loc, frameon=False))
+    if len(keys) > 1:  # an artist of its own: the axes' legend stays free for another
+        from matplotlib.legend import Legend
+
+        ax.add_artist(Legend(ax, handles, [h.get_label() for h in handles], loc=loc,
+                             frameon=False))  # fmt: skip
 
 
 def fig2ef_secant_offset(red: Reduction, notes: list[str]) -> Any:
@@ -228,10 +235,16 @@ def fig2ef_secant_offset(red: Reduction, notes: list[str]) -> Any:
     ax_y.set_ylabel(r"secant modulus $Y_{\rm sec}$ (N/mm)")
     ax_s.set_ylabel(r"offset stress $\sigma_0$ (N/mm)")
     ax_y.set_title(r"(e) $Y_{\rm sec} = \sigma(0.02)/0.02$")
-    ax_s.set_title(r"(f) $\sigma_0$: intercept of the softened-regime line")
+    ax_s.set_title(r"(f) $\sigma_0$: intercept of the" + ("\n" if narrow() else " ")
+                   + "softened-regime line")  # fmt: skip
     for ax in (ax_y, ax_s):
         ax.set_xlabel(L_OVER_R)
-        ax.set_ylim(bottom=0.0)
+        low = min((float(np.min(ln.get_ydata())) for ln in ax.get_lines() if len(ln.get_ydata())),
+                  default=0.0)  # fmt: skip
+        if low >= 0.0:  # a negative σ0 stays in view, below a zero line
+            ax.set_ylim(bottom=0.0)
+        else:
+            ax.axhline(0.0, color="0.55", lw=0.8, zorder=0)
     handles = [Line2D([], [], color=DIRECTION_COLOUR[d], lw=2, label=f"pulled in {d}")
                for d in ("x", "y")]  # fmt: skip
     if no_regime:
@@ -260,9 +273,13 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
         x2 = np.array([r["L_over_r"] ** 2 for r in pts])
         edges = np.concatenate([[x2[0] - (x2[1] - x2[0]) / 2], (x2[1:] + x2[:-1]) / 2,
                                 [x2[-1] + (x2[-1] - x2[-2]) / 2]])  # fmt: skip
-        for r, a, b in zip(pts, edges[:-1], edges[1:], strict=True):
-            if r["regime"] is not None:
-                ax.axvspan(a, b, color=REGIME_FILL[r["regime"]], alpha=0.55, lw=0)
+        spans = _regime_spans(red, keys[0], edges[0], edges[-1])
+        if spans is None:  # no transition in a direction: each point's own regime
+            spans = [(a, b, r["regime"]) for r, a, b in zip(pts, edges[:-1], edges[1:],
+                                                           strict=True)]  # fmt: skip
+        for a, b, regime in spans:
+            if regime is not None:
+                ax.axvspan(a, b, color=REGIME_FILL[regime], alpha=0.55, lw=0)
     regimes = set()
     for i, key in enumerate(keys):
         pts = sorted((r for r in rows if series_key(r) == key), key=lambda r: r["L_over_r"])
@@ -286,6 +303,25 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
     ax.legend(handles=handles, loc="best", frameon=True, framealpha=0.9)
     title(fig, red, "Zero-force stitch aspect ratio against $(L/r)^2$")
     return fig
+
+
+def _regime_spans(red: Reduction, key: tuple, lo: float, hi: float) -> list | None:
+    """(start, end, regime) along (L/r)² from ``lo`` to ``hi``, split at each
+    direction's (L/r)_trans² (the same boundaries as Fig. 4c); None unless both
+    directions have a transition inside the series."""
+    trans = {d: red.transition_of.get((key, d)) for d in ("x", "y")}
+    if any(t is None or t.status != "transition" for t in trans.values()):
+        return None
+    tx, ty = (trans[d].L_over_r_trans ** 2 for d in ("x", "y"))
+    cuts = sorted({lo, hi, *(b for b in (tx, ty) if lo < b < hi)})
+    spans = []
+    for a, b in itertools.pairwise(cuts):
+        m = 0.5 * (a + b)
+        jx, jy = m < tx, m < ty
+        regime = ("jammed_xy" if jx and jy else "jammed_y_only" if jy else
+                  "jammed_x_only" if jx else "unjammed")  # fmt: skip
+        spans.append((a, b, regime))
+    return spans
 
 
 def _table_s3_series(key: tuple) -> bool:
@@ -397,10 +433,13 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
                     Line2D([], [], ls="none", marker="D", mfc="white", mec="0.3",
                            label=r"Table S3 $|F_y|$")]  # fmt: skip
         text = _vs_table_s3(pts)
-        if text:
-            ax_c.text(0.02, 0.02, text, transform=ax_c.transAxes, fontsize="medium", color="0.25",
-                      va="bottom")  # fmt: skip
-    ax_c.legend(handles=handles, loc="upper right", frameon=True, framealpha=0.9, ncols=2)
+        if text:  # a caption line below the panels: inside, it would cover the curves
+            fig.supxlabel(text.replace(": ", ":\n", 1) if narrow() else text,
+                          fontsize=max(7.0, 0.85 * float(ax_c.xaxis.label.get_fontsize())),
+                          color="0.25")  # fmt: skip
+    # beside the panel, not over the curves that start high at small L/r
+    ax_c.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False,
+                ncols=1)  # fmt: skip
     ax_c.set_xlabel(L_OVER_R)
     ax_c.set_ylabel("pair force between sampled points (N), + extends")
     lab = label_of(red, keys[0])

@@ -5,7 +5,7 @@ A figure the results file has no data for is skipped with a reason, never an err
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -25,7 +25,7 @@ from .fig_mechanics import (
     fig6h_contact_force_ratio,
 )
 from .fig_volumes import figS_packing_fraction_L, figS_packing_fraction_strain
-from .plotting import FigureOptions, SkipFigure, style
+from .plotting import FigureOptions, SkipFigure, finish, style
 from .reduce import Reduction
 
 FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
@@ -51,6 +51,39 @@ FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
     ),
 }
 """File name → figure function (paper figure in the name)."""
+
+CAPTIONS: dict[str, str] = {
+    "fig1b_stress_strain.png": "Stress against strain for each yarn length L (colour), pulled "
+    "in x and in y; solid curves are jammed, dashed ones unjammed (paper Fig. 1b).",
+    "fig1b_stress_strain_small.png": "The same curves up to 10 % strain, where a jammed fabric "
+    "is stiff; dots are the computed steps, with the secant and offset-stress fits.",
+    "fig2ef_Ysec_sigma0.png": "Secant modulus at 2 % strain (left) and offset stress (right) "
+    "against L/r, pulled in x (purple) and y (blue); a cross at zero marks a sweep without a "
+    "linear regime (paper Fig. 2e, f).",
+    "fig3_energy_gaps.png": "Energy gaps against L/r: contact (coral) and bending (blue); the "
+    "fabric is jammed while the gap of its direction exceeds the threshold (dotted); the "
+    "shaded band is the transition bracket (paper Fig. 3).",
+    "fig3_energy_gaps_log.png": "The energy gaps on a logarithmic scale; hollow markers are "
+    "gaps below the drawing floor (paper Fig. S15).",
+    "fig4a_gap_fit.png": "The jamming gap of each series with the straight line through its "
+    "linear jammed run; ΔL/r is the distance from the line's zero to the transition, "
+    "negative when the zero lies beyond it (paper Fig. 4a, Table S4).",
+    "fig4b_deltaL_vs_k.png": "Transition width ΔL/r against the compression constant k "
+    "(paper Fig. 4b).",
+    "fig4c_phase_diagram.png": "Phase diagram: where the fabric is jammed in x and y, only in "
+    "y, or unjammed, with the transition lines of each direction (paper Fig. 4c).",
+    "fig5a_aspect_ratio.png": "Aspect ratio a_y/a_x of the relaxed stitch against (L/r)², "
+    "coloured by regime (paper Fig. 5a).",
+    "fig5b_area_strain_y.png": "Area strain of pulls in y: unjammed fabrics lose area at "
+    "first, jammed ones do not (paper Fig. 5b).",
+    "fig5b_area_strain_y_small.png": "Area strain of pulls in y up to 10 % strain.",
+    "fig6g_thickness_strain_x.png": "Thickness strain of pulls in x: jammed fabrics first "
+    "thin, unjammed ones thicken (paper Fig. 6g).",
+    "fig6g_thickness_strain_x_small.png": "Thickness strain of pulls in x up to 10 % strain.",
+    "fig6h_contact_force_ratio.png": "Ratio of the x and y contact forces at zero strain "
+    "against L/r (paper Fig. 6h).",
+}
+"""What each figure shows, for a reader (the HTML report's captions)."""
 
 
 @dataclass(frozen=True)
@@ -85,7 +118,7 @@ def render_figure(
     files = {}
     with style(options):
         try:
-            fig = make(red, notes)
+            fig = finish(make(red, notes))
         except SkipFigure as e:
             return FigureOutcome(name, None, str(e), tuple(notes)), {}
         for fmt in options.formats:
@@ -95,20 +128,65 @@ def render_figure(
     return FigureOutcome(name, None, None, tuple(notes)), files
 
 
+_JOB: tuple[Reduction, FigureOptions] | None = None  # what forked renderers draw from
+
+
+def _render_named(name: str) -> tuple[FigureOutcome, dict[str, bytes]]:
+    red, options = _JOB
+    return render_figure(red, name, FIGURES[name], options)
+
+
+def render_figures(
+    red: Reduction, options: FigureOptions | None = None, workers: int | None = None
+) -> Iterator[tuple[str, FigureOutcome, dict[str, bytes]]]:
+    """Every figure of :data:`FIGURES` drawn into memory, in order, as (name, outcome,
+    {format: bytes}); each as soon as it (and those before it) is drawn. ``workers``
+    (default: the usable cores, at most 4) processes draw in parallel (forked, so
+    the reduction is not copied); the bytes are the same as drawn one by one."""
+    import multiprocessing
+    import os
+
+    options = options or FigureOptions()
+    names = list(FIGURES)
+    if workers is None:
+        workers = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                      else os.cpu_count() or 1)  # fmt: skip
+    import threading
+
+    # fork only a single-threaded process (forking threads can deadlock the child)
+    forkable = "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1
+    if workers <= 1 or not forkable:
+        for name in names:
+            yield (name, *render_figure(red, name, FIGURES[name], options))
+        return
+    global _JOB
+    _JOB = (red, options)
+    try:
+        with multiprocessing.get_context("fork").Pool(workers) as pool:
+            for name, (outcome, files) in zip(names, pool.imap(_render_named, names),
+                                              strict=True):  # fmt: skip
+                yield name, outcome, files
+    finally:
+        _JOB = None
+
+
 # reproducible files: no creation dates in PDF/SVG metadata
 _METADATA = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}
 
 
 def write_figures(
-    red: Reduction, out_dir: str | Path, options: FigureOptions | None = None
+    red: Reduction,
+    out_dir: str | Path,
+    options: FigureOptions | None = None,
+    done: Callable[[FigureOutcome], None] | None = None,
 ) -> list[FigureOutcome]:
     """Write every figure of :data:`FIGURES` that the reduction has data for, in each
-    of ``options.formats``; one outcome per figure (its path: the first format)."""
+    of ``options.formats``; one outcome per figure (its path: the first format),
+    each told to ``done`` as soon as its files are written."""
     options = options or FigureOptions()
     out = make_output_dir(out_dir)
     outcomes = []
-    for name, make in FIGURES.items():
-        outcome, files = render_figure(red, name, make, options)
+    for name, outcome, files in render_figures(red, options):
         paths = []
         for fmt, data in files.items():
             path = out / f"{Path(name).stem}.{fmt}"
@@ -118,4 +196,6 @@ def write_figures(
             extra = tuple(f"also {p.name}" for p in paths[1:])
             outcome = FigureOutcome(name, paths[0], None, outcome.notes + extra)
         outcomes.append(outcome)
+        if done is not None:
+            done(outcome)
     return outcomes

@@ -13,7 +13,7 @@ from __future__ import annotations
 import base64
 import html
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -35,10 +35,12 @@ h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { margin-top: 2em; border-bott
 table { border-collapse: collapse; margin: 0.8em 0; font-size: 12.5px; }
 th, td { border: 1px solid #ddd; padding: 3px 7px; text-align: right; white-space: nowrap; }
 th { background: #f4f4f4; position: sticky; top: 0; } td.text { text-align: left; }
-.scroll { max-height: 28em; overflow: auto; border: 1px solid #eee; }
+.scroll { max-height: 28em; overflow: auto; border: 1px solid #eee; max-width: 100%; }
+code { overflow-wrap: anywhere; } h3 { overflow-wrap: anywhere; }
 figure { margin: 1.2em 0; } figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { color: #555; font-size: 0.92em; } pre { background: #f7f7f7; padding: 0.8em;
-overflow: auto; font-size: 12px; } .skipped { color: #777; }
+overflow: auto; font-size: 12px; max-width: 100%; box-sizing: border-box; }
+.skipped { color: #777; } li { overflow-wrap: anywhere; }
 """
 
 _SCRIPT = """
@@ -47,6 +49,14 @@ window.addEventListener("load", function () {
   var ok = 0;
   imgs.forEach(function (im) { if (im.complete && im.naturalWidth > 0) { ok += 1; } });
   document.body.setAttribute("data-figures-loaded", ok + "/" + imgs.length);
+  // elements wider than the page (those inside a scrolling box scroll instead)
+  var width = document.documentElement.clientWidth, wide = [];
+  document.querySelectorAll("body *").forEach(function (el) {
+    if (el.closest(".scroll") || el.closest("pre")) { return; }
+    var r = el.getBoundingClientRect();
+    if (r.right > width + 1 || r.left < -1) { wide.push(el.tagName.toLowerCase()); }
+  });
+  document.body.setAttribute("data-overflowing", wide.join(" "));
 });
 """
 
@@ -71,15 +81,51 @@ def _cell(value: Any) -> str:
         return "<td>–</td>"
     if isinstance(value, bool):
         return f"<td class='text'>{'yes' if value else 'no'}</td>"
-    if isinstance(value, (int, float)):
-        return f"<td>{value:.6g}</td>"
+    if isinstance(value, int):
+        return f"<td>{value}</td>"
+    if isinstance(value, float):  # four significant digits (the CSV files keep them all)
+        return f"<td>{_number(value)}</td>"
     return f"<td class='text'>{html.escape(str(value))}</td>"
 
 
+def _number(value: float) -> str:
+    """Four significant digits; powers of ten as ×10⁻⁵, never e-notation."""
+    text = f"{value:.4g}"
+    if "e" not in text:
+        return text
+    mantissa, exponent = text.split("e")
+    sup = str(int(exponent)).translate(str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹"))
+    return f"{mantissa}×10{sup}"
+
+
+_NAMES = {"L_over_r": "L/r", "L_over_r_trans": "(L/r)<sub>trans</sub>", "delta_L_over_r": "ΔL/r",
+          "delta_E_b": "ΔE<sub>b</sub>", "delta_E_c": "ΔE<sub>c</sub>", "sigma0": "σ<sub>0</sub>",
+          "Y_sec": "Y<sub>sec</sub>", "k": "k", "B": "B", "r": "r", "r_core": "r<sub>core</sub>",
+          "a_x0": "a<sub>x0</sub>", "a_y0": "a<sub>y0</sub>", "E_b_rest": "E<sub>b</sub> at rest",
+          "E_c_rest": "E<sub>c</sub> at rest", "thickness0": "thickness at rest",
+          "L_trans": "L<sub>trans</sub>", "L": "L"}  # fmt: skip
+_UNITS = {"mN/mm2": "mN/mm²", "mN mm2": "mN·mm²", "mN mm4": "mN·mm⁴"}
+
+
+def header(column: str) -> str:
+    """A column's header for readers (HTML): its name in the paper's symbols and its
+    unit in parentheses, e.g. 'Y<sub>sec</sub> (N/mm)' for ``Y_sec_N_per_mm``."""
+    from ..quantities import column_name, units_of_column
+
+    unit = units_of_column(column)
+    base = column
+    if unit != "1":
+        suffix = column_name("x", unit)[1:]
+        base = column[: -len(suffix)] if column.endswith(suffix) else column
+    name = _NAMES.get(base, html.escape(base.replace("_", " ")))
+    return name if unit == "1" else f"{name} ({html.escape(_UNITS.get(unit, unit))})"
+
+
 def table(frame: Any, columns: Sequence[str], table_id: str) -> str:
-    """An HTML table of ``frame``'s ``columns`` (those it has), ``id=table_id``."""
+    """An HTML table of ``frame``'s ``columns`` (those it has), ``id=table_id``;
+    headers with units (:func:`header`), numbers to four significant digits."""
     cols = [c for c in columns if c in frame.columns]
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    head = "".join(f"<th title='{html.escape(c)}'>{header(c)}</th>" for c in cols)
     rows = []
     for record in frame[cols].to_dict("records"):
         rows.append("<tr>" + "".join(_cell(_plain(record[c])) for c in cols) + "</tr>")
@@ -100,20 +146,24 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _figures(results: Results, options: FigureOptions) -> tuple[list[str], list[str]]:
-    """(<figure> blocks with inline PNGs, lines for the figures that were skipped)."""
-    from .figures import FIGURES, render_figure
+def _figures(
+    results: Results, options: FigureOptions, progress: Callable[[str], None] | None = None
+) -> tuple[list[str], list[str]]:
+    """(<figure> blocks with inline PNGs, lines for the figures that were skipped);
+    ``progress`` hears each figure as it is drawn."""
+    from .figures import CAPTIONS, FIGURES, render_figures
 
     blocks, skipped = [], []
-    for name, make in FIGURES.items():
-        outcome, files = render_figure(results.reduction, name, make, options)
+    for i, (name, outcome, files) in enumerate(render_figures(results.reduction, options)):
         png = files.get("png")
+        if progress is not None:
+            what = "drew" if png is not None else "skipped"
+            progress(f"[{i + 1}/{len(FIGURES)}] {what} {name}")
         if png is None:
             skipped.append(f"{html.escape(name)}: {html.escape(outcome.reason or '')}")
             continue
         data = base64.b64encode(png).decode()
-        doc = getattr(make, "__doc__", None) or getattr(getattr(make, "func", None), "__doc__", "")
-        caption = html.escape((doc or "").strip().split("\n\n")[0].replace("\n", " "))
+        caption = html.escape(CAPTIONS[name])
         notes = "".join(f" ({html.escape(n)})" for n in outcome.notes)
         blocks.append(f"<figure><img alt='{html.escape(name)}' src='data:image/png;base64,"
                       f"{data}'><figcaption><b>{html.escape(name)}</b>: {caption}{notes}"
@@ -121,19 +171,23 @@ def _figures(results: Results, options: FigureOptions) -> tuple[list[str], list[
     return blocks, skipped
 
 
-def report_html(results: Results, title: str | None = None) -> str:
-    """The page for ``results`` (from ``knitsweep.load``)."""
+def report_html(
+    results: Results, title: str | None = None, progress: Callable[[str], None] | None = None
+) -> str:
+    """The page for ``results`` (from ``knitsweep.load``); ``progress`` hears each
+    figure as it is drawn."""
     red = results.reduction
     title = title or f"knitsweep report: {red.job_name}"
 
-    blocks, skipped = _figures(results, FigureOptions(formats=("png",), style="knitsweep"))
+    options = FigureOptions(formats=("png",), style="knitsweep")
+    blocks, skipped = _figures(results, options, progress)
     roots = red.roots
     status = (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}</p>"
               if red.partial else "<p>All planned tasks are present; every run is complete.</p>")  # fmt: skip
     files = "".join(f"<li><code>{html.escape(str(p))}</code></li>" for p in results.paths)
     jobs = "".join(
         f"<h3>{html.escape(r.get('job_name', ''))} (<code>{html.escape(r['file'])}</code>)</h3>"
-        f"<pre>{html.escape(_pretty(r.get('job_json', '{}')))}</pre>"
+        f"<pre class='toml'>{html.escape(job_toml(r.get('job_json', '{}')))}</pre>"
         for r in roots
     )
     prov_rows = "".join(
@@ -177,17 +231,63 @@ def report_html(results: Results, title: str | None = None) -> str:
             f"<script>{_SCRIPT}</script></head>\n<body>\n{body}\n</body></html>\n")  # fmt: skip
 
 
-def _pretty(job_json: str) -> str:
+def job_toml(job_json: str) -> str:
+    """The job a file was run with, as a TOML job file (the effective spec, presets
+    expanded; ``knitsweep run`` reads it back)."""
     try:
-        return json.dumps(json.loads(job_json), indent=2, sort_keys=True)
+        spec = json.loads(job_json)
     except (TypeError, json.JSONDecodeError):
         return str(job_json)
+    if not isinstance(spec, dict):
+        return str(job_json)
+    return _toml_table(spec, ())
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v) if v == v and v not in (float("inf"), float("-inf")) else (
+            "nan" if v != v else ("inf" if v > 0 else "-inf"))  # fmt: skip
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()
+                                if x is not None) + " }"  # fmt: skip
+    return json.dumps(str(v), ensure_ascii=False)  # a TOML basic string
+
+
+def _toml_key(k: str) -> str:
+    return k if k.replace("_", "").replace("-", "").isalnum() else json.dumps(k)
+
+
+def _toml_table(d: dict, path: tuple[str, ...]) -> str:
+    scalars = [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d.items()
+               if v is not None and not (isinstance(v, dict) and v and not _inline(v))]  # fmt: skip
+    out = ([f"[{'.'.join(map(_toml_key, path))}]"] if path and scalars else []) + scalars
+    for k, v in d.items():
+        if isinstance(v, dict) and v and not _inline(v):
+            out += ["", _toml_table(v, (*path, k))]
+    return "\n".join(out).strip("\n") + ("\n" if not path else "")
+
+
+def _inline(v: dict) -> bool:
+    """A small table of scalars (e.g. an L range) is written inline."""
+    return path_free(v) and {"start", "stop", "step"} >= set(v)
+
+
+def path_free(v: dict) -> bool:
+    return all(not isinstance(x, dict) for x in v.values())
 
 
 def write_report(
-    paths: Sequence[str | Path], out: str | Path, threshold: float = GAP_THRESHOLD
+    paths: Sequence[str | Path],
+    out: str | Path,
+    threshold: float = GAP_THRESHOLD,
+    progress: Callable[[str], None] | None = None,
 ) -> Path:
-    """Read ``paths`` (``knitsweep.load``) and write the report page to ``out``.
+    """Read ``paths`` (``knitsweep.load``) and write the report page to ``out``;
+    ``progress`` hears when the files are read and each figure as it is drawn.
 
     Raises:
         InputError: an unreadable results file, or ``out`` not ending in .html.
@@ -197,7 +297,9 @@ def write_report(
         raise InputError(f"out = '{out}': the report is an .html file")
     check_writable(out, "--out")
     results = load(*paths, threshold=threshold)
-    return replace_file(out, report_html(results).encode("utf-8"))
+    if progress is not None:
+        progress(results.reduction.status_line)
+    return replace_file(out, report_html(results, progress=progress).encode("utf-8"))
 
 
 __all__ = ["report_html", "table", "write_report"]

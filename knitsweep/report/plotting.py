@@ -83,6 +83,11 @@ JOURNAL_RC = {
 """Sizes at journal widths: fonts of 7–8 pt at the printed size."""
 
 
+FILE_RC = {"pdf.fonttype": 42, "ps.fonttype": 42, "svg.fonttype": "none"}
+"""Fonts in the files, whatever the style: TrueType (Type 42) in PDF and PostScript,
+which journals accept (Type 3 they often refuse), and SVG text as text, editable."""
+
+
 @dataclass(frozen=True)
 class FigureOptions:
     """How the figures are drawn (``knitsweep phase-diagram --format/--width/--style``).
@@ -156,6 +161,7 @@ def style(options: FigureOptions | None = None) -> Iterator[None]:
                                      "(name, file or URL) nor 'knitsweep'") from None  # fmt: skip
             if options.width != "auto":
                 stack.enter_context(matplotlib.rc_context(JOURNAL_RC))
+            stack.enter_context(matplotlib.rc_context(FILE_RC))
             yield
     finally:
         _OPTIONS.reset(token)
@@ -184,8 +190,6 @@ def title(fig: Any, red: Reduction, text: str) -> None:
     """Figure title: what it shows and the fixed parameters; for a partial results
     file, a first line saying so, and the whole title in red. Without titles
     (``FigureOptions.title``) a partial file still gets its warning line."""
-    import textwrap
-
     options = current_options()
     fixed = series_label(red.constants, red.constants)
     lines = [text] + ([fixed] if fixed else []) if options.title else []
@@ -197,10 +201,71 @@ def title(fig: Any, red: Reduction, text: str) -> None:
 
     size = FontProperties(size=matplotlib.rcParams["figure.titlesize"]).get_size_in_points()
     chars = max(20, int(fig.get_figwidth() * 72.0 / (0.55 * size * 1.2)))
-    lines = [w for line in lines for w in textwrap.wrap(line, chars)]
+    lines = [
+        w
+        for i, line in enumerate(lines)
+        for w in _wrap(line, chars, i > 0 and fixed and line == fixed)
+    ]
     if lines:
         fig.suptitle("\n".join(lines), fontsize=size * 1.2,
                      color=PARTIAL_COLOUR if red.partial else "black")  # fmt: skip
+
+
+def panel_title(ax: Any, head: str, *details: str, **kw: Any) -> None:
+    """A panel's title: ``head`` and its details joined by '; ', or one per line at
+    column width, so that no quantity breaks and neighbouring titles do not meet."""
+    parts = [head, *(d for d in details if d)]
+    sep = "\n" if current_options().width == "column" else "; "
+    ax.set_title(sep.join(parts), **kw)
+
+
+def narrow() -> bool:
+    """True at column width (panels of 1.5–3 in)."""
+    return current_options().width == "column"
+
+
+def sci(value: float, digits: int = 3) -> str:
+    """A number for a title or note: plain when 1e-3 <= |v| < 1e4, else mathtext
+    ``1.23\times10^{-4}`` (no e-notation)."""
+    if value == 0.0 or 1e-3 <= abs(value) < 1e4:
+        return f"{value:.{digits}g}"
+    mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
+    return rf"${mantissa}\times10^{{{int(exponent)}}}$"
+
+
+def finish(fig: Any) -> Any:
+    """Last touches of every figure before it is saved: at column width, at most 3-5
+    major ticks on linear axes (crowded tick labels otherwise meet)."""
+    from matplotlib.ticker import AutoLocator, MaxNLocator
+
+    if narrow():
+        for ax in fig.axes:
+            for axis, n in ((ax.xaxis, 3), (ax.yaxis, 5)):
+                if type(axis.get_major_locator()) is AutoLocator:
+                    axis.set_major_locator(MaxNLocator(nbins=n, steps=[1, 2, 5, 10]))
+    return fig
+
+
+def _wrap(text: str, chars: int, parameters: bool = False) -> list[str]:
+    """``text`` in lines of about ``chars`` visible characters, broken only between
+    words, never inside a $math$ span nor (``parameters``: a 'k = 0.1 mN/mm², B = …'
+    list) inside one 'symbol = value unit'."""
+    import re
+
+    atoms = ([a + "," for a in text.split(", ")[:-1]] + [text.split(", ")[-1]] if parameters
+             else re.findall(r"\S*\$[^$]*\$\S*|\S+", text))  # fmt: skip
+
+    def visible(a: str) -> int:
+        return len(re.sub(r"\\[a-z]+|[{}_^$]", "", a))
+
+    lines, line = [], ""
+    for a in atoms:
+        if line and visible(line) + 1 + visible(a) > chars:
+            lines.append(line)
+            line = a
+        else:
+            line = f"{line} {a}" if line else a
+    return [*lines, line] if line else lines
 
 
 def series_keys(red: Reduction, direction: str | None = None) -> list[tuple[float, ...]]:

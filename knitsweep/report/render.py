@@ -347,13 +347,15 @@ def stitch_from_results(results: str | Path, task: str, step: int | None = None)
     what = f"L = {params.L_mm:g} mm, k = {params.k_mN_per_mm2:g} mN/mm², B = {params.B_mN_mm2:g} mN·mm²"
     if e.kind == POINTS:
         if step not in (None, 0):
-            raise InputError(f"step = {step}: a point has only its zero-force state (step 0)")
+            raise InputError(
+                f"strain_step = {step}: a point has only its zero-force state (step 0)"
+            )
         x = np.asarray(rec["x"][int(meta.get("winner", 0))], dtype=float)
         return stitch_from_state(x, params, f"zero-force stitch, {what}")
     step = 0 if step is None else step
     n = len(rec.get("strain", []))
     if not 0 <= step < n:
-        raise InputError(f"step = {step}: sweep {e.task_id} has steps 0..{n - 1}")
+        raise InputError(f"strain_step = {step}: sweep {e.task_id} has steps 0..{n - 1}")
     label = (f"pulled in {meta['direction']}, step {step} (strain {rec['strain'][step]:.3f}), "
              f"{what}")  # fmt: skip
     if "control_points" in rec:
@@ -411,7 +413,7 @@ def render(
     if side not in SIDES:
         raise InputError(f"side = {side!r}: must be one of {', '.join(SIDES)}")
     if not 100 <= width_px <= 6000:
-        raise InputError(f"width = {width_px}: must be in 100..6000 pixels")
+        raise InputError(f"pixels = {width_px}: must be in 100..6000")
     if (results is None) == (state is None):
         raise InputError("give either --results FILE --task ID, or --state FILE")
     check_writable(out, "--out")  # before any compute, as in every command
@@ -423,7 +425,7 @@ def render(
         from ..formats import read_state
 
         if step is not None:
-            raise InputError("--step applies to a sweep of a results file, not to --state")
+            raise InputError("--strain-step applies to a sweep of a results file, not to --state")
         params = params or StitchParams()
         x = read_state(state, params.stitch)
         stitch = stitch_from_state(x, params, f"state {Path(state).name}")

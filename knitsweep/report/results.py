@@ -13,7 +13,9 @@ plus ``L_over_r``), quantities with a unit suffix (``Y_sec_N_per_mm``,
     >>> res = knitsweep.load("demo.h5")
     >>> res.sweeps[["direction", "L_mm", "Y_sec_N_per_mm", "delta_E_c_mJ"]]
     >>> res.curves.query("direction == 'x'").groupby("L_mm").plot(x="strain", y="stress_N_per_mm")
-    >>> ds = res.to_xarray()    # stress (sweep, step) with units and long_name
+    >>> ds = res.to_xarray()    # over (direction, L_mm, …, step); strain a coordinate
+    >>> ds.stress_N_per_mm.sel(direction="x").plot.line(x="strain", hue="L_mm")
+    >>> res.select(L_mm=11.0, direction="x").curves
 """
 
 from __future__ import annotations
@@ -26,13 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..analysis.transitions import GAP_THRESHOLD
-from ..quantities import (
-    COLUMN_QUANTITY,
-    PARAMETERS,
-    STEP_QUANTITIES,
-    table_column,
-    units_of_column,
-)
+from ..quantities import PARAMETERS, SERIES_PARAMS, STEP_QUANTITIES, table_column
 from ..store.format import SWEEPS
 from .reduce import Reduction, reduce_results
 
@@ -67,8 +63,9 @@ class Results:
         threshold: the energy-gap threshold used, mJ.
     """
 
-    def __init__(self, reduction: Reduction) -> None:
+    def __init__(self, reduction: Reduction, where: dict[str, Any] | None = None) -> None:
         self.reduction = reduction
+        self.where = dict(where or {})
         self.paths = reduction.paths
         self.threshold = reduction.threshold
 
@@ -87,26 +84,40 @@ class Results:
     def points(self) -> pd.DataFrame:
         """One row per point: its zero-force state (periods, aspect ratio, energies,
         thickness), status, regime and, if stored, contact forces by class."""
-        return _frame(self.reduction.points, ("task_id", "status", *PARAMETER_COLUMNS),
-                      self._file_of)  # fmt: skip
+        return _tidy(_frame(self.reduction.points, ("task_id", "status", *PARAMETER_COLUMNS),
+                            self._file_of), self.where)  # fmt: skip
 
     @cached_property
     def sweeps(self) -> pd.DataFrame:
         """One row per analysed sweep: Y_sec, σ0, the energy gaps, strains, regime."""
         first = ("task_id", "point_id", "direction", "status", *PARAMETER_COLUMNS)
-        return _frame(self.reduction.sweeps, first, self._file_of)
+        return _tidy(_frame(self.reduction.sweeps, first, self._file_of), self.where)
 
     @cached_property
     def transitions(self) -> pd.DataFrame:
         """One row per series (parameters but L, and direction): (L/r)_trans, its
-        bracket, the jammed-regime fit and ΔL/r."""
-        return _frame(self.reduction.transitions, ("direction",))
+        bracket, the jammed-regime fit and ΔL/r; ``file``: the file(s) its sweeps
+        were read from (comma-separated)."""
+        files: dict[tuple, set[str]] = {}
+        for r in self.reduction.sweeps:
+            key = (r["direction"], *(r[p] for p in SERIES_PARAMS))
+            files.setdefault(key, set()).add(self._file_of.get(r["task_id"], ""))
+        rows = [{**t, "file": ", ".join(sorted(files.get(
+            (t["direction"], *(t[p] for p in SERIES_PARAMS)), ())))}
+            for t in self.reduction.transitions]  # fmt: skip
+        return _tidy(_frame(rows, ("direction", *SERIES_PARAMS)), self.where)
 
     @cached_property
     def problems(self) -> pd.DataFrame:
-        """One row per task that failed, cannot be knitted or cannot be analysed."""
-        return _frame(self.reduction.problems, ("kind", "task_id", "status", "direction"),
-                      self._file_of)  # fmt: skip
+        """One row per task that failed, cannot be knitted or cannot be analysed, with
+        its parameters and the file it was read from."""
+        import pandas as pd
+
+        first = ("kind", "task_id", "status", "direction", *PARAMETER_COLUMNS, "message")
+        df = _frame(self.reduction.problems, first, self._file_of)
+        if "file" not in df.columns:
+            df["file"] = pd.Series(dtype=object)
+        return _tidy(df, self.where)
 
     @cached_property
     def _file_of(self) -> dict[str, str]:
@@ -141,70 +152,73 @@ class Results:
             parts.append(pd.DataFrame(cols))
         if not parts:
             return pd.DataFrame(columns=["task_id", "direction", *PARAMETER_COLUMNS, "step"])
-        return pd.concat(parts, ignore_index=True)
+        return _tidy(pd.concat(parts, ignore_index=True), self.where)
 
     def to_xarray(self) -> xr.Dataset:
-        """An ``xarray.Dataset``: per-step quantities over (``sweep``, ``step``)
-        (shorter sweeps padded with NaN), sweep metrics over ``sweep``, point
-        quantities over ``point``, with the parameters as coordinates; every
-        variable carries ``units`` and ``long_name``. Needs the optional ``xarray``
-        (``pip install 'knitsweep[xarray]'``)."""
+        """One tidy ``xarray.Dataset`` over the grid's own dimensions (``direction``,
+        ``L_mm`` and the parameters that vary, ``step``; ``strain`` a coordinate),
+        with the sweep metrics, point quantities and transitions; CF ``Conventions``,
+        ``units`` and ``long_name`` on every variable; the layout and fill values are
+        in :mod:`knitsweep.report.tidy`. Needs the optional ``xarray``
+        (``pip install 'knitsweep[xarray]'``).
+
+            >>> ds = knitsweep.load("demo.h5").to_xarray()
+            >>> ds.stress_N_per_mm.sel(direction="x").plot.line(x="strain", hue="L_mm")
+        """
         try:
-            import xarray as xr
+            import xarray  # noqa: F401
         except ImportError:
             raise ImportError(
                 "Results.to_xarray() needs xarray: pip install 'knitsweep[xarray]'"
             ) from None
+        from .tidy import to_dataset
 
-        curves, sweeps, points = self.curves, self.sweeps, self.points
-        ids = list(sweeps["task_id"]) if len(sweeps) else []
-        n_step = int(curves["step"].max()) + 1 if len(curves) else 0
-        index = {tid: i for i, tid in enumerate(ids)}
-        data_vars: dict[str, Any] = {}
-        for name, q in STEP_QUANTITIES.items():
-            if q.column not in curves.columns:
-                continue
-            grid = np.full((len(ids), n_step), np.nan)
-            rows = curves["task_id"].map(index).to_numpy()
-            grid[rows, curves["step"].to_numpy()] = curves[q.column].to_numpy(dtype=float)
-            data_vars[name] = (
-                ("sweep", "step"),
-                grid,
-                {"units": q.units, "long_name": q.long_name},
-            )
-        for column in _numeric(sweeps):
-            data_vars[column] = ("sweep", sweeps[column].to_numpy(), _attrs(column))
-        for column in _numeric(points):
-            data_vars[f"point_{column}"] = ("point", points[column].to_numpy(), _attrs(column))
-        coords: dict[str, Any] = {"sweep": ids, "step": np.arange(n_step),
-                                  "point": list(points["task_id"]) if len(points) else []}  # fmt: skip
-        for column in ("direction", "point_id", "file", *PARAMETER_COLUMNS):
-            if column in sweeps.columns:
-                coords[column] = ("sweep", sweeps[column].to_numpy(), _attrs(column))
-            if column in PARAMETER_COLUMNS and column in points.columns:
-                coords[f"point_{column}"] = ("point", points[column].to_numpy(), _attrs(column))
-        ds = xr.Dataset(data_vars, coords=coords)
-        ds["step"].attrs = {"units": "1", "long_name": "strain step (0: the zero-force state)"}
-        ds["sweep"].attrs = {"units": "1", "long_name": "task id of the sweep"}
-        ds["point"].attrs = {"units": "1", "long_name": "task id of the point"}
-        ds.attrs = {"files": ", ".join(map(str, self.paths)), "gap_threshold_mJ": self.threshold,
-                    "partial": int(self.partial)}  # fmt: skip
-        return ds
+        return to_dataset(self)
+
+    def select(self, **where: Any) -> Results:
+        """The same tables with only the rows whose columns match: a value (floats
+        compared to 1e-9 relative), or a list of values. Columns a table lacks do not
+        filter it (``select(direction="x")`` keeps every point).
+
+            >>> res.select(L_mm=11.0, direction="x").curves
+            >>> res.select(k_mN_per_mm2=[0.1, 1.0]).to_xarray()
+
+        Raises:
+            KeyError: a name that is no column of any table.
+        """
+        known = set().union(*(getattr(self, t).columns for t in TABLE_NAMES))
+        unknown = sorted(set(where) - known)
+        if unknown:
+            raise KeyError(f"select: no column {', '.join(unknown)} (columns: "
+                           f"{', '.join(sorted(known))})")  # fmt: skip
+        return Results(self.reduction, {**self.where, **where})
 
 
-def _numeric(df: pd.DataFrame) -> list[str]:
-    """Numeric and boolean columns that are not parameters (those become coordinates)."""
-    import pandas as pd
-
-    return [c for c in df.columns if c not in PARAMETER_COLUMNS
-            and (pd.api.types.is_numeric_dtype(df[c]) or pd.api.types.is_bool_dtype(df[c]))]  # fmt: skip
+TABLE_NAMES = ("points", "sweeps", "curves", "transitions", "problems")
+SORT_ORDER = ("direction", *(p for p in PARAMETER_COLUMNS if p not in ("L_mm", "L_over_r")),
+              "L_mm", "step")  # fmt: skip
+"""Every table's rows in this order: direction, the series parameters, L, step."""
 
 
-def _attrs(column: str) -> dict[str, str]:
-    q = COLUMN_QUANTITY.get(column)
-    if q is not None:
-        return {"units": q.units, "long_name": q.long_name}
-    return {"units": units_of_column(column), "long_name": column.replace("_", " ")}
+def _tidy(df: pd.DataFrame, where: dict[str, Any]) -> pd.DataFrame:
+    """``df`` filtered by ``where`` (see ``Results.select``) and sorted by SORT_ORDER."""
+    for column, want in where.items():
+        if column not in df.columns:
+            continue
+        values = list(want) if isinstance(want, (list, tuple, set, np.ndarray)) else [want]
+        col = df[column]
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            x = col.to_numpy(dtype=float)
+            keep = np.zeros(len(df), dtype=bool)
+            for v in values:
+                keep |= np.isclose(x, float(v), rtol=1e-9, atol=0.0)
+        else:
+            keep = col.isin(values).to_numpy()
+        df = df[keep]
+    by = [c for c in SORT_ORDER if c in df.columns]
+    if by and not df.empty:
+        df = df.sort_values(by, kind="stable")
+    return df.reset_index(drop=True)
 
 
 def load(*paths: str | Path, threshold: float = GAP_THRESHOLD) -> Results:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,9 +47,12 @@ def write_csv(path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequence[s
     return replace_file(path, f.getvalue().encode())  # never through a symbolic link
 
 
-def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
+def write_tables(
+    results: Results, out_dir: str | Path, written_one: Callable[[Path], None] | None = None
+) -> list[Path]:
     """Write transitions.csv, sweeps.csv, points.csv and problems.csv into ``out_dir``:
-    the DataFrames of ``knitsweep.load`` (same columns, same order) plus ``partial``.
+    the DataFrames of ``knitsweep.load`` (same columns, same order) plus ``partial``;
+    ``written_one`` hears each path as soon as it is written.
 
     Returns:
         The paths written, in the order of :data:`TABLES`.
@@ -61,6 +64,8 @@ def write_tables(results: Results, out_dir: str | Path) -> list[Path]:
         rows = [{k: _missing(v) for k, v in row.items()} for row in frame.to_dict("records")]
         rows = [{**r, "partial": results.partial} for r in rows]
         written.append(write_csv(out / name, rows, [*frame.columns, "partial"]))
+        if written_one is not None:
+            written_one(written[-1])
     return written
 
 
@@ -95,11 +100,11 @@ TRANSITION_SUMMARY = (
     SummaryColumn("status", ("status",)),
     SummaryColumn("(L/r)_trans", ("L_over_r_trans",), ".3f"),
     SummaryColumn("bracket", ("bracket_lower", "bracket_upper"), ".3f"),
-    SummaryColumn("L_trans/mm", ("L_trans_mm",), ".3f"),
+    SummaryColumn("L_trans (mm)", ("L_trans_mm",), ".3f"),
     SummaryColumn("ΔL/r", ("delta_L_over_r",), ".3f"),
-    SummaryColumn("fit slope/mm", ("fit_slope_mJ_per_mm",), ".3e"),
-    SummaryColumn("fit intercept", ("fit_intercept_mJ",), ".3e"),
-    SummaryColumn("fit L/mm", ("fit_L_lo_mm", "fit_L_hi_mm"), ".2f"),
+    SummaryColumn("fit slope (mJ/mm)", ("fit_slope_mJ_per_mm",), ".3e"),
+    SummaryColumn("fit intercept (mJ)", ("fit_intercept_mJ",), ".3e"),
+    SummaryColumn("fit L (mm)", ("fit_L_lo_mm", "fit_L_hi_mm"), ".2f"),
     SummaryColumn("n_jam", ("n_jammed",)),
     SummaryColumn("missing", ("n_missing",)),
 )

@@ -46,6 +46,9 @@ COMMIT_AGE_S = 0.2
 """A result waits at most about this long for its batch's commit while replies keep
 arriving (the master commits at once when it has nothing else to do)."""
 
+EXIT_TASKS_FAILED = 4
+"""Exit code of a run that finished but whose file holds failed tasks (README)."""
+
 
 @dataclass
 class RunSummary:
@@ -57,10 +60,15 @@ class RunSummary:
     seconds: float = 0.0
     failures: list[str] = field(default_factory=list)
     storage_error: str = ""
+    compile_seconds: float = 0.0  # compiling the kernels before the run (a cold install)
 
     @property
     def exit_code(self) -> int:
-        return EXIT_INTERRUPTED if self.interrupted else 0
+        """3 if interrupted, 4 if any task of the file failed (this run's or an earlier
+        one's not retried), else 0; a not-knittable point is a result, not a failure."""
+        if self.interrupted:
+            return EXIT_INTERRUPTED
+        return EXIT_TASKS_FAILED if self.counts.get(FAILED, 0) else 0
 
 
 def parse_shard(text: str | None) -> tuple[int, int] | None:
@@ -396,6 +404,8 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
             with contextlib.suppress(OSError):
                 progress_path(out).unlink(missing_ok=True)
             summary.seconds = time.monotonic() - t0
+            # the executor compiled the kernels with its first task, inside the run
+            summary.compile_seconds = float(getattr(executor, "compile_seconds", 0.0))
     written = sum(summary.counts.values())
     if failure is not None:
         summary.interrupted = True

@@ -47,14 +47,15 @@ def run(
     retry_failed: bool = False,
     show_progress: bool = True,
     max_tasks: int | None = None,
+    relabel: bool = False,
 ):
     """Run a job file; returns the ``RunSummary`` (None on MPI worker ranks).
 
     Everything that can be refused is checked before any compute: the job, the
-    shard, the grid size against ``max_tasks`` (default ``LARGE_GRID_TASKS``) and
-    whether ``out`` can be written. Under MPI, rank 0 does that and the workers
-    wait for the job; if rank 0 refuses it (or a signal comes first), they are
-    released instead of left waiting."""
+    shard, the grid size against ``max_tasks`` (default ``LARGE_GRID_TASKS``),
+    whether ``out`` can be written and, for an existing ``out``, that it was made by
+    a job of this name and description (``relabel=True``: take it over and give it
+    this job's; see ``check_label``)."""
     from .executors import launch, mpi_worker_loop, open_executor, release_workers
     from .master import run_job
 
@@ -67,7 +68,7 @@ def run(
         return None
     try:
         with signals.interruptible():  # raises at once for a signal during MPI_Init
-            job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks)
+            job, shard_t, out = _prepare_run(job_path, out, shard, max_tasks, relabel)
             ex = open_executor(job, executor, workers, comm)  # compiles; hands the job out
     except BaseException as e:  # there is no job: the workers leave (exit 3 on a signal)
         if comm is not None:
@@ -78,7 +79,7 @@ def run(
                    show_progress=show_progress)  # fmt: skip
 
 
-def _prepare_run(job_path, out, shard, max_tasks):
+def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
     """(job, shard, out) after every check that needs no compute."""
     from .master import parse_shard
 
@@ -87,7 +88,32 @@ def _prepare_run(job_path, out, shard, max_tasks):
     out = Path(out) if out is not None else default_output(job, shard_t)
     check_grid_size(job, max_tasks)
     check_output(out)
+    check_label(job, out, relabel)
     return job, shard_t, out
+
+
+def check_label(job: JobSpec, out: Path, relabel: bool = False) -> None:
+    """Refuse to run ``job`` into an existing results file made by a job of another
+    ``name`` or ``description`` unless ``relabel``: a mistyped ``--out`` must not
+    mix two studies and rename the file. A grown grid of the same job passes (its
+    other settings are checked by the writer, ``check_compatible``)."""
+    import json
+
+    if not out.exists():
+        return
+    root = read_root(out)
+    try:
+        theirs = json.loads(str(root.get("job_json", "{}")))
+    except ValueError:
+        return  # the writer names the file as unreadable
+    for field, mine in (("name", job.name), ("description", job.description)):
+        other = theirs.get(field, "") if isinstance(theirs, dict) else ""
+        if other != mine and not relabel:
+            raise InputError(
+                f"{field} = {mine!r}: {out} holds results of a job with {field} {other!r}; "
+                "add --relabel to write into it under this job's name and description, or "
+                "choose another --out"
+            )
 
 
 def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:

@@ -57,22 +57,30 @@ def wall_time_budget(seconds: float):
         signal.signal(signal.SIGALRM, previous)
 
 
-def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> None:
+def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
     """Compile (or load from numba's cache) the kernels this job's tasks use;
     ``notice`` hears first if that means compiling (see ``compile_kernels``), or
     waiting for another process that compiles them (``compile_lock``). The lock
     is only taken while the cache lacks the kernels: ranks that find them cached
-    load them side by side."""
+    load them side by side. Returns the seconds spent compiling (0.0 when every
+    kernel was cached)."""
     from .. import kernels
     from ..model import compile_kernels
 
+    compiled = []
+
+    def heard(message: str) -> None:
+        compiled.append(message)
+        if notice is not None:
+            notice(message)
+
+    t0 = time.perf_counter()
     if not kernels.cached():
         with compile_lock(notice):
             if not kernels.cached():  # nobody compiled them while this one waited
-                compile_kernels(job.fidelity, notice, (job.stitch,))
-    compile_kernels(
-        job.fidelity, notice, (job.stitch,)
-    )  # loads them (at once if compiled just now)
+                compile_kernels(job.fidelity, heard, (job.stitch,))
+    compile_kernels(job.fidelity, heard, (job.stitch,))  # loads them (at once if just compiled)
+    return time.perf_counter() - t0 if compiled else 0.0
 
 
 @contextlib.contextmanager

@@ -254,6 +254,10 @@ class ResultWriter:
                 self._root_updates |= {"job_json": self.job.model_dump_json(),
                                        "job_hash": self.job.job_hash, "job_name": self.job.name,
                                        "grown_from": grown}  # fmt: skip
+            elif str(root.get("job_json", "")) != self.job.model_dump_json():
+                # same results, new label or run settings (the caller allowed a relabel)
+                self._root_updates |= {"job_json": self.job.model_dump_json(),
+                                       "job_name": self.job.name}  # fmt: skip
         for stale in (  # only now: a damaged file was refused with its spare kept
             self._shadow,
             self._spare,

@@ -6,11 +6,17 @@ start of the point is carried along as its own chain (``chains``: each with its 
 solver state, merged when two reach the same minimum); at each step the
 lowest-energy chain wins. The sweep stops by the reference's rule (after step i >= 2,
 (E_{i-2} - E_i)/(a_{i-2} - a_i)/a_perp0 beyond the stop stress, or |strain| beyond the
-largest), or as soon as the observables its protocol asks for are determined.
+largest), or as soon as the observables its protocol asks for are determined. A step
+that would end the sweep more than 10 % above its stop stress (``STOP_OVERSHOOT``: the
+large steps of a stiff jammed curve) is taken again at half its length, down to the
+small step, so a curve ends where it was asked to; the stress that decides is the
+envelope stress, exact at each step (the length multiplier), since the reference's
+rule lags a step behind.
 """
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from collections.abc import Callable
@@ -32,6 +38,12 @@ from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
 from ..zero_force import ZeroForce, pick_lowest, zero_force
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
+
+STOP_OVERSHOOT = 1.1
+"""A sweep ends at most this factor above its stop stress (unless at the small step)."""
+STOP_WATCH = 0.5
+"""From this fraction of the stop stress on (envelope stress), each step can be taken
+again shorter."""
 
 
 def strain_sweep(
@@ -78,7 +90,13 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
     control = StepControl(protocol, direction, a0, sign)
     a_next = control.first()
     status, stopped_by, reason, n_relax, n_eval = "done", "", "", 0, 0
+    stop = protocol.stop_stress_N_per_mm
+    sigma_last = 0.0
     while True:
+        # near the stop stress, keep what a step changes, to take it again shorter if it
+        # overshoots (far from it nothing is kept: those sweeps are as they always were)
+        saved = (copy.deepcopy(chains), merged_into.copy(), merged_at.copy()
+                 ) if sigma_last > STOP_WATCH * stop else None  # fmt: skip
         for c in chains:
             x = c.x.copy()
             x[idx] = a_next
@@ -105,6 +123,17 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
         strain = strains[-1]
         e = [b + c for b, c in zip(eb[-3:], ec[-3:], strict=True)]
         sigma_ref = (e[0] - e[-1]) / (a_values[-3] - a_values[-1]) / a_perp0 if i >= 2 else 0.0
+        h = abs(a_values[-1] - a_values[-2])
+        if (saved is not None and i >= 3 and sign * envelope[-1] > STOP_OVERSHOOT * stop
+                and h > protocol.step_mm * (1.0 + 1e-9)
+                and observables_determined(protocol, strains, eb, ec) is None):  # fmt: skip
+            # past the stop stress by more than 10 %: take the step again, half as long
+            for values in (steps, winners, a_values, strains, envelope, eb, ec):
+                values.pop()
+            chains, merged_into[:], merged_at[:] = saved[0], saved[1], saved[2]
+            a_next = a_values[-1] + sign * max(h / 2.0, protocol.step_mm)
+            continue
+        sigma_last = sign * envelope[-1]
         if progress is not None:
             progress(i, strain, sigma_ref)
         chains = merge_chains(chains, model, direction, protocol.merge_tolerance_mJ, i,

@@ -39,7 +39,7 @@ class SerialExecutor:
     def submit(self, task, zero: dict | None) -> None:
         if not self._prepared:  # the first task: compile (or load) the kernels
             with signals.interruptible():
-                prepare(self.job, stderr_notice)
+                self.compile_seconds = prepare(self.job, stderr_notice)
             self._prepared = True
         self._queue.append((task, zero))
 
@@ -98,7 +98,7 @@ class ProcessExecutor:
     def _start(self) -> None:
         with signals.interruptible():  # compile once here; the workers load numba's cache
             if not kernels_cached():
-                prepare(self.job, stderr_notice)
+                self.compile_seconds = prepare(self.job, stderr_notice)
         with signals.deferred():  # a pool is not left half-started
             ctx = multiprocessing.get_context("spawn")
             self._pool = ctx.Pool(self._workers, initializer=_process_worker_init,

@@ -114,7 +114,7 @@ class MPIExecutor:
         with signals.interruptible():  # compile once, into numba's cache, before the workers
             signals.test_point("compile")
             if not kernels_cached():  # (cached: the workers load them, all at once)
-                prepare(self.job, stderr_notice)
+                self.compile_seconds = prepare(self.job, stderr_notice)
             signals.test_point("broadcast")
         with signals.deferred():
             for rank in self._outstanding:

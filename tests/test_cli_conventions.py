@@ -1,0 +1,89 @@
+"""The command line's conventions: --version, -h on every command, every option
+described, defaults shown one way, units in one notation, and a name that means one
+thing in every command."""
+
+import os
+import re
+import subprocess
+import sys
+
+import pytest
+import typer
+
+from knitsweep import __version__
+from knitsweep.cli.common import build_app
+
+# the output, a state file and local workers: one meaning, worded for each command
+WORDED_PER_COMMAND = {"--out", "--state", "--workers"}
+OLD_UNIT_NOTATIONS = ("mm^", "mN mm", "mN/mm^", ", mm", ", mJ", ", N/mm", "degrees")
+
+
+def _commands():
+    """(command path, click command) for every command of the app."""
+    out = []
+
+    def walk(cmd, path):
+        if hasattr(cmd, "commands"):
+            for name, sub in cmd.commands.items():
+                walk(sub, (*path, name))
+        else:
+            out.append((" ".join(path), cmd))
+
+    walk(typer.main.get_command(build_app()), ())
+    return out
+
+
+def _options():
+    return [(path, p) for path, cmd in _commands() for p in cmd.params
+            if p.param_type_name == "option"]  # fmt: skip
+
+
+def knitsweep(*args):
+    env = {**os.environ, "COLUMNS": "200"}
+    return subprocess.run([sys.executable, "-m", "knitsweep", *args], capture_output=True,
+                          text=True, timeout=120, env=env)  # fmt: skip
+
+
+def test_version():
+    for flag in ("--version", "-V"):
+        out = knitsweep(flag)
+        assert out.returncode == 0 and out.stdout.strip() == f"knitsweep {__version__}"
+
+
+@pytest.mark.parametrize("command", [path for path, _ in _commands()])
+def test_dash_h_is_help_on_every_command(command):
+    out = knitsweep(*command.split(), "-h")
+    assert out.returncode == 0, out.stderr
+    assert "Usage: knitsweep" in out.stdout and "--help" in out.stdout
+
+
+def test_every_option_is_described_with_one_notation():
+    for path, p in _options():
+        name = f"{path} {p.opts[0]}"
+        assert p.help and p.help.strip(), f"{name}: no description"
+        text = p.help.replace("\\[default: ", "")
+        assert "[" not in text, f"{name}: a default or note in brackets outside [default: …]"
+        for old in OLD_UNIT_NOTATIONS:
+            assert old not in p.help, f"{name}: unit written as {old!r}"
+        if p.default is None and p.show_default is not False:
+            assert p.is_flag or p.required or p.opts[0] in {"--results", "--task", "--config",
+                   "--shard", "--max-tasks", "--nodes", "--ntasks", "--time", "--partition",
+                   "--launcher", "--venv", "--modules", "--shards", "--cpus-per-task",
+                   "--script", "--by", "--state"} or "\\[default:" in p.help, name  # fmt: skip
+
+
+def test_a_name_means_one_thing_everywhere():
+    helps: dict[str, set[str]] = {}
+    for _, p in _options():
+        for opt in p.opts:
+            helps.setdefault(opt, set()).add(p.help)
+    differing = {o: h for o, h in helps.items() if len(h) > 1 and o not in WORDED_PER_COMMAND}
+    assert not differing
+
+
+def test_help_shows_defaults_one_way():
+    out = knitsweep("sweep", "-h")
+    text = re.sub(r"\s+", " ", out.stdout.replace("│", " "))
+    assert "yarn length per stitch L (mm) [default: 11.6]" in text
+    assert "[default: 0]" in text  # a real default, as typer shows it
+    assert "[default: curve, with any preset]" in text

@@ -1,0 +1,121 @@
+"""Figures that fit: every figure at ``--width column`` and ``page``, drawn with the Agg
+renderer, has no text overlapping other text and none past the figure's edge (boxes
+from ``get_window_extent`` of every text artist drawn), fonts of at least 7 pt; its PDF
+embeds TrueType fonts only (``pdffonts`` of poppler-utils, a real PDF tool) and its
+SVG keeps text as text."""
+
+import io
+import shutil
+import subprocess
+from itertools import combinations
+
+import pytest
+from results_factory import write_results
+
+from knitsweep.report import load
+from knitsweep.report.figures import FIGURES
+from knitsweep.report.plotting import FigureOptions, SkipFigure, finish, style
+
+WIDTHS = ("column", "page")
+EDGE_PX = 1.0  # a box may touch the edge by a pixel (anti-aliasing)
+OVERLAP_PX2 = 4.0  # two boxes may share a sliver of two by two pixels
+
+
+@pytest.fixture(scope="module")
+def reduction(tmp_path_factory):
+    return load(write_results(tmp_path_factory.mktemp("lay") / "synthetic.h5")).reduction
+
+
+def drawn_texts(fig):
+    """[(text artist, its box in display pixels)] of every non-empty text the Agg
+    renderer draws (tick labels past the axis limits are not drawn, so not counted)."""
+    from matplotlib.text import Text
+
+    drawn = []
+    real = Text.draw
+
+    def record(self, renderer):
+        real(self, renderer)
+        if self.get_visible() and self.get_text().strip():
+            drawn.append((self, self.get_window_extent(renderer)))
+
+    Text.draw = record
+    try:
+        fig.canvas.draw()
+    finally:
+        Text.draw = real
+    return drawn
+
+
+def layout_problems(fig) -> list[str]:
+    """Texts past the figure's edge, overlapping pairs, fonts under 7 pt."""
+    texts = drawn_texts(fig)
+    W, H = fig.bbox.width, fig.bbox.height
+    out = []
+    for t, b in texts:
+        label = repr(t.get_text()[:40])
+        if b.x0 < -EDGE_PX or b.y0 < -EDGE_PX or b.x1 > W + EDGE_PX or b.y1 > H + EDGE_PX:
+            out.append(f"{label} past the edge: {b.bounds} in {W:.0f} x {H:.0f}")
+        if any(line.replace("\\$", "").count("$") % 2 for line in t.get_text().split("\n")):
+            out.append(f"{label}: a line breaks a $math$ span (its source would show)")
+        if t.get_fontsize() < 7.0 - 1e-9:
+            out.append(f"{label}: {t.get_fontsize():.1f} pt")
+    for (t1, b1), (t2, b2) in combinations(texts, 2):
+        w = min(b1.x1, b2.x1) - max(b1.x0, b2.x0)
+        h = min(b1.y1, b2.y1) - max(b1.y0, b2.y0)
+        if w > 0 and h > 0 and w * h > OVERLAP_PX2:
+            out.append(f"{t1.get_text()[:30]!r} overlaps {t2.get_text()[:30]!r}")
+    for legend in [*fig.legends, *(a.get_legend() for a in fig.axes if a.get_legend())]:
+        b = legend.get_window_extent(fig.canvas.get_renderer())
+        if b.x0 < -EDGE_PX or b.y0 < -EDGE_PX or b.x1 > W + EDGE_PX or b.y1 > H + EDGE_PX:
+            out.append(f"legend clipped: {b.bounds} in {W:.0f} x {H:.0f}")
+    return out
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+@pytest.mark.parametrize("name", list(FIGURES))
+def test_figures_fit_their_width(reduction, name, width):
+    with style(FigureOptions(width=width, style="knitsweep")):
+        try:
+            fig = finish(FIGURES[name](reduction, []))
+        except SkipFigure:
+            pytest.fail(f"{name}: the synthetic file has data for every figure")
+        expected = {"column": 3.4, "page": 7.0}[width]
+        assert fig.get_figwidth() in (expected, 7.0), fig.get_figwidth()  # wide ones: a page
+        problems = layout_problems(fig)
+    assert not problems, "\n".join(problems)
+
+
+def test_the_overlap_check_finds_overlaps():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(2, 2))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.set_title("a title far too long for a figure two inches wide")
+    ax.text(0.5, 0.5, "one")
+    ax.text(0.5, 0.5, "two")
+    ax.set_xlabel("onset $(L/r)_{\\rm\ntrans}$")
+    problems = layout_problems(fig)
+    assert any("breaks a $math$ span" in p for p in problems)
+    assert any("past the edge" in p for p in problems)
+    assert any("'one' overlaps 'two'" in p for p in problems)
+
+
+def test_pdf_fonts_are_truetype_and_svg_text_is_text(reduction, tmp_path):
+    pdffonts = shutil.which("pdffonts")
+    assert pdffonts, "pdffonts (poppler-utils) is missing: bash .ci/browser-up.sh installs it"
+    with style(FigureOptions(width="column", style="knitsweep")):
+        fig = FIGURES["fig3_energy_gaps.png"](reduction, [])
+        pdf = tmp_path / "f.pdf"
+        fig.savefig(pdf)
+        svg = io.BytesIO()
+        fig.savefig(svg, format="svg")
+    listing = subprocess.run([pdffonts, str(pdf)], capture_output=True, text=True, check=True)
+    rows = listing.stdout.splitlines()[2:]  # after the header and its rule
+    assert rows, listing.stdout
+    assert all(" TrueType " in r or "CID TrueType" in r for r in rows), listing.stdout
+    assert "Type 3" not in listing.stdout
+    text = svg.getvalue().decode()
+    assert "<text" in text and "energy gap" in text
