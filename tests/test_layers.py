@@ -56,7 +56,7 @@ MODULE_ORDER = {
     "studies": ["accuracy"],
     "service": ["signals", "grid", "jobs", "progress", "worker", "adaptive", "executors",
                 "slurm", "master", "runs", "recovery"],
-    "report": ["force_columns", "reduce", "results", "tables", "plotting", "fig_energy",
+    "report": ["force_columns", "reduce", "tidy", "results", "tables", "plotting", "fig_energy",
                "fig_mechanics", "fig_volumes", "fig_forces", "figures", "html", "render",
                "contact_volumes"],
     "service.executors": ["local", "mpi"],

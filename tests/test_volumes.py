@@ -154,9 +154,9 @@ def test_render_contact_volumes(tmp_path):
     state = tmp_path / "s.dat"
     state.write_text("\n".join(repr(float(v)) for v in shipped_state(1)) + "\n")
     res = CliRunner().invoke(app, ["render", "--state", str(state), "--L", "11.6", "--k", "0.1",
-                                   "--contact-volumes", "--samples", "2048", "--out", str(out)])  # fmt: skip
+                                   "--contact-volumes", "--volume-points", "2048", "--out", str(out)])  # fmt: skip
     assert res.exit_code == 0, res.output
     assert out.stat().st_size > 10_000
     bad = CliRunner().invoke(app, ["render", "--state", str(state), "--contact-volumes",
-                                   "--samples", "1000", "--out", str(out)])  # fmt: skip
+                                   "--volume-points", "1000", "--out", str(out)])  # fmt: skip
     assert bad.exit_code == 2 and "samples = 1000" in bad.output

@@ -150,8 +150,8 @@ def render(
     contact_volumes: Annotated[bool, typer.Option(
         "--contact-volumes", help="draw the stitch's contact volumes by class instead (paper "
         "Fig. 6a-e)")] = False,
-    samples: Annotated[int, typer.Option(
-        "--samples", help="--contact-volumes: tube points, a power of 2")] = 1 << 15,
+    volume_points: Annotated[int, typer.Option(
+        "--volume-points", help="--contact-volumes: tube points, a power of 2")] = 1 << 15,
 ) -> None:  # fmt: skip
     """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a, or with
     --contact-volumes their contact volumes (Fig. 6a-e): a task of a results file (point,
@@ -178,7 +178,7 @@ def render(
                 step=step,
                 state=state,
                 params=params,
-                samples=samples,
+                samples=volume_points,
             )
         else:
             path, stitch = rendering.render(

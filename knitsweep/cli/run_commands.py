@@ -141,8 +141,8 @@ def merge(
 @app.command()
 def recover(
     results: Annotated[Path, typer.Argument(help="damaged results file")],
-    job: Annotated[Path | None, typer.Option("--job", help="the job file, if no copy of the "
-                   "file's job spec is intact")] = None,
+    job: Annotated[Path | None, option("--job", help="the job file, if no copy of the file's "
+                   "job spec is intact", default="the file's own spec")] = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
     """Rebuild a damaged results file from its intact tasks, the previous checkpoint's
