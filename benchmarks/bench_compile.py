@@ -1,0 +1,141 @@
+"""Compile time of the numba kernels: per kernel, cold and warm.
+
+Run: ``python benchmarks/bench_compile.py [--repeats 1] [--src DIR ...] [--what run|energy]``
+
+Each measurement runs in a fresh Python process with ``NUMBA_CACHE_DIR`` pointed at a
+new, empty temporary directory (cold: every kernel compiles), then again in a fresh
+process on the same directory (warm: every kernel loads from numba's on-disk cache).
+The child compiles what a command needs (``--what run``: ``knitsweep.model.
+compile_kernels``, everything a ``knitsweep run`` task uses; ``--what energy``: the
+energy kernels of ``knitsweep energy``) and listens to numba's ``numba:compile``
+events (``numba.core.event``): one event per specialisation that numba compiles, nested
+when a kernel compiles the callees it calls. The table gives, per function, the number
+of specialisations compiled, the inclusive seconds (callees' compilation included,
+counted once at the outermost event of that function) and the exclusive seconds (its
+own, callees' compile events subtracted); the exclusive column adds up to the compile
+total. ``wall`` is the whole ``compile_kernels`` call in the child (cache loading,
+process start-up excluded).
+
+``--src`` runs the same measurement against other source trees (e.g. a worktree of
+``main``: ``git worktree add /tmp/base main``), alternating trees run by run, so that
+on a shared, loaded machine the ratio is measured side by side. Figures are medians
+over ``--repeats``.
+
+Not a test: nothing here passes or fails (STYLE.md, "benchmarks kept apart").
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+_CHILD = r"""
+import json, sys, time
+from numba.core import event
+
+stack, rows = [], {}
+
+class Listener(event.Listener):
+    def on_start(self, ev):
+        stack.append([time.perf_counter(), 0.0, ev.data["dispatcher"]])
+
+    def on_end(self, ev):
+        t0, inner, disp = stack.pop()
+        dt = time.perf_counter() - t0
+        name = f"{disp.py_func.__module__.split('.')[-1]}.{disp.py_func.__qualname__}"
+        row = rows.setdefault(name, [0, 0.0, 0.0])
+        row[0] += 1
+        row[2] += dt - inner
+        if not any(d is disp for _, _, d in stack):
+            row[1] += dt  # inclusive, once per outermost compile of this function
+        if stack:
+            stack[-1][1] += dt
+
+t_import = time.perf_counter()
+import numba
+import knitsweep.model as model
+from knitsweep.config import StitchParams
+t0 = time.perf_counter()
+with event.install_listener("numba:compile", Listener()):
+    if sys.argv[1] == "run":
+        model.compile_kernels()
+    else:
+        model.compile_kernels(what=sys.argv[1]) if "what" in model.compile_kernels.__code__.co_varnames else model._compile_stitch(model.CellModel(StitchParams()))
+wall = time.perf_counter() - t0
+print(json.dumps({"wall": wall, "import": t0 - t_import, "rows": rows,
+                  "cache": numba.config.CACHE_DIR}))
+"""
+
+
+def measure(src: Path, what: str, cache: str) -> dict:
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(src))
+    out = subprocess.run([sys.executable, "-c", _CHILD, what], env=env, cwd=src, check=True,
+                         capture_output=True, text=True).stdout  # fmt: skip
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--src", type=Path, action="append", help="source trees (default: this one)")
+    ap.add_argument("--what", default="run", help="run (compile_kernels) or energy")
+    ap.add_argument("--top", type=int, default=25, help="rows of the per-kernel table")
+    ap.add_argument("--json", type=Path, help="also write the raw figures here")
+    args = ap.parse_args()
+    trees = [s.resolve() for s in (args.src or [ROOT])]
+    runs: dict[Path, list[tuple[dict, dict]]] = {t: [] for t in trees}
+    for _ in range(args.repeats):
+        for tree in trees:  # alternate trees run by run: same load for each
+            with tempfile.TemporaryDirectory(prefix="ks-numba-cache-") as cache:
+                cold = measure(tree, args.what, cache)
+                warm = measure(tree, args.what, cache)
+            runs[tree].append((cold, warm))
+    print(f"compile of what `{args.what}` needs, {args.repeats} run(s) per tree, medians; "
+          f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")  # fmt: skip
+    summary = {}
+    for tree in trees:
+        colds = [c for c, _ in runs[tree]]
+        warms = [w for _, w in runs[tree]]
+        names = sorted({n for c in colds for n in c["rows"]},
+                       key=lambda n: -statistics.median(c["rows"].get(n, [0, 0, 0])[2] for c in colds))  # fmt: skip
+        print(f"\n{tree}")
+        print(f"  {'function':44s} {'spec':>4s} {'incl s':>8s} {'excl s':>8s}")
+        for n in names[: args.top]:
+            vals = [c["rows"].get(n, [0, 0.0, 0.0]) for c in colds]
+            print(f"  {n:44s} {statistics.median(v[0] for v in vals):4.0f} "
+                  f"{statistics.median(v[1] for v in vals):8.2f} "
+                  f"{statistics.median(v[2] for v in vals):8.2f}")  # fmt: skip
+        n_spec = statistics.median(sum(r[0] for r in c["rows"].values()) for c in colds)
+        cold_wall = statistics.median(c["wall"] for c in colds)
+        warm_wall = statistics.median(w["wall"] for w in warms)
+        print(f"  {len(names)} functions, {n_spec:.0f} specialisations compiled")
+        walls = ", ".join(f"{c['wall']:.1f}" for c in colds)
+        print(f"  cold: {cold_wall:7.2f} s wall   (runs: {walls})")
+        print(f"  warm: {warm_wall:7.2f} s wall   (compiled on a warm cache: "
+              f"{statistics.median(len(w['rows']) for w in warms):.0f} functions)")  # fmt: skip
+        summary[str(tree)] = {"cold": cold_wall, "warm": warm_wall, "runs": runs[tree]}
+    if len(trees) > 1:
+        base = summary[str(trees[0])]
+        for tree in trees[1:]:
+            s = summary[str(tree)]
+            print(f"\n{tree.name} vs {trees[0].name}: cold {base['cold'] / s['cold']:.2f}x "
+                  f"faster, warm {base['warm'] / s['warm']:.2f}x")  # fmt: skip
+            ratios = [
+                bc["wall"] / sc["wall"]
+                for (bc, _), (sc, _) in zip(runs[trees[0]], runs[tree], strict=True)
+            ]
+            print(f"  cold ratio per alternated pair: {', '.join(f'{r:.2f}' for r in ratios)}")
+    if args.json:
+        args.json.write_text(json.dumps(summary, indent=1))
+
+
+if __name__ == "__main__":
+    main()
