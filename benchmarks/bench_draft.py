@@ -58,6 +58,7 @@ def main() -> None:
     ap.add_argument("--starts", type=int, default=4)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--variant", nargs="+", default=["converged", "draft"])
+    ap.add_argument("--detail", action="store_true", help="also each point's Y_sec and gaps")
     args = ap.parse_args()
     compile_kernels()
     rows = {}
@@ -82,6 +83,10 @@ def main() -> None:
         de0 = max(abs(p["E0"] - r["E0"]) for p, r in zip(pts, ref, strict=True))
         print(f"{spec:34s} {zf:8.3f} {sw:8.3f} {zf + sw:7.3f} {ref_cost / (zf + sw):6.1f} "
               f"{de0:8.1e} {y_err:8.1e} {g_err:8.1e}")  # fmt: skip
+        if args.detail:
+            for L, p in zip(args.L, pts, strict=True):
+                print(f"    L {L:5.2f}: Y_sec x {p['Y_x']:.5g} y {p['Y_y']:.5g} N/mm, gap x "
+                      f"{p['gap_x']:.4g} y {p['gap_y']:.4g} mJ, E0 {p['E0']:.10g}")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -70,7 +70,7 @@ def segment_gaps(box, sa, ox, oy, out):
         out[sb] = gx * gx + gy * gy + gz * gz
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def search_pairs(pos, s_mid, box, n, sa, sb, same, m, nn, ox, oy, s_shift, cut2, s_excl,
                  ib, fb, c):  # fmt: skip
     """Append the counted contacts between segments sa and sb + (m t_c + nn t_w).
@@ -99,7 +99,7 @@ def search_pairs(pos, s_mid, box, n, sa, sb, same, m, nn, ox, oy, s_shift, cut2,
     return c
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def search_row(pos, s_mid, i, j0, j1, m, nn, ox, oy, s_shift, cut2, s_excl, ib, fb, c):
     """Append the counted contacts (i, j) for j in [j0, j1) in image (m, nn); the
     one place where a pair is tested, shared by the search and the neighbour list
