@@ -14,8 +14,10 @@ when a kernel compiles the callees it calls. The table gives, per function, the 
 of specialisations compiled, the inclusive seconds (callees' compilation included,
 counted once at the outermost event of that function) and the exclusive seconds (its
 own, callees' compile events subtracted); the exclusive column adds up to the compile
-total. ``wall`` is the whole ``compile_kernels`` call in the child (cache loading,
-process start-up excluded).
+total. Times are CPU seconds of the compiling process (compiling is single-threaded,
+so on an idle core they are its wall time; on a shared, loaded machine they are what
+stays comparable); ``wall`` is the whole ``compile_kernels`` call in the child
+(process start-up and imports excluded).
 
 With ``--jobs N`` > 1 the groups of kernels (``knitsweep.model.KERNEL_GROUPS``) compile
 in N child processes, whose compile events this process does not see: then only the
@@ -50,11 +52,11 @@ stack, rows = [], {}
 
 class Listener(event.Listener):
     def on_start(self, ev):
-        stack.append([time.perf_counter(), 0.0, ev.data["dispatcher"]])
+        stack.append([time.process_time(), 0.0, ev.data["dispatcher"]])
 
     def on_end(self, ev):
         t0, inner, disp = stack.pop()
-        dt = time.perf_counter() - t0
+        dt = time.process_time() - t0
         name = f"{disp.py_func.__module__.split('.')[-1]}.{disp.py_func.__qualname__}"
         row = rows.setdefault(name, [0, 0.0, 0.0])
         row[0] += 1
@@ -79,8 +81,8 @@ with event.install_listener("numba:compile", Listener()):
     else:  # what `knitsweep energy` calls
         m = model.CellModel(StitchParams())
         m.energies(m.stitch.start(1))
-wall = time.perf_counter() - t0
-print(json.dumps({"wall": wall, "import": t0 - t_import, "rows": rows,
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+print(json.dumps({"wall": wall, "cpu": cpu, "import": t0 - t_import, "rows": rows,
                   "cache": numba.config.CACHE_DIR}))
 """
 
@@ -125,7 +127,7 @@ def main() -> None:
         names = sorted({n for c in colds for n in c["rows"]},
                        key=lambda n: -statistics.median(c["rows"].get(n, [0, 0, 0])[2] for c in colds))  # fmt: skip
         print(f"\n{tree}")
-        print(f"  {'function':44s} {'spec':>4s} {'incl s':>8s} {'excl s':>8s}")
+        print(f"  {'function':44s} {'spec':>4s} {'incl':>8s} {'excl':>8s}  (CPU s)")
         for n in names[: args.top]:
             vals = [c["rows"].get(n, [0, 0.0, 0.0]) for c in colds]
             print(f"  {n:44s} {statistics.median(v[0] for v in vals):4.0f} "
@@ -133,19 +135,24 @@ def main() -> None:
                   f"{statistics.median(v[2] for v in vals):8.2f}")  # fmt: skip
         n_spec = statistics.median(sum(r[0] for r in c["rows"].values()) for c in colds)
         cold_wall = statistics.median(c["wall"] for c in colds)
+        cold_cpu = statistics.median(c["cpu"] for c in colds)
         warm_wall = statistics.median(w["wall"] for w in warms)
         print(f"  {len(names)} functions, {n_spec:.0f} specialisations compiled")
         walls = ", ".join(f"{c['wall']:.1f}" for c in colds)
-        print(f"  cold: {cold_wall:7.2f} s wall   (runs: {walls})")
+        print(
+            f"  cold: {cold_wall:7.2f} s wall, {cold_cpu:7.2f} s CPU of this process   (runs: {walls})"
+        )
         print(f"  warm: {warm_wall:7.2f} s wall   (compiled on a warm cache: "
               f"{statistics.median(len(w['rows']) for w in warms):.0f} functions)")  # fmt: skip
-        summary[str(tree)] = {"cold": cold_wall, "warm": warm_wall, "runs": runs[tree]}
+        summary[str(tree)] = {"cold": cold_wall, "cold_cpu": cold_cpu, "warm": warm_wall,
+                              "runs": runs[tree]}  # fmt: skip
     if len(trees) > 1:
         base = summary[str(trees[0])]
         for tree in trees[1:]:
             s = summary[str(tree)]
             print(f"\n{tree.name} vs {trees[0].name}: cold {base['cold'] / s['cold']:.2f}x "
-                  f"faster, warm {base['warm'] / s['warm']:.2f}x")  # fmt: skip
+                  f"faster (wall), {base['cold_cpu'] / s['cold_cpu']:.2f}x (CPU), warm "
+                  f"{base['warm'] / s['warm']:.2f}x")  # fmt: skip
             ratios = [
                 bc["wall"] / sc["wall"]
                 for (bc, _), (sc, _) in zip(runs[trees[0]], runs[tree], strict=True)
