@@ -70,7 +70,7 @@ t_import = time.perf_counter()
 import numba
 import knitsweep.model as model
 from knitsweep.config import StitchParams
-t0 = time.perf_counter()
+t0, c0 = time.perf_counter(), time.process_time()
 what, jobs = sys.argv[1], int(sys.argv[2])
 new_api = "jobs" in model.compile_kernels.__code__.co_varnames  # older trees: no jobs, no what
 with event.install_listener("numba:compile", Listener()):
