@@ -381,10 +381,10 @@ class StartSettings(BaseModel):
 # ---- presets ----------------------------------------------------------------------
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "draft": {
-        "fidelity": {"samples_per_segment": 10, "quadrature_nodes": 16},
+        "fidelity": {"samples_per_segment": 10, "quadrature_nodes": 32},
         "solver": {
             "method": "newton",
-            "ftol": 1e-6,
+            "ftol": 1e-5,
             "substep_mm": 0.05,
             "continuation_dL_mm": 0.3,
         },
@@ -392,8 +392,8 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
             "step_mm": 0.002,
             "step_control": "adaptive",
             "stress_rtol": 0.05,
-            "energy_tolerance_mJ": 5e-6,
-            "max_step_mm": 0.05,
+            "energy_tolerance_mJ": 1e-6,
+            "max_step_mm": 0.01,
             "observables": ("energy_gaps", "secant_modulus"),
         },
     },
@@ -416,12 +416,13 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
 """Named fidelity presets: the numerical knobs of every layer in one word, chosen
 from the measured speed/accuracy front (README, ``knitsweep accuracy``).
 
-* ``draft``: what a survey needs, about 7x cheaper than ``converged`` per point: the
-  same contact sampling (fewer samples err by several per cent in the energy gaps),
-  16 quadrature nodes (1e-10 off), a loose Newton tolerance, continuation in 0.3 mm
-  stages of L, adaptive strain steps, and sweeps that stop once Y_sec and the energy
-  gaps (so the transition) are known: within 2 % of ``converged`` on those (measured
-  at L = 11.0 mm, k = 0.1 mN/mm^2), no offset stress.
+* ``draft``: what a survey needs: the same contact sampling (fewer samples err by
+  several per cent in the energy gaps) and quadrature, a looser Newton tolerance
+  (1e-5), continuation in 0.3 mm stages of L, adaptive strain steps of at most 0.01 mm,
+  and sweeps that stop once Y_sec and the energy gaps (to 1e-6 mJ, so the transition)
+  are known: within 1 % of ``converged`` on those over the k = 0.1 series around the
+  transition, 4.9x cheaper per point with 4 starts, 9.4x with one
+  (benchmarks/bench_draft.py, README "Choosing a preset"); no offset stress.
 * ``paper``: the authors' numerical settings exactly (10 samples per segment, SLSQP
   with the SciPy default tolerance 1e-6 that their script ends up using, 0.001 mm
   steps), with exact quadrature: their numbers, noise included.

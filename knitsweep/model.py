@@ -10,6 +10,7 @@ are numpy arrays of shape (n,), laid out as the stitch says (stockinette: n = 30
 from __future__ import annotations
 
 import functools
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -90,13 +91,16 @@ class CellModel:
         return self._cp, self._jac
 
     def _call(self, x: np.ndarray, with_grad: bool) -> tuple[float, float, float]:
-        ip = self.ip
         x = self._as_state(x)
         cp, jac = self._geometry_of(x)
-        return cell_energy(
-            cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
-            ip.reg, ip.r, ip.rc, ip.k, ip.p, self._mode, with_grad, self._grad_e, self._grad_l,
-        )  # fmt: skip
+        return cell_energy(*self._energy_args(cp, jac, x, with_grad))
+
+    def _energy_args(self, cp, jac, x, with_grad) -> tuple:
+        """The arguments of ``cell_energy`` (and the first ones of ``cell_energy_listed``)."""
+        ip = self.ip
+        return (cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
+                ip.reg, ip.r, ip.rc, ip.k, ip.p, self._mode, with_grad, self._grad_e,
+                self._grad_l)  # fmt: skip
 
     def energies(self, x: np.ndarray) -> Energies:
         """Bending and contact energy (mJ) and yarn length (mm) of state ``x``."""
@@ -131,13 +135,9 @@ class CellModel:
         nl.rebuilds += 1
 
     def _call_listed(self, x: np.ndarray, nl: NeighbourList) -> tuple[float, float, float]:
-        ip = self.ip
         cp, jac = self._geometry_of(x)
-        eb, ec, length, valid = cell_energy_listed(
-            cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
-            ip.reg, ip.r, ip.rc, ip.k, ip.p, self._mode, True, self._grad_e, self._grad_l,
-            *nl.arrays,
-        )  # fmt: skip
+        eb, ec, length, valid = cell_energy_listed(*self._energy_args(cp, jac, x, True),
+                                                   *nl.arrays)  # fmt: skip
         if not valid:  # the sums came from the full search; refresh the list here
             self._rebuild(x, nl)
         return eb, ec, length
@@ -228,33 +228,159 @@ def _thickness_basis(samples: int) -> np.ndarray:
     return b
 
 
+KERNEL_GROUPS = {
+    "geometry": "the stitch's state -> control points + Jacobian kernel (knitsweep.stitches)",
+    "contact": "energies, gradients, neighbour list, min zeta, contact forces "
+    "(kernels.bending, contact, partition, neighbours, forces, cell)",
+    "solver": "the Newton-KKT step of the relaxations (kernels.kkt)",
+}
+"""The kernels a task uses, in groups whose compiled sources are disjoint (no kernel of
+one group calls one of another), so that separate processes can compile them side by
+side into one numba cache without two of them ever writing the same cache index."""
+_GROUP_WEIGHT = {"geometry": 4, "contact": 6, "solver": 2}  # relative compile times
+
+
 def compile_kernels(
     fidelity: Fidelity | None = None,
     notice: Callable[[str], None] | None = None,
     stitches: tuple[str, ...] = (DEFAULT_STITCH,),
-) -> None:
+    jobs: int | None = None,
+    what: str = "run",
+) -> dict[str, float]:
     """Compile (or load from numba's cache) every kernel a task of these ``stitches``
-    uses, once, before work fans out to other processes. ``notice`` is told first when
-    the kernels are not cached yet, so that a user knows why the first run waits."""
-    from . import kernels
-    from .kernels.kkt import compile_solver
+    uses, once, before work fans out to other processes; returns the seconds per
+    group (``KERNEL_GROUPS``). ``notice`` is told first when the kernels are not
+    cached yet, so that a user knows why the first run waits.
 
+    ``what``: ``"run"`` (every kernel of a task) or ``"energy"`` (the geometry and
+    ``cell_energy`` only: what ``knitsweep energy`` calls). ``jobs``: processes that
+    compile groups side by side when the cache is cold (None: as many as there are
+    idle cores, at most one a group; 1: all here). Each fills the shared on-disk
+    cache; this process then loads the kernels from it.
+    """
+    from . import kernels
+
+    cold = not kernels.cached()
     message = kernels.compile_notice() if notice is not None else None
     if message:
         notice(message)
+    groups = ("geometry", "contact") if what == "energy" else tuple(KERNEL_GROUPS)
+    seconds: dict[str, float] = {}
+    if cold:
+        seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs))
+    for group in groups:
+        t0 = time.perf_counter()
+        compile_group(group, fidelity, stitches, what)
+        seconds[group] = seconds.get(group, 0.0) + time.perf_counter() - t0
+    return seconds
+
+
+def compile_group(
+    group: str,
+    fidelity: Fidelity | None = None,
+    stitches: tuple[str, ...] = (DEFAULT_STITCH,),
+    what: str = "run",
+) -> None:
+    """Compile (or load) the kernels of one of ``KERNEL_GROUPS`` in this process.
+
+    The contact kernels are compiled for the argument types of the model's calls
+    without running them (so without the geometry kernel, which another process
+    may be compiling at the same time).
+    """  # fmt: skip
+    if group == "solver":
+        from .kernels.kkt import compile_solver
+
+        compile_solver()
+        return
     for name in stitches:
-        _compile_stitch(CellModel(StitchParams(stitch=name), fidelity))
-    compile_solver()  # the Newton step of the relaxations
+        model = CellModel(StitchParams(stitch=name), fidelity)
+        if group == "geometry":
+            model._geometry_of(model.stitch.start(1))
+        elif group == "contact":
+            _compile_contact(model, what)
+        else:
+            raise ValueError(f"kernel group {group!r}: one of {', '.join(KERNEL_GROUPS)}")
 
 
-def _compile_stitch(model: CellModel) -> None:
+def _compile_contact(model: CellModel, what: str) -> None:
+    import numba
+
+    def sig(args: tuple) -> tuple:
+        return tuple(numba.typeof(a) for a in args)
+
     x = model.stitch.start(1)
-    model.energy_and_gradients(x)
-    model.energy_and_gradients(x, model.neighbour_list(x))
-    model.min_zeta(x)
-    model.thickness(x)
-    model.contacts_by_class(x)
-    model.contact_pair_forces_by_class(x)
+    cp, jac = model.stitch.buffers()
+    ip, tab, mode = model.ip, model._ctab, model._mode
+    energy_args = model._energy_args(cp, jac, x, True)
+    cell_energy.compile(sig(energy_args))
+    if what == "energy":
+        return
+    n_samples = model.stitch.n_segments * tab.shape[1]
+    listed = (np.empty((0, 5), dtype=np.int64), np.empty((3, n_samples)), np.empty(7))
+    cell_energy_listed.compile(sig(energy_args + listed))
+    build_neighbour_list.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode, 0.1)))
+    min_zeta.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, mode)))
+    dcp = np.ascontiguousarray(jac[..., -2:])
+    forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
+    _forces_by_class.compile(sig((cp, dcp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
+                                  forces, energies)))  # fmt: skip
+    _pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
+                                       False, forces)))  # fmt: skip
+
+
+def idle_cores() -> int:
+    """Cores of this process's CPU set that the 1-minute load average leaves idle (>= 1)."""
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, round((cores or 1) - os.getloadavg()[0]))
+
+
+def _compile_in_processes(groups, fidelity, stitches, jobs) -> dict[str, float]:
+    """Compile ``groups`` in ``jobs`` child processes (largest first, each to the least
+    loaded process); {} when one process would do (then the caller compiles here)."""
+    import json
+    import subprocess
+    import sys
+
+    jobs = min(len(groups), idle_cores() if jobs is None else jobs)
+    if jobs <= 1:
+        return {}
+    bins: list[list[str]] = [[] for _ in range(jobs)]
+    for g in sorted(groups, key=lambda g: -_GROUP_WEIGHT[g]):
+        min(bins, key=lambda b: sum(_GROUP_WEIGHT[x] for x in b)).append(g)
+    spec = json.dumps({"fidelity": (fidelity or Fidelity()).model_dump(mode="json"),
+                       "stitches": list(stitches)})  # fmt: skip
+    code = "import sys; from knitsweep.model import _compile_child; _compile_child(sys.argv[1:])"
+    procs = [subprocess.Popen([sys.executable, "-c", code, spec, *b], stdout=subprocess.PIPE,
+                              text=True) for b in bins]  # fmt: skip
+    seconds: dict[str, float] = {}
+    try:
+        for proc in procs:
+            out, _ = proc.communicate()
+            if proc.returncode == 0:  # else: this process compiles what is missing
+                seconds.update(json.loads(out.strip().splitlines()[-1]))
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.terminate()
+                proc.wait()
+    return seconds
+
+
+def _compile_child(argv: list[str]) -> None:
+    """Entry point of one compiling process: ``SPEC_JSON GROUP...``; prints
+    {group: seconds} as JSON."""
+    import json
+
+    spec = json.loads(argv[0])
+    fidelity = Fidelity(**spec["fidelity"])
+    seconds = {}
+    for group in argv[1:]:
+        t0 = time.perf_counter()
+        compile_group(group, fidelity, tuple(spec["stitches"]))
+        seconds[group] = time.perf_counter() - t0
+    print(json.dumps(seconds), flush=True)
 
 
 def as_state(x: np.ndarray, stitch: Stitch) -> np.ndarray:

@@ -11,7 +11,7 @@ import pytest
 import typer
 
 from knitsweep import __version__
-from knitsweep.cli.app import build_app
+from knitsweep.cli.application import build_app
 
 # the output, a state file and local workers: one meaning, worded for each command
 WORDED_PER_COMMAND = {"--out", "--state", "--workers"}

@@ -16,7 +16,7 @@ from conftest import SHIPPED
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from knitsweep.cli.app import main as cli_main
+from knitsweep.cli.application import main as cli_main
 from knitsweep.config import InputError
 from knitsweep.service.jobs import load_job
 

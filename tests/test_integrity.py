@@ -171,6 +171,7 @@ for e in entries[2:4]:
     writer.add(e.kind, e.task_id, e.record, e.meta)
 writer.checkpoint()  # version 2; version 1 is the shadow
 writer.add(entries[4].kind, entries[4].task_id, entries[4].record, entries[4].meta)
+writer.commit()  # durable in the journal
 os.kill(os.getpid(), signal.SIGKILL)  # the journal holds the fifth task
 """
 

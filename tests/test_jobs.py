@@ -95,7 +95,7 @@ def test_presets_and_overrides():
                   fidelity={"quadrature_nodes": 24}, protocol={"observables": ["curve"]})  # fmt: skip
     assert job.fidelity.samples_per_segment == 10  # from the preset
     assert job.fidelity.quadrature_nodes == 24  # explicit override
-    assert job.solver.ftol == 1e-6 and job.protocol.step_mm == 0.002
+    assert job.solver.ftol == 1e-5 and job.protocol.step_mm == 0.002
     assert job.protocol.step_control == "adaptive" and job.protocol.observables == ("curve",)
 
 

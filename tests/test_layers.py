@@ -60,7 +60,7 @@ MODULE_ORDER = {
                "fig_mechanics", "fig_volumes", "fig_forces", "figures", "html", "render",
                "contact_volumes"],
     "service.executors": ["local", "mpi"],
-    "cli": ["common", "model_commands", "run_commands", "analysis_commands", "app"],
+    "cli": ["common", "model_commands", "run_commands", "analysis_commands", "application"],
 }  # fmt: skip
 
 

@@ -440,7 +440,13 @@ def test_signal_during_mpi_start_up_ends_every_rank(six, tmp_path, signum, to_gr
         assert _all_gone(tag, 5), f"{where}: processes left behind"
         if out.exists():
             with h5py.File(out) as f:
-                assert f.attrs["run_status"] == "interrupted"
+                run_status = f.attrs["run_status"]
+            # the work was done and the file closed complete when the signal came (the
+            # ranks were leaving): exit 3 is then about the teardown, the file is whole
+            assert run_status == "interrupted" or (
+                run_status == "complete" and service.status(out)["done"] == 18
+            ), f"{where}: run_status {run_status}"
+            landed -= run_status == "complete"
     print(
         f"start-up signals landed before the run was done: {landed} of {len(delays)}, every "
         f"rank reporting in {every_rank} of them"

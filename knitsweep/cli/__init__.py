@@ -22,7 +22,7 @@ def main() -> None:
     rc = 1
     try:
         signals.test_point("imports")
-        from .app import main as run_cli
+        from .application import main as run_cli
 
         rc = run_cli()
     except BaseException as e:  # during start-up, before typer took over
@@ -52,7 +52,7 @@ def _leave(comm) -> None:
 
 def __getattr__(name: str):
     if name == "app":
-        from .app import build_app
+        from .application import build_app
 
         return build_app()
     raise AttributeError(name)

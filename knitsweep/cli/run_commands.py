@@ -218,3 +218,56 @@ def slurm_render(
         typer.echo(text, nl=False)
     else:
         typer.echo(f"wrote {write_script(script, text)}: submit it with sbatch", err=True)
+
+
+@app.command("compile")
+def compile_(
+    cache_dir: Annotated[Path | None, typer.Option("--cache-dir", help="numba cache directory "
+                         "to fill (e.g. node-local) [$NUMBA_CACHE_DIR or ~/.cache/knitsweep]")] = None,
+    jobs: Annotated[int | None, typer.Option("--jobs", help="processes compiling side by side "
+                    "[as many as idle cores, at most 3]")] = None,
+    stitch: Annotated[list[str] | None, typer.Option("--stitch", help="stitch pattern(s) "
+                      "[stockinette]")] = None,
+    as_json: JsonOpt = False,
+) -> None:  # fmt: skip
+    """Compile every kernel a `run` uses into numba's on-disk cache (warm a node-local
+    cache before a batch job), and say what was compiled and how long it took."""
+    import os
+    import sys
+    import time
+
+    from ..errors import InputError
+
+    with user_errors():
+        if jobs is not None and not 1 <= jobs <= 64:
+            raise InputError(f"jobs = {jobs}: must be in 1..64")
+        if cache_dir is not None:
+            if "knitsweep.kernels" in sys.modules:  # its cache directory is fixed at import
+                raise InputError(f"cache_dir = {cache_dir}: set before the kernels are imported")
+            cache_dir.mkdir(parents=True, exist_ok=True)
+            os.environ["NUMBA_CACHE_DIR"] = str(cache_dir.resolve())
+        from ..stitches import DEFAULT_STITCH, STITCH_NAMES
+
+        stitches = tuple(stitch or (DEFAULT_STITCH,))
+        for name in stitches:
+            if name not in STITCH_NAMES:
+                raise InputError(f"stitch = {name!r}: one of {', '.join(STITCH_NAMES)}")
+        from .. import kernels
+        from ..model import KERNEL_GROUPS, compile_kernels
+
+        was_cached = kernels.cached()
+        t0 = time.perf_counter()
+        seconds = compile_kernels(stitches=stitches, jobs=jobs)
+        wall = time.perf_counter() - t0
+    result = {"cache_dir": kernels.numba.config.CACHE_DIR, "was_cached": was_cached,
+              "cached": kernels.cached(), "seconds": round(wall, 2),
+              "groups": {g: round(s, 2) for g, s in seconds.items()}}  # fmt: skip
+    if as_json:
+        typer.echo(json.dumps(result))
+        return
+    verb = "loaded (already cached)" if was_cached else "compiled"
+    typer.echo(
+        f"{verb} the kernels of {', '.join(stitches)} in {wall:.1f} s into {result['cache_dir']}"
+    )
+    for group, s in seconds.items():
+        typer.echo(f"  {group:9s} {s:7.1f} s  {KERNEL_GROUPS[group]}")

@@ -42,9 +42,10 @@ def _cache_dir() -> str:
 
 numba.config.CACHE_DIR = _cache_dir()
 
-COMPILE_SECONDS = 70
-"""About how long compiling every kernel takes once (measured 68 s on a 2-core VM,
-the Newton-KKT step and the contact-force kernels included)."""
+COMPILE_SECONDS = 60
+"""About how long compiling every kernel takes once, in one process (measured 58 s wall,
+39 CPU s, on the loaded 2-core project VM: benchmarks/bench_compile.py); with idle
+cores ``model.compile_kernels`` compiles its groups side by side."""
 _ENTRY_POINTS = ("cell.cell_energy-", "cell.cell_energy_listed-", "contact.min_zeta-",
                  "forces.contact_forces_by_class-", "kkt.kkt_step-")  # fmt: skip
 

@@ -384,7 +384,8 @@ class ResultWriter:
                 global _HDF5_WRITE_FAILED
                 _HDF5_WRITE_FAILED = True
                 for p in (self._shadow, self._spare):
-                    p.unlink(missing_ok=True)
+                    with contextlib.suppress(OSError):  # (a read-only directory keeps them)
+                        p.unlink(missing_ok=True)
                 failure = storage_error(self.path, e)
         if failure is not None:
             raise failure

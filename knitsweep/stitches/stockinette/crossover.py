@@ -21,6 +21,14 @@ from ... import kernels  # noqa: F401  (first: it points numba's cache at this v
 # local column layout of one crossover curve
 L_POS, L_G, L_TW, L_Z, L_PHI, L_C0, L_C1, N_LOCAL = 0, 1, 4, 5, 6, 7, 13, 19
 
+# Compile time: numba compiles a kernel once per distinct *literal* int or bool
+# argument (a constant 0 and a constant 1 are two specialisations). Constant
+# arguments of kernel calls therefore go in as plain int64 / bool_ values: one
+# specialisation per kernel, the same machine arithmetic (benchmarks/bench_compile.py).
+_i = np.int64
+_TRUE = np.bool_(True)
+_FALSE = np.bool_(False)
+
 
 @njit(cache=True)
 def _rxryrz(c0, s0, o0, c1, s1, o1, c2, s2, o2):
@@ -222,8 +230,11 @@ def control_points_from_ends(
     """
     nl = dp.shape[2]
     dp[:] = 0.0
-    control_points_half(q0, dq0, t0, dt0, cv0, dcv0, a0, ia0, b0, ib0, True, 0, nl, 0, 0, p, dp)
-    control_points_half(q1, dq1, t1, dt1, cv1, dcv1, a1, ia1, b1, ib1, False, 0, nl, 0, 0, p, dp)
+    z = _i(0)
+    control_points_half(q0, dq0, t0, dt0, cv0, dcv0, a0, _i(ia0), b0, _i(ib0), _TRUE, z, nl, z, z,
+                        p, dp)  # fmt: skip
+    control_points_half(q1, dq1, t1, dt1, cv1, dcv1, a1, _i(ia1), b1, _i(ib1), _FALSE, z, nl, z,
+                        z, p, dp)  # fmt: skip
 
 
 @njit(cache=True)
@@ -242,18 +253,18 @@ def crossover_curve_into(pos_x, z, phi, parity, is_a, cond0, cond1, frame, dfram
     t0, cv0, q0, t1, cv1, q1 = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5]
     dt0, dcv0, dq0, dt1, dcv1, dq1 = blk[0], blk[1], blk[2], blk[3], blk[4], blk[5]
     _end_direction(frame[i10], dframe[i10], frame[i20], dframe[i20], e3, de3,
-                   sa0, sb0, cond0, L_C0, t0, dt0, cv0, dcv0)  # fmt: skip
+                   sa0, sb0, cond0, _i(L_C0), t0, dt0, cv0, dcv0)  # fmt: skip
     _end_direction(frame[i11], dframe[i11], frame[i21], dframe[i21], e3, de3,
-                   sa1, sb1, cond1, L_C1, t1, dt1, cv1, dcv1)  # fmt: skip
+                   sa1, sb1, cond1, _i(L_C1), t1, dt1, cv1, dcv1)  # fmt: skip
     _end_point(pos_x, z, phi, e3, de3, frame[i20], dframe[i20], -1.0, sig * parity, q0, dq0)
     _end_point(pos_x, z, phi, e3, de3, frame[i21], dframe[i21], 1.0, -sig * parity, q1, dq1)
     # a start can depend on columns 0-12 (pos, frame, tw, z, phi, start condition),
     # an end on 0-6 and 13-18 (the same with the end condition)
     dp[:] = 0.0
-    control_points_half(q0, dq0, t0, dt0, cv0, dcv0, cond0[2], L_C0 + 2, cond0[5], L_C0 + 5,
-                        True, 0, L_C1, 0, 0, p, dp)  # fmt: skip
-    control_points_half(q1, dq1, t1, dt1, cv1, dcv1, cond1[2], L_C1 + 2, cond1[5], L_C1 + 5,
-                        False, 0, L_C0, L_C1, N_LOCAL, p, dp)  # fmt: skip
+    control_points_half(q0, dq0, t0, dt0, cv0, dcv0, cond0[2], _i(L_C0 + 2), cond0[5],
+                        _i(L_C0 + 5), _TRUE, _i(0), _i(L_C1), _i(0), _i(0), p, dp)  # fmt: skip
+    control_points_half(q1, dq1, t1, dt1, cv1, dcv1, cond1[2], _i(L_C1 + 2), cond1[5],
+                        _i(L_C1 + 5), _FALSE, _i(0), _i(L_C0), _i(L_C1), _i(N_LOCAL), p, dp)  # fmt: skip
 
 
 @njit(cache=True)

@@ -45,6 +45,19 @@ from .layout import IDX_AX, IDX_AY, IDX_TW, N_STATE, S1, S2, S3
 # path slots of the crossover curves and connectors (docs/model.md §4)
 _SEG_C1B, _SEG_CC11, _SEG_C1A, _SEG_CC12, _SEG_C2A, _SEG_CC22, _SEG_C2B, _SEG_CC21 = range(8)
 
+# the four connectors, in the order they are built (docs/model.md §4): (from slot, to
+# slot, shift of its start, shift of its end, state columns of the speed a and
+# offset b, connector's slot); shifts 0 none, 1 t_c, 2 t_w.
+# cc12: C1.A end -> C2.A start; cc21: C2.B end -> C1.B start + t_c;
+# cc11: C1.B end -> C1.A start + t_w; cc22: C2.A end + t_w -> C2.B start
+_CONNECTORS = np.array([
+    (_SEG_C1A, _SEG_C2A, 0, 0, 24, 25, _SEG_CC12),
+    (_SEG_C2B, _SEG_C1B, 0, 1, 24, 25, _SEG_CC21),
+    (_SEG_C1B, _SEG_C1A, 0, 2, 26, 27, _SEG_CC11),
+    (_SEG_C2A, _SEG_C2B, 2, 0, 26, 27, _SEG_CC22),
+], dtype=np.int64)  # fmt: skip
+_i, _TRUE, _FALSE = np.int64, np.bool_(True), np.bool_(False)  # see crossover.py: no literals
+
 
 @njit(cache=True)
 def _scatter(dp_local, sign_x, flip, c0, c1, out):
@@ -129,8 +142,8 @@ def _connector(qa, dqa, qb, dqb, shift_a, shift_b, ia, ib, x, p, dp, vec, blk):
     t0, cv0, t1, cv1, q0, q1 = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5]
     dt0, dcv0, dt1, dcv1, dr1, dr2, dq0, dq1 = (blk[0], blk[1], blk[2], blk[3], blk[4], blk[5],
                                                 blk[6], blk[7])  # fmt: skip
-    _end_frame(qa, dqa, True, t0, dt0, cv0, dcv0, dr1, dr2)
-    _end_frame(qb, dqb, False, t1, dt1, cv1, dcv1, dr1, dr2)
+    _end_frame(qa, dqa, _TRUE, t0, dt0, cv0, dcv0, dr1, dr2)
+    _end_frame(qb, dqb, _FALSE, t1, dt1, cv1, dcv1, dr1, dr2)
     q0[:] = qa[5]
     dq0[:] = dqa[5]
     q1[:] = qb[0]
@@ -140,8 +153,9 @@ def _connector(qa, dqa, qb, dqb, shift_a, shift_b, ia, ib, x, p, dp, vec, blk):
     a, b = x[ia], x[ib]
     nl = dp.shape[2]
     dp[:] = 0.0
-    control_points_half(q0, dq0, t0, dt0, cv0, dcv0, a, ia, b, ib, True, 0, nl, 0, 0, p, dp)
-    control_points_half(q1, dq1, t1, dt1, cv1, dcv1, a, ia, b, ib, False, 0, nl, 0, 0, p, dp)
+    z = _i(0)
+    control_points_half(q0, dq0, t0, dt0, cv0, dcv0, a, ia, b, ib, _TRUE, z, nl, z, z, p, dp)
+    control_points_half(q1, dq1, t1, dt1, cv1, dcv1, a, ia, b, ib, _FALSE, z, nl, z, z, p, dp)
 
 
 @njit(cache=True)
@@ -189,17 +203,12 @@ def state_to_control_points(x, cp, jac):
                                  frame, dframe, p_loc, dp_loc, vec, blk19)  # fmt: skip
             cp[seg] = p_loc
             _scatter(dp_loc, -parity, flip, c0, c1, jac[seg])
-    c1a, c1b, c2a, c2b = _SEG_C1A, _SEG_C1B, _SEG_C2A, _SEG_C2B
-    # cc12: C1.A end -> C2.A start; cc21: C2.B end -> C1.B start + t_c
-    _connector(cp[c1a], jac[c1a], cp[c2a], jac[c2a], 0, 0, 24, 25, x,
-               cp[_SEG_CC12], jac[_SEG_CC12], vec, blk30)  # fmt: skip
-    _connector(cp[c2b], jac[c2b], cp[c1b], jac[c1b], 0, 1, 24, 25, x,
-               cp[_SEG_CC21], jac[_SEG_CC21], vec, blk30)  # fmt: skip
-    # cc11: C1.B end -> C1.A start + t_w; cc22: C2.A end + t_w -> C2.B start
-    _connector(cp[c1b], jac[c1b], cp[c1a], jac[c1a], 0, 2, 26, 27, x,
-               cp[_SEG_CC11], jac[_SEG_CC11], vec, blk30)  # fmt: skip
-    _connector(cp[c2a], jac[c2a], cp[c2b], jac[c2b], 2, 0, 26, 27, x,
-               cp[_SEG_CC22], jac[_SEG_CC22], vec, blk30)  # fmt: skip
+    # one call site, its integers from a table: one specialisation of _connector
+    for j in range(4):
+        row = _CONNECTORS[j]
+        sa, sb, out = row[0], row[1], row[6]
+        _connector(cp[sa], jac[sa], cp[sb], jac[sb], row[2], row[3], row[4], row[5], x,
+                   cp[out], jac[out], vec, blk30)  # fmt: skip
     ay = x[IDX_AY]
     for s in (2, 3, 4):
         for i in range(6):
