@@ -43,8 +43,9 @@ LAYERS = [
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
                 "forces", "cell", "kkt"],
-    "stitches": ["base", "stockinette"],
+    "stitches": ["base", "topology", "stockinette", "stockinette_free"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
+    "stitches.stockinette_free": ["layout", "geometry", "ansatz", "data"],
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper"],
     "store": ["format", "journal", "provenance", "read", "writer", "sweep_file"],
     "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],
