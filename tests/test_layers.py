@@ -42,7 +42,7 @@ LAYERS = [
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
-                "forces", "cell", "kkt"],
+                "forces", "cell", "kkt", "mirrored"],
     "stitches": ["base", "topology", "stockinette", "stockinette_free"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
     "stitches.stockinette_free": ["layout", "geometry", "ansatz", "data"],
