@@ -123,3 +123,25 @@ def test_crossing_signs_tell_a_fabric_from_its_mirror_image(models):
     flipped[..., 2] *= -1.0  # over and under exchanged at every crossing
     same, why = same_topology(ref, crossings(flipped, x[-2], x[-1]))
     assert not same and "lost" in why and "gained" in why
+
+
+def _key(h):
+    return h[:3]
+
+
+def test_garter_crossings_seen_with_mirrored_rows(models):
+    """With the odd rows mirrored (garter's images), stockinette's shape keeps the
+    crossing heights and only mirrors the partners: every row-to-row crossing reads
+    the partner's z with its sign flipped (docs/model.md §11)."""
+    ma, _ = models
+    x = ma.stitch.start(1)
+    cp = ma.control_points(x)
+    plain, mirrored = [], []
+    crossings(cp, x[-2], x[-1], heights=plain)
+    crossings(cp, x[-2], x[-1], parity=(0, 1), heights=mirrored)
+    assert len(plain) == len(mirrored) == 8
+    for (m, n, za, zb), (m2, n2, za2, zb2) in zip(
+        sorted(plain, key=_key), sorted(mirrored, key=_key), strict=True
+    ):
+        assert (m, n) == (m2, n2) and za == za2
+        assert zb2 == (-zb if n % 2 else zb)

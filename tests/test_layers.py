@@ -43,7 +43,7 @@ LAYERS = [
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
                 "forces", "cell", "kkt", "mirrored"],
-    "stitches": ["base", "topology", "stockinette", "stockinette_free"],
+    "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
     "stitches.stockinette_free": ["layout", "geometry", "ansatz", "data"],
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper"],

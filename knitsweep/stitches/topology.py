@@ -34,9 +34,14 @@ def _polyline(cp: np.ndarray, samples: int) -> np.ndarray:
     return np.vstack([pts, cp[-1, 5]])
 
 
-def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES) -> Counter:
+def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
+              parity: tuple[int, int] = (0, 0), heights: list | None = None) -> Counter:  # fmt: skip
     """Crossings in projection of the cell's yarn with itself and its images, as a
-    Counter of (m, n, sign) (see the module docstring)."""
+    Counter of (m, n, sign) (see the module docstring).
+
+    ``parity`` (pm, pn): the image (m, n) is mirrored (z -> -z) when pm m + pn n is odd
+    (docs/model.md §11: garter (0, 1), rib (1, 0), seed (1, 1)). ``heights``, if given,
+    receives (m, n, z of the cell's strand, z of the image's) of every crossing."""
     pts = _polyline(np.asarray(cp, dtype=float), samples)
     p0, p1 = pts[:-1], pts[1:]
     out: Counter = Counter()
@@ -44,7 +49,8 @@ def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES) ->
     for m in (-1, 0, 1):
         for n in (-2, -1, 0, 1, 2):
             shift = np.array([m * a_x, n * a_y, 0.0])
-            q0, q1 = p0 + shift, p1 + shift
+            flip = np.array([1.0, 1.0, -1.0 if (parity[0] * m + parity[1] * n) % 2 else 1.0])
+            q0, q1 = p0 * flip + shift, p1 * flip + shift
             d = p1 - p0
             e = q1 - q0
             w = q0[None, :, :2] - p0[:, None, :2]
@@ -63,6 +69,8 @@ def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES) ->
                 za = p0[i, 2] + s[i, j] * d[i, 2]
                 zb = q0[j, 2] + u[i, j] * e[j, 2]
                 out[(m, n, 1 if za > zb else -1)] += 1
+                if heights is not None:
+                    heights.append((m, n, float(za), float(zb)))
     return out
 
 
