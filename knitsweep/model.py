@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import Fidelity, InternalParams, StitchParams
+from .errors import InputError
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
 from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
@@ -23,7 +24,9 @@ from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
 from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
 from .kernels.neighbours import build_neighbour_list
+from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
+from .stitches.patterns import min_zeta_where
 
 
 class NeighbourList:
@@ -93,6 +96,12 @@ class CellModel:
         ip = self.ip
         x = self._as_state(x)
         cp, jac = self._geometry_of(x)
+        if self.stitch.images == "glides":  # a knit/purl pattern (docs/model.md §11)
+            return pattern_cell_energy(
+                cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
+                ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.stitch.mirror_parity, with_grad,
+                self._grad_e, self._grad_l,
+            )  # fmt: skip
         return cell_energy(
             cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
             ip.reg, ip.r, ip.rc, ip.k, ip.p, self._mode, with_grad, self._grad_e, self._grad_l,
@@ -112,7 +121,7 @@ class CellModel:
         its pairs: the same numbers, bit for bit, faster; the list rebuilds itself
         when the state has moved too far for it.
         """
-        if neighbours is None:
+        if neighbours is None or self.stitch.images == "glides":
             eb, ec, length = self._call(x, True)
         else:
             eb, ec, length = self._call_listed(self._as_state(x), neighbours)
@@ -159,6 +168,9 @@ class CellModel:
         below 1e-5 the hard cores overlap (docs/model.md §6)."""
         ip = self.ip
         x = self._as_state(x)
+        if self.stitch.images == "glides":
+            return min_zeta_where(self.control_points(x), x[-2], x[-1], ip.r, ip.rc,
+                                  self.stitch.mirror_parity, self.fidelity.samples_per_segment)[0]  # fmt: skip
         return min_zeta(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
                         self._mode)  # fmt: skip
 
@@ -182,6 +194,9 @@ class CellModel:
         the contact energy of each class; the five add up to E_c."""
         ip = self.ip
         x = self._as_state(x)
+        if self.stitch.images == "glides":
+            raise InputError(f"stitch = {self.stitch.name}: contact forces by class are not "
+                             "implemented for mirrored images yet (docs/model.md §11)")  # fmt: skip
         cp, jac = self.control_points_and_jacobian(x)
         dcp = np.ascontiguousarray(jac[..., -2:])
         forces = np.empty((N_CLASSES, 3))
@@ -205,6 +220,9 @@ class CellModel:
         """
         ip = self.ip
         x = self._as_state(x)
+        if self.stitch.images == "glides":
+            raise InputError(f"stitch = {self.stitch.name}: pair forces by class are not "
+                             "implemented for mirrored images yet (docs/model.md §11)")  # fmt: skip
         forces = np.empty((N_CLASSES, 3))
         _pair_forces_by_class(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
                               ip.k, ip.p, self._mode, weighted, forces)  # fmt: skip

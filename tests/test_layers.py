@@ -42,10 +42,11 @@ LAYERS = [
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
-                "forces", "cell", "kkt", "mirrored"],
-    "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free"],
+                "forces", "cell", "kkt", "mirrored", "pattern_cell"],
+    "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free", "garter"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
     "stitches.stockinette_free": ["layout", "geometry", "ansatz", "data"],
+    "stitches.garter": ["layout", "geometry", "data"],
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper"],
     "store": ["format", "journal", "provenance", "read", "writer", "sweep_file"],
     "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],

@@ -57,3 +57,33 @@ def test_garter_start_is_still_g2(model):
         t1 = (a[5] - a[4]) / np.linalg.norm(a[5] - a[4])
         t0 = (b[1] - b[0]) / np.linalg.norm(b[1] - b[0])
         np.testing.assert_allclose(t1, t0, atol=1e-12)
+
+
+def test_garter_stitch_shipped_starts_and_exact_gradients():
+    from knitsweep.stitches.garter.layout import from_free
+    from knitsweep.stitches.stockinette_free.ansatz import to_free
+
+    ma = CellModel(P)
+    mg = CellModel(P.model_copy(update={"stitch": "garter"}))
+    assert mg.stitch.n_state == 88 and mg.stitch.images == "glides"
+    x = ma.stitch.start(2)
+    g, ax, ay = garter_start(ma.control_points(x), x[-2], x[-1])
+    xg = from_free(to_free(g, ax, ay), g[0, 0, 2])
+    np.testing.assert_allclose(mg.stitch.start(2), xg, rtol=1e-15, atol=1e-15)
+    # the yarn as built, translated in the fabric plane only (the mirror plane stays)
+    np.testing.assert_allclose(mg.control_points(xg), g - [g[0, 0, 0], g[0, 0, 1], 0.0],
+                               atol=1e-12)  # fmt: skip
+    assert mg.min_zeta(xg) == pytest.approx(check_start(g, ax, ay, IP.r, IP.rc, (0, 1)), rel=1e-12)
+    e, ge, gl = mg.energy_and_gradients(xg)
+    h = 1e-6
+    for k in (*range(0, 88, 7), 85, 86, 87):
+        xp, xm = xg.copy(), xg.copy()
+        xp[k] += h
+        xm[k] -= h
+        ep, em = mg.energies(xp), mg.energies(xm)
+        fe = (ep.total_energy - em.total_energy) / (2 * h)
+        fl = (ep.length - em.length) / (2 * h)
+        assert fe == pytest.approx(ge[k], rel=1e-5, abs=1e-8), k
+        assert fl == pytest.approx(gl[k], rel=1e-5, abs=1e-8), k
+    # the mirrored rows carry contact: garter's energy is not stockinette's
+    assert e.contact_energy > 0.0
