@@ -87,3 +87,19 @@ def test_garter_stitch_shipped_starts_and_exact_gradients():
         assert fl == pytest.approx(gl[k], rel=1e-5, abs=1e-8), k
     # the mirrored rows carry contact: garter's energy is not stockinette's
     assert e.contact_energy > 0.0
+
+
+def test_gauss_words_tell_garter_from_stockinette(model):
+    from knitsweep.stitches.topology import gauss_word
+
+    words, garter = set(), set()
+    for i in range(1, 8):
+        x = model.stitch.start(i)
+        cp = model.control_points(x)
+        words.add(gauss_word(cp, x[-2], x[-1]))
+        garter.add(gauss_word(*garter_start(cp, x[-2], x[-1]), parity=(0, 1)))
+    assert len(words) == 1 and len(garter) == 1 and words != garter
+    (w,), (g,) = words, garter
+    assert len(w) == len(g) == 8
+    # the same counts of (n, sign): only the order along the yarn tells them apart
+    assert sorted(w) == sorted(g)

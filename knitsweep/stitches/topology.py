@@ -35,13 +35,16 @@ def _polyline(cp: np.ndarray, samples: int) -> np.ndarray:
 
 
 def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
-              parity: tuple[int, int] = (0, 0), heights: list | None = None) -> Counter:  # fmt: skip
+              parity: tuple[int, int] = (0, 0), heights: list | None = None,
+              along: list | None = None) -> Counter:  # fmt: skip
     """Crossings in projection of the cell's yarn with itself and its images, as a
     Counter of (m, n, sign) (see the module docstring).
 
     ``parity`` (pm, pn): the image (m, n) is mirrored (z -> -z) when pm m + pn n is odd
     (docs/model.md §11: garter (0, 1), rib (1, 0), seed (1, 1)). ``heights``, if given,
-    receives (m, n, z of the cell's strand, z of the image's) of every crossing."""
+    receives (m, n, z of the cell's strand, z of the image's) of every crossing;
+    ``along`` receives (position along the cell's yarn in polyline pieces, n, sign)
+    (``gauss_word``)."""
     pts = _polyline(np.asarray(cp, dtype=float), samples)
     p0, p1 = pts[:-1], pts[1:]
     out: Counter = Counter()
@@ -71,6 +74,8 @@ def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
                 out[(m, n, 1 if za > zb else -1)] += 1
                 if heights is not None:
                     heights.append((m, n, float(za), float(zb)))
+                if along is not None:
+                    along.append((float(i + s[i, j]), n, 1 if za > zb else -1))
     return out
 
 
@@ -86,3 +91,18 @@ def same_topology(before: Counter, after: Counter) -> tuple[bool, str]:
     if gained:
         parts.append("gained " + ", ".join(f"{k}x{v}" for k, v in sorted(gained.items())[:4]))
     return False, "crossings in projection changed (m, n, sign): " + "; ".join(parts)
+
+
+def gauss_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
+               samples: int = SAMPLES) -> tuple[tuple[int, int], ...]:  # fmt: skip
+    """The crossings met along the cell's yarn, in order, as (row offset n, sign), in the
+    rotation that sorts first (a cyclic word: a crossing sliding across the cell's end
+    rotates it). Unlike ``crossings`` it does not name the partner's column m, which a
+    crossing changes when it slides across the partner cell's end (seen in garter), and
+    it does tell stockinette from garter, whose (n, sign) counts agree."""
+    along: list = []
+    crossings(cp, a_x, a_y, samples, parity, along=along)
+    word = [(n, s) for _, n, s in sorted(along)]
+    if not word:
+        return ()
+    return min(tuple(word[k:] + word[:k]) for k in range(len(word)))
