@@ -27,6 +27,7 @@ from .kernels.neighbours import build_neighbour_list
 from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
 from .stitches.patterns import min_zeta_where
+from .stitches.topology import gauss_word
 
 
 class NeighbourList:
@@ -173,6 +174,25 @@ class CellModel:
                                   self.stitch.mirror_parity, self.fidelity.samples_per_segment)[0]  # fmt: skip
         return min_zeta(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
                         self._mode)  # fmt: skip
+
+    def topology_change(self, x: np.ndarray) -> str:
+        """For a stitch with mirrored images: "" if state ``x`` shows the crossing order of
+        the stitch's first shipped start (``topology.gauss_word``, docs/model.md §11), else
+        what changed. Stitches of translations alone are not checked ("")."""
+        if self.stitch.images != "glides":
+            return ""
+        x = self._as_state(x)
+        parity = self.stitch.mirror_parity
+        ref = self.stitch._kernels.get("gauss_word")
+        if ref is None:
+            x1 = self.stitch.start(1)
+            ref = gauss_word(self.control_points(x1), x1[-2], x1[-1], parity)
+            self.stitch._kernels["gauss_word"] = ref
+        got = gauss_word(self.control_points(x), x[-2], x[-1], parity)
+        if got == ref:
+            return ""
+        return (f"topology changed: {len(got)} crossings along the yarn in the order {got}, "
+                f"the {self.stitch.name} stitch has {len(ref)} in the order {ref}")  # fmt: skip
 
     def contact_forces_by_class(self, x: np.ndarray) -> np.ndarray:
         """Contact forces on the cell by class of image offset, shape (5, 3), N.

@@ -103,3 +103,20 @@ def test_gauss_words_tell_garter_from_stockinette(model):
     assert len(w) == len(g) == 8
     # the same counts of (n, sign): only the order along the yarn tells them apart
     assert sorted(w) == sorted(g)
+
+
+def test_a_changed_topology_is_named():
+    from knitsweep.stitches.garter.layout import from_free
+    from knitsweep.stitches.stockinette_free.ansatz import to_free
+
+    ma = CellModel(P)
+    mg = CellModel(P.model_copy(update={"stitch": "garter"}))
+    for i in (1, 4):
+        assert mg.topology_change(mg.stitch.start(i)) == ""
+    x = ma.stitch.start(1)
+    cp = ma.control_points(x)
+    # the stockinette stitch far above its mirror images: its rows no longer interlock
+    xs = from_free(to_free(cp, x[-2], x[-1]), 3.0)
+    why = mg.topology_change(xs)
+    assert why.startswith("topology changed:") and "garter stitch has 8" in why
+    assert ma.topology_change(x) == ""  # translations alone: not checked
