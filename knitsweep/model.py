@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import Fidelity, InternalParams, StitchParams
+from .errors import InputError
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
 from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
@@ -24,7 +25,10 @@ from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
 from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
 from .kernels.neighbours import build_neighbour_list
+from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
+from .stitches.patterns import min_zeta_where
+from .stitches.topology import gauss_word
 
 
 class NeighbourList:
@@ -93,6 +97,13 @@ class CellModel:
     def _call(self, x: np.ndarray, with_grad: bool) -> tuple[float, float, float]:
         x = self._as_state(x)
         cp, jac = self._geometry_of(x)
+        if self.stitch.images == "glides":  # a knit/purl pattern (docs/model.md §11)
+            ip = self.ip
+            return pattern_cell_energy(
+                cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
+                ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.stitch.mirror_parity, with_grad,
+                self._grad_e, self._grad_l,
+            )  # fmt: skip
         return cell_energy(*self._energy_args(cp, jac, x, with_grad))
 
     def _energy_args(self, cp, jac, x, with_grad) -> tuple:
@@ -116,7 +127,7 @@ class CellModel:
         its pairs: the same numbers, bit for bit, faster; the list rebuilds itself
         when the state has moved too far for it.
         """
-        if neighbours is None:
+        if neighbours is None or self.stitch.images == "glides":
             eb, ec, length = self._call(x, True)
         else:
             eb, ec, length = self._call_listed(self._as_state(x), neighbours)
@@ -159,8 +170,30 @@ class CellModel:
         below 1e-5 the hard cores overlap (docs/model.md §6)."""
         ip = self.ip
         x = self._as_state(x)
+        if self.stitch.images == "glides":
+            return min_zeta_where(self.control_points(x), x[-2], x[-1], ip.r, ip.rc,
+                                  self.stitch.mirror_parity, self.fidelity.samples_per_segment)[0]  # fmt: skip
         return min_zeta(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
                         self._mode)  # fmt: skip
+
+    def topology_change(self, x: np.ndarray) -> str:
+        """For a stitch with mirrored images: "" if state ``x`` shows the crossing order of
+        the stitch's first shipped start (``topology.gauss_word``, docs/model.md §11), else
+        what changed. Stitches of translations alone are not checked ("")."""
+        if self.stitch.images != "glides":
+            return ""
+        x = self._as_state(x)
+        parity = self.stitch.mirror_parity
+        ref = self.stitch._kernels.get("gauss_word")
+        if ref is None:
+            x1 = self.stitch.start(1)
+            ref = gauss_word(self.control_points(x1), x1[-2], x1[-1], parity)
+            self.stitch._kernels["gauss_word"] = ref
+        got = gauss_word(self.control_points(x), x[-2], x[-1], parity)
+        if got == ref:
+            return ""
+        return (f"topology changed: {len(got)} crossings along the yarn in the order {got}, "
+                f"the {self.stitch.name} stitch has {len(ref)} in the order {ref}")  # fmt: skip
 
     def contact_forces_by_class(self, x: np.ndarray) -> np.ndarray:
         """Contact forces on the cell by class of image offset, shape (5, 3), N.
@@ -182,6 +215,9 @@ class CellModel:
         the contact energy of each class; the five add up to E_c."""
         ip = self.ip
         x = self._as_state(x)
+        if self.stitch.images == "glides":
+            raise InputError(f"stitch = {self.stitch.name}: contact forces by class are not "
+                             "implemented for mirrored images yet (docs/model.md §11)")  # fmt: skip
         cp, jac = self.control_points_and_jacobian(x)
         dcp = np.ascontiguousarray(jac[..., -2:])
         forces = np.empty((N_CLASSES, 3))
@@ -205,6 +241,9 @@ class CellModel:
         """
         ip = self.ip
         x = self._as_state(x)
+        if self.stitch.images == "glides":
+            raise InputError(f"stitch = {self.stitch.name}: pair forces by class are not "
+                             "implemented for mirrored images yet (docs/model.md §11)")  # fmt: skip
         forces = np.empty((N_CLASSES, 3))
         _pair_forces_by_class(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
                               ip.k, ip.p, self._mode, weighted, forces)  # fmt: skip

@@ -43,9 +43,11 @@ LAYERS = [
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
-                "forces", "cell", "kkt"],
-    "stitches": ["base", "stockinette"],
+                "forces", "cell", "kkt", "mirrored", "pattern_cell"],
+    "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free", "garter"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
+    "stitches.stockinette_free": ["layout", "geometry", "ansatz", "data"],
+    "stitches.garter": ["layout", "geometry", "data"],
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper",
                  "volumes"],
     "analysis.volumes": ["_nearest", "geometry", "estimators"],

@@ -120,6 +120,8 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
         if zeta < CORE_EPS:
             status = NOT_KNITTABLE
             why = f"hard cores overlap at the minimum (smallest zeta = {zeta:.3g} < {CORE_EPS:g})"
+        elif changed := model.topology_change(x):  # patterns only (docs/model.md §11)
+            status, why = NOT_CONVERGED, changed
     else:
         status, why = NOT_CONVERGED, message
     return Relaxation(

@@ -19,7 +19,8 @@ change to the kernels, the relaxation, the sweeps, the store or the renderer
 * **images**: ``images`` names the operations that generate the fabric from the
   cell. ``"translations"``: images at m t_c + n t_w (t_c = (a_x, 0, 0),
   t_w = (0, a_y, 0)) for all integers m, n, which the contact kernel enumerates;
-  patterns with reflections (purl stitches: z -> -z plus a shift) declare others.
+  patterns with reflections (purl stitches: z -> -z plus a shift) declare
+  ``"glides"`` and their ``mirror_parity`` (docs/model.md §11).
 * **contact classes**: ``contact_classes`` names the rows of the contact forces by
   class, in the contact kernel's order of image offsets.
 * **starts**: ``start(i)`` is the i-th shipped starting state (1-based) of the
@@ -45,7 +46,7 @@ import numpy as np
 
 from ..errors import InputError
 
-ImageGroup = Literal["translations"]
+ImageGroup = Literal["translations", "glides"]
 """The symmetry operations that generate the fabric from one cell."""
 
 TRANSLATION_CLASSES = ("self", "same_row", "nn_column", "nnn_column", "other")
@@ -72,6 +73,9 @@ class Stitch:
     contact_classes: tuple[str, ...] = TRANSLATION_CLASSES
     path_order: tuple[int, ...] = ()
     closing_shift: tuple[int, int] = (1, 0)
+    mirror_parity: tuple[int, int] = (0, 0)
+    """With ``images = "glides"``: image (m, n) is mirrored (z -> -z) when
+    pm m + pn n is odd (docs/model.md §11; garter (0, 1), rib (1, 0), seed (1, 1))."""
     _kernels: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:

@@ -1,0 +1,105 @@
+"""Knit/purl patterns on the free yarn: their images, garter's starting shape and the
+check that refuses overlapping starts (docs/model.md §11); numpy only.
+
+A pattern repeats one stitch's cell under translations and glide reflections: the image
+at (m, n) is mirrored through the fabric plane z = 0 when pm m + pn n is odd
+(``PARITIES``). Garter's rows are separate yarns, so its one-stitch cell is a knit
+stitch whose odd rows are its mirror images; ``garter_start`` builds such a stitch
+from a stockinette one by an affine map (which keeps every joint G2 and the periodicity
+along the course), ``garter_crossings`` says which crossing signs the garter fabric
+must show, and ``check_start`` refuses a start whose hard cores overlap, naming where.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from math import comb
+
+import numpy as np
+
+from ..errors import InputError
+
+PARITIES = {"stockinette": (0, 0), "garter": (0, 1), "rib": (1, 0), "seed": (1, 1)}
+"""(pm, pn) per pattern: image (m, n) mirrored when pm m + pn n is odd."""
+
+GARTER_STRETCH, GARTER_LIFT, GARTER_SHEAR = 1.3, 1.0, -0.7
+"""The affine map of ``garter_start``: y -> 1.3 y, then z -> z + 1.0 mm - 0.7 y (the
+stitch tilted out of the plane, lifted off the mirror plane, rows spread). Chosen on
+a grid (stretch 1, 1.15, 1.3, 1.5; lift 0 … 1.6 mm; shear −1.2 … −0.1) among the maps
+that give Init_1 garter's crossing signs and no hard-core overlap (min ζ 0.097 over the
+rows, docs/model.md §11), the one with the shortest yarn of those checked (14.58 mm)."""
+
+EXCLUSION_FACTOR = 2.1  # as the contact kernel's (docs/model.md §6)
+MIN_ZETA = 1e-5  # below it the hard cores overlap (§6)
+
+
+def garter_start(cp: np.ndarray, a_x: float, a_y: float, stretch: float = GARTER_STRETCH,
+                 lift: float = GARTER_LIFT, shear: float = GARTER_SHEAR):  # fmt: skip
+    """A garter stitch from a stockinette one: control points (S, 6, 3) mm and periods
+    mapped by y -> stretch y, z -> z + lift + shear y (affine, so G2 and the closing
+    shift t_c survive). Returns (cp, a_x, a_y)."""
+    out = np.array(cp, dtype=float)
+    out[..., 1] *= stretch
+    out[..., 2] += lift + shear * out[..., 1]
+    return out, a_x, a_y * stretch
+
+
+def garter_crossings(stockinette: Counter) -> Counter:
+    """Garter's crossing signs (m, n, sign) from stockinette's (``topology.crossings``).
+
+    A purl row's loops pass through the knit row below from the front: every crossing of
+    the cell (a knit stitch) with the row above (n odd, n > 0) changes sign; the crossings
+    with the row below are their glide images, whose sign seen from the cell is then
+    stockinette's (the mirror and the change of viewpoint cancel)."""
+    out: Counter = Counter()
+    for (m, n, s), c in stockinette.items():
+        out[(m, n, -s if n % 2 and n > 0 else s)] += c
+    return out
+
+
+def _samples(cp: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Midpoint samples (S n, 3), their midpoint arclengths (S n,) and the total (§6)."""
+    t = (np.arange(n) + 0.5) / n
+    b0 = np.stack([comb(5, i) * t**i * (1 - t) ** (5 - i) for i in range(6)], axis=1)
+    b1 = 5 * np.stack([(comb(4, i - 1) * t ** (i - 1) * (1 - t) ** (5 - i) if i > 0 else 0 * t)
+                       - (comb(4, i) * t**i * (1 - t) ** (4 - i) if i < 5 else 0 * t)
+                       for i in range(6)], axis=1)  # fmt: skip
+    pts = np.concatenate([b0 @ cp[s] for s in range(cp.shape[0])])
+    speed = np.concatenate([np.linalg.norm(b1 @ cp[s], axis=1) for s in range(cp.shape[0])])
+    total = np.cumsum(speed) / n
+    return pts, total - 0.5 * speed / n, float(total[-1])
+
+
+def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10):
+    """Smallest ζ over the counted contacts of the pattern (images mirrored by
+    ``parity``; same-row neighbours along the yarn excluded as in §6) and where:
+    (ζ, (m, n), segment of the cell, segment of the image); ζ = 1 if nothing touches."""
+    pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
+    best = (1.0, None, None, None)
+    d = 2 * r - 2 * r_core
+    for m in range(-2, 3):
+        for n in range(-3, 4):
+            q = pts.copy()
+            if (parity[0] * m + parity[1] * n) % 2:
+                q[:, 2] *= -1.0
+            q += (m * a_x, n * a_y, 0.0)
+            dist = np.linalg.norm(pts[:, None] - q[None], axis=-1)
+            if n == 0:
+                dist[np.abs(s_mid[:, None] - s_mid[None] - m * s_tot) <= EXCLUSION_FACTOR * r] = (
+                    np.inf
+                )
+            i, j = np.unravel_index(np.argmin(dist), dist.shape)
+            z = (dist[i, j] - 2 * r_core) / d
+            if dist[i, j] < 2 * r and z < best[0]:
+                best = (float(z), (m, n), int(i // samples), int(j // samples))
+    return best
+
+
+def check_start(cp, a_x, a_y, r, r_core, parity=(0, 0), label="start") -> float:
+    """min ζ of a starting state; InputError naming where if the hard cores overlap."""
+    z, image, sa, sb = min_zeta_where(cp, a_x, a_y, r, r_core, parity)
+    if not z > MIN_ZETA:
+        raise InputError(f"{label} = overlapping yarn: min zeta {z:.3g} <= {MIN_ZETA:g} between "
+                         f"segment {sa} of the cell and segment {sb} of its image {image}: "
+                         f"a start must keep the hard cores apart")  # fmt: skip
+    return z

@@ -1,0 +1,108 @@
+"""The topology of a stitch's fabric as crossing signs in projection (docs/model.md §11).
+
+Yarn cannot pass through yarn, so a relaxation keeps the over/under of every crossing
+that the fabric shows seen from above (along −z). ``crossings(cp, a_x, a_y)`` samples
+the cell's yarn (control points ``cp`` (S, 6, 3), mm, path order, closing after one
+course period) as a polyline, projects the cell and its images m t_c + n t_w
+(|m| <= 1, |n| <= 2) onto the fabric plane, and lists every crossing of the cell's
+yarn with itself or an image as (m, n, sign): sign +1 where the cell's strand passes
+over the image's (larger z). Segment labels are left out on purpose: a crossing slides
+along the yarn as the stitch relaxes, from a connector onto a crossover curve, without
+any change of topology (seen at L = 10.5 mm in the free yarn, docs/model.md §11).
+``same_topology`` compares two such lists as multisets; a difference (a crossing gained,
+lost, or with its sign flipped) means the states are not one fabric, or that a pair of
+crossings appeared or vanished (a Reidemeister II move in projection), which is flagged
+the same way: the check errs on the side of reporting. numpy only.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from math import comb
+
+import numpy as np
+
+SAMPLES = 48
+"""Polyline pieces per segment."""
+
+
+def _polyline(cp: np.ndarray, samples: int) -> np.ndarray:
+    """Points (S*samples + 1, 3) along the yarn, mm."""
+    t = np.linspace(0.0, 1.0, samples + 1)[:-1]
+    basis = np.stack([comb(5, i) * t**i * (1 - t) ** (5 - i) for i in range(6)], axis=1)
+    pts = np.concatenate([basis @ cp[s] for s in range(cp.shape[0])])
+    return np.vstack([pts, cp[-1, 5]])
+
+
+def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
+              parity: tuple[int, int] = (0, 0), heights: list | None = None,
+              along: list | None = None) -> Counter:  # fmt: skip
+    """Crossings in projection of the cell's yarn with itself and its images, as a
+    Counter of (m, n, sign) (see the module docstring).
+
+    ``parity`` (pm, pn): the image (m, n) is mirrored (z -> -z) when pm m + pn n is odd
+    (docs/model.md §11: garter (0, 1), rib (1, 0), seed (1, 1)). ``heights``, if given,
+    receives (m, n, z of the cell's strand, z of the image's) of every crossing;
+    ``along`` receives (position along the cell's yarn in polyline pieces, n, sign)
+    (``gauss_word``)."""
+    pts = _polyline(np.asarray(cp, dtype=float), samples)
+    p0, p1 = pts[:-1], pts[1:]
+    out: Counter = Counter()
+    n_p = len(p0)
+    for m in (-1, 0, 1):
+        for n in (-2, -1, 0, 1, 2):
+            shift = np.array([m * a_x, n * a_y, 0.0])
+            flip = np.array([1.0, 1.0, -1.0 if (parity[0] * m + parity[1] * n) % 2 else 1.0])
+            q0, q1 = p0 * flip + shift, p1 * flip + shift
+            d = p1 - p0
+            e = q1 - q0
+            w = q0[None, :, :2] - p0[:, None, :2]
+            den = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / den
+                u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / den
+            hit = (np.abs(den) > 1e-14) & (s >= 0) & (s < 1) & (u >= 0) & (u < 1)
+            if m == 0 and n == 0:  # each self-crossing once; neighbouring pieces never
+                i_idx, j_idx = np.nonzero(hit)
+                keep = (j_idx > i_idx + 1) & ~((i_idx == 0) & (j_idx == n_p - 1))
+                i_idx, j_idx = i_idx[keep], j_idx[keep]
+            else:
+                i_idx, j_idx = np.nonzero(hit)
+            for i, j in zip(i_idx, j_idx, strict=True):
+                za = p0[i, 2] + s[i, j] * d[i, 2]
+                zb = q0[j, 2] + u[i, j] * e[j, 2]
+                out[(m, n, 1 if za > zb else -1)] += 1
+                if heights is not None:
+                    heights.append((m, n, float(za), float(zb)))
+                if along is not None:
+                    along.append((float(i + s[i, j]), n, 1 if za > zb else -1))
+    return out
+
+
+def same_topology(before: Counter, after: Counter) -> tuple[bool, str]:
+    """(True, "") if the two crossing lists agree; else (False, what differs)."""
+    if before == after:
+        return True, ""
+    gained = after - before
+    lost = before - after
+    parts = []
+    if lost:
+        parts.append("lost " + ", ".join(f"{k}x{v}" for k, v in sorted(lost.items())[:4]))
+    if gained:
+        parts.append("gained " + ", ".join(f"{k}x{v}" for k, v in sorted(gained.items())[:4]))
+    return False, "crossings in projection changed (m, n, sign): " + "; ".join(parts)
+
+
+def gauss_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
+               samples: int = SAMPLES) -> tuple[tuple[int, int], ...]:  # fmt: skip
+    """The crossings met along the cell's yarn, in order, as (row offset n, sign), in the
+    rotation that sorts first (a cyclic word: a crossing sliding across the cell's end
+    rotates it). Unlike ``crossings`` it does not name the partner's column m, which a
+    crossing changes when it slides across the partner cell's end (seen in garter), and
+    it does tell stockinette from garter, whose (n, sign) counts agree."""
+    along: list = []
+    crossings(cp, a_x, a_y, samples, parity, along=along)
+    word = [(n, s) for _, n, s in sorted(along)]
+    if not word:
+        return ()
+    return min(tuple(word[k:] + word[:k]) for k in range(len(word)))
