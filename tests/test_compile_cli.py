@@ -20,7 +20,7 @@ def _knitsweep(*args, env=None):
 
 
 @pytest.mark.parametrize(("flag", "value", "field"), [("--jobs", "0", "jobs = 0"),
-                                                      ("--stitch", "garter", "stitch = 'garter'")])  # fmt: skip
+                                                      ("--stitch", "cable", "stitch = 'cable'")])  # fmt: skip
 def test_bad_input_is_one_line_and_exit_2(tmp_path, flag, value, field):
     out = _knitsweep("compile", "--cache-dir", str(tmp_path / "c"), flag, value)
     assert out.returncode == 2, out.stderr

@@ -72,7 +72,10 @@ def test_defaults_are_the_papers_table_1():
         ),
         ({"twist_bound": 1.0}, "twist_bound = 1.0: must be in [-1, 1)"),
         ({"pattern": 1.0}, "pattern: unknown field"),
-        ({"stitch": "garter"}, "stitch = 'garter': must be one of stockinette"),
+        (
+            {"stitch": "cable"},
+            "stitch = 'cable': must be one of stockinette, stockinette_free, garter",
+        ),
         ({"stitch": 1.0}, "stitch = 1.0: Input should be a valid string"),
     ],
 )

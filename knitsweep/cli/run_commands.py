@@ -222,12 +222,13 @@ def slurm_render(
 
 @app.command("compile")
 def compile_(
-    cache_dir: Annotated[Path | None, typer.Option("--cache-dir", help="numba cache directory "
-                         "to fill (e.g. node-local) [$NUMBA_CACHE_DIR or ~/.cache/knitsweep]")] = None,
-    jobs: Annotated[int | None, typer.Option("--jobs", help="processes compiling side by side "
-                    "[as many as idle cores, at most 3]")] = None,
-    stitch: Annotated[list[str] | None, typer.Option("--stitch", help="stitch pattern(s) "
-                      "[stockinette]")] = None,
+    cache_dir: Annotated[Path | None, option("--cache-dir", help="numba cache directory to "
+                         "fill (e.g. node-local)", default="$NUMBA_CACHE_DIR or "
+                         "~/.cache/knitsweep")] = None,
+    jobs: Annotated[int | None, option("--jobs", help="processes compiling side by side",
+                    default="as many as idle cores, at most 3")] = None,
+    stitch: Annotated[list[str] | None, option("--stitch", help="stitch pattern (one of "
+                      "knitsweep.stitches.STITCH_NAMES)", default="stockinette")] = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
     """Compile every kernel a `run` uses into numba's on-disk cache (warm a node-local

@@ -83,10 +83,17 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
                         label=CLASS_LABEL[cls])  # fmt: skip
             ax.axhline(0.0, color="0.6", lw=0.8)
             ax.set_xlabel(STRAIN[d])
-            ax.set_ylabel(f"force along {a} (N), + assists linear elasticity")
-            ax.set_title(f"pulled in {d}, L = {float(e.meta['L_mm']):g} mm: {a} component")
+            if col == 0:
+                ax.set_ylabel(f"pulled in {d}, L = {float(e.meta['L_mm']):g} mm\nforce (N)")
+            if row == 0:
+                ax.set_title(f"{a} component")
     axes[0, 0].legend(frameon=True, framealpha=0.9)
-    title(fig, red, "Contact (pair) forces by class along the sweeps")
+    title(
+        fig,
+        red,
+        "Contact (pair) forces by class along the sweeps (positive assists "
+        "linear elastic extension)",
+    )
     return fig
 
 

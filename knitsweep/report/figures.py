@@ -82,6 +82,14 @@ CAPTIONS: dict[str, str] = {
     "fig6g_thickness_strain_x_small.png": "Thickness strain of pulls in x up to 10 % strain.",
     "fig6h_contact_force_ratio.png": "Ratio of the x and y contact forces at zero strain "
     "against L/r (paper Fig. 6h).",
+    "figS_packing_fraction_L.png": "Packing fraction of the zero-force stitch against L/r, "
+    "with the paper's 0.85 that marks the end of jamming (SI, contact volumes).",
+    "figS_packing_fraction_strain.png": "Packing fraction along the sweeps, pulled in x and "
+    "in y (SI, contact volumes).",
+    "figS11_contact_forces_strain.png": "Contact forces between the yarn's sampled points by "
+    "class and axis along the sweeps; positive forces assist the extension (paper SI).",
+    "figS11_contact_forces_strain_small.png": "The contact forces along the sweeps up to 10 % "
+    "strain.",
 }
 """What each figure shows, for a reader (the HTML report's captions)."""
 
