@@ -61,7 +61,7 @@ MODULE_ORDER = {
     "report": ["force_columns", "reduce", "tidy", "results", "tables", "plotting", "fig_energy",
                "fig_mechanics", "fig_volumes", "fig_forces", "figures", "html", "render",
                "contact_volumes"],
-    "service.executors": ["local", "mpi"],
+    "service.executors": ["protocol", "local", "mpi"],
     "cli": ["common", "model_commands", "run_commands", "analysis_commands", "application"],
 }  # fmt: skip
 

@@ -45,7 +45,7 @@ def main() -> None:
 
 def _leave(comm) -> None:
     """A rank's part of the MPI protocol when it stops before reaching it."""
-    from ..service.executors.mpi import leave_at_start_up
+    from ..service.executors.protocol import leave_at_start_up
 
     leave_at_start_up(comm)
 
