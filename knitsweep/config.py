@@ -52,6 +52,16 @@ def _positive(v: float) -> float:
 Positive = Annotated[float, AfterValidator(_positive)]
 
 
+def _known_stitch(v: str) -> str:
+    if v not in STITCH_NAMES:
+        raise ValueError(f"must be one of {', '.join(STITCH_NAMES)}")
+    return v
+
+
+StitchName = Annotated[str, AfterValidator(_known_stitch)]
+"""The name of a stitch knitsweep knows (``knitsweep.stitches.STITCH_NAMES``)."""
+
+
 def within(lo: float, hi: float, *, open_lo: bool = False, unit: str = ""):
     """A float field in [lo, hi] (or (lo, hi] with ``open_lo``) whose message states the
     whole allowed range: ``must be a finite number in (0, 100] mm``."""
@@ -114,16 +124,9 @@ class StitchParams(BaseModel):
     twist_bound: float = Field(
         0.9, description="bound c_tw on the crossover twist: cos(tw) >= c_tw"
     )
-    stitch: str = Field(
+    stitch: StitchName = Field(
         DEFAULT_STITCH, description=f"stitch pattern: one of {', '.join(STITCH_NAMES)}"
     )
-
-    @field_validator("stitch")
-    @classmethod
-    def _known_stitch(cls, v: str) -> str:
-        if v not in STITCH_NAMES:
-            raise ValueError(f"must be one of {', '.join(STITCH_NAMES)}")
-        return v
 
     @model_serializer(mode="wrap")
     def _stockinette_as_before(self, handler) -> dict[str, Any]:

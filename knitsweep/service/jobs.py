@@ -37,6 +37,7 @@ from ..config import (
     InputError,
     SolverSettings,
     StartSettings,
+    StitchName,
     StitchParams,
     SweepProtocol,
     preset_sections,
@@ -152,7 +153,7 @@ class JobSpec(BaseModel):
     seed: int = Field(0, ge=0, lt=MAX_SEED)
     directions: list[Literal["x", "y"]] = Field(default_factory=lambda: ["x", "y"], min_length=1)
     preset: str = DEFAULT_PRESET
-    stitch: str = Field(
+    stitch: StitchName = Field(
         DEFAULT_STITCH,
         description=f"stitch pattern of every point: one of {', '.join(STITCH_NAMES)}",
     )
@@ -203,13 +204,6 @@ class JobSpec(BaseModel):
     def _known_preset(cls, v: str) -> str:
         if v not in PRESETS:
             raise ValueError(f"must be one of {', '.join(PRESETS)}")
-        return v
-
-    @field_validator("stitch")
-    @classmethod
-    def _known_stitch(cls, v: str) -> str:
-        if v not in STITCH_NAMES:
-            raise ValueError(f"must be one of {', '.join(STITCH_NAMES)}")
         return v
 
     @field_validator("directions")
