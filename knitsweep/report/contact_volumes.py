@@ -16,7 +16,7 @@ import numpy as np
 
 from ..config import StitchParams
 from ..errors import InputError
-from .render import OUT_SUFFIXES, Stitch, cell_path, stitch_from_results, stitch_from_state
+from .render import OUT_SUFFIXES, Stitch, cell_path, stitch_to_draw
 
 VOLUME_COLOUR = {  # paper Fig. 6a–d
     "self": "#2ca02c",
@@ -124,15 +124,5 @@ def render_contact_volumes(out: str | Path, *, results: str | Path | None = None
         raise InputError(f"samples = {samples}: must be a power of 2 in 1024..{MAX_SAMPLES}")
     if (results is None) == (state is None):
         raise InputError("give either --results FILE --task ID, or --state FILE")
-    if results is not None:
-        if task is None:
-            raise InputError("--results needs --task ID (a point or sweep id)")
-        stitch = stitch_from_results(results, task, step)
-    else:
-        from ..formats import read_state
-
-        if step is not None:
-            raise InputError("--step applies to a sweep of a results file, not to --state")
-        stitch = stitch_from_state(read_state(state), params or StitchParams(),
-                                   f"state {Path(state).name}")  # fmt: skip
+    stitch = stitch_to_draw(results, task, step, state, params)
     return draw_contact_volumes(stitch, out, samples), stitch

@@ -417,18 +417,29 @@ def render(
     if (results is None) == (state is None):
         raise InputError("give either --results FILE --task ID, or --state FILE")
     check_writable(out, "--out")  # before any compute, as in every command
-    if results is not None:
-        if task is None:
-            raise InputError("--results needs --task ID (a point or sweep id)")
-        stitch = stitch_from_results(results, task, step)
-    else:
-        from ..formats import read_state
-
-        if step is not None:
-            raise InputError("--strain-step applies to a sweep of a results file, not to --state")
-        params = params or StitchParams()
-        x = read_state(state, params.stitch)
-        stitch = stitch_from_state(x, params, f"state {Path(state).name}")
+    stitch = stitch_to_draw(results, task, step, state, params)
     path = draw_stitch(stitch, out, cells, radius, elevation_deg=elevation_deg, side=side,
                        width_px=width_px, highlight=highlight)  # fmt: skip
     return path, stitch
+
+
+def stitch_to_draw(
+    results: Path | None,
+    task: str | None,
+    step: int | None,
+    state: Path | None,
+    params: StitchParams | None,
+) -> Stitch:
+    """The picture's stitch: a task of a results file (at a sweep's ``step``), or a state
+    file at ``params`` (default paper Table 1); exactly one of ``results`` and ``state``."""
+    if results is not None:
+        if task is None:
+            raise InputError("--results needs --task ID (a point or sweep id)")
+        return stitch_from_results(results, task, step)
+    from ..formats import read_state
+
+    if step is not None:
+        raise InputError("--strain-step applies to a sweep of a results file, not to --state")
+    params = params or StitchParams()
+    return stitch_from_state(read_state(state, params.stitch), params,
+                             f"state {Path(state).name}")  # fmt: skip
