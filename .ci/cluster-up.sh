@@ -27,7 +27,10 @@
 # on stderr) if anything does not come up; on failure it tears down what it made.
 #
 # Knobs: CLUSTER_NODES (2 or 3, default 2), CLUSTER_SUBNET (first three octets of
-# the private /24, default 10.226.26), CLUSTER_UP_TIMEOUT (s, default 60).
+# the private /24, default 10.226.26), CLUSTER_UP_TIMEOUT (s, default 60),
+# CLUSTER_SHARE (colon-separated directories under /tmp that every node sees as the
+# machine does, like a shared software install: a checkout or a virtualenv that
+# lives in /tmp; this checkout is added when it is under /tmp).
 set -Eeuo pipefail
 
 NODES=${CLUSTER_NODES:-2}
@@ -38,6 +41,8 @@ RUN_DIR=/run/knitsweep-cluster
 SWITCH=knit-switch
 PARTITION=cluster
 HERE=$(cd "$(dirname "$0")" && pwd)
+SHARE=${CLUSTER_SHARE:-}
+[[ $HERE == /tmp/* ]] && SHARE="${SHARE:+$SHARE:}$(dirname "$HERE")"
 EXEC=$HERE/cluster-exec.sh
 
 T0=$SECONDS
@@ -234,6 +239,7 @@ for n in "${NAMES[@]}"; do
     rm -rf "$d"
     install -d -m 0755 "$d" "$d/spool"
     install -d -m 1777 "$d/tmp"
+    install -d -m 0755 "$d/machine-tmp"
     install -d -o munge -g munge -m 0755 "$d/run-munge"
     install -d -o munge -g munge -m 0700 "$d/munge-lib" "$d/munge-log"
     # The holder sets up its mounts (private propagation: nothing leaks back to
@@ -243,13 +249,21 @@ for n in "${NAMES[@]}"; do
         set -e
         hostname "$1"
         ip link set lo up
+        mount --bind /tmp "$2/machine-tmp"
         mount --bind "$2/tmp" /tmp
+        IFS=:
+        for p in $5; do
+            case $p in /tmp/?*) ;; *) echo "CLUSTER_SHARE: $p is not under /tmp" >&2; exit 1 ;; esac
+            mkdir -p "$p"
+            mount --bind "$2/machine-tmp/${p#/tmp/}" "$p"
+        done
+        unset IFS
         mount -t tmpfs -o mode=1777,size=256m tmpfs /dev/shm
         mount --bind "$3/hosts" /etc/hosts
         mount --bind "$3/etc-slurm" /etc/slurm
         mount --bind "$2/run-munge" /run/munge
         echo $$ > "$4.tmp" && mv "$4.tmp" "$4"
-        exec sleep infinity' holder "$n" "$d" "$BASE" "$RUN_DIR/holder-$n.pid" \
+        exec sleep infinity' holder "$n" "$d" "$BASE" "$RUN_DIR/holder-$n.pid" "$SHARE" \
         </dev/null >>"$BASE/log/holder-$n.log" 2>&1 &
 done
 for n in "${NAMES[@]}"; do

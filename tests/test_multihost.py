@@ -33,6 +33,7 @@ from knitsweep import service
 
 REPO = Path(__file__).resolve().parents[1]
 VENV = Path(sys.executable).parent.parent
+SOURCE = Path(knitsweep.__file__).resolve().parents[1]  # the checkout the nodes import
 UP, DOWN, EXEC = (REPO / ".ci" / f"cluster-{s}.sh" for s in ("up", "down", "exec"))
 BASE = Path("/var/lib/knitsweep-cluster")
 RUN_DIR = Path("/run/knitsweep-cluster")
@@ -83,8 +84,7 @@ def run_env(**extra):
     """This venv and this checkout on PATH/PYTHONPATH; no KNITSWEEP_* or SLURM_*
     settings of the caller; the node-local kernel cache."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(("KNITSWEEP_", "SLURM_", "PMI"))}
-    source = str(Path(knitsweep.__file__).resolve().parents[1])
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [source, env.get("PYTHONPATH")]))
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(SOURCE), env.get("PYTHONPATH")]))
     env["PATH"] = f"{VENV / 'bin'}{os.pathsep}{env.get('PATH', '/usr/bin:/bin')}"
     env["KNITSWEEP_VENV"] = str(VENV)
     env["NUMBA_CACHE_DIR"] = NODE_CACHE
@@ -112,12 +112,19 @@ def cluster():
     tests failed), or a failure that says why."""
     if os.geteuid() != 0:
         pytest.fail("the multihost tests need root (namespaces, SLURM daemons); run as root")
-    env = {**os.environ, "CLUSTER_NODES": str(len(NODES))}
+    software = [str(p) for p in (VENV, SOURCE) if str(p).startswith("/tmp/")]  # the nodes' /tmp is their own
+    env = {**os.environ, "CLUSTER_NODES": str(len(NODES)), "CLUSTER_SHARE": ":".join(software)}
     proc = subprocess.run(["bash", str(UP)], env=env, capture_output=True, text=True, timeout=600)
     if proc.returncode != 0:
         pytest.fail(f"{UP} failed (exit {proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
     started_here = "cluster already up" not in proc.stdout
     holders = [holder(n) for n in NODES]
+    for node in NODES:
+        for path in (Path(sys.executable), SOURCE / "knitsweep" / "__init__.py"):
+            seen = subprocess.run([*enter(node), "test", "-e", str(path)], capture_output=True)
+            if seen.returncode != 0:
+                pytest.fail(f"{node} does not see {path}: a node has its own /tmp; put the venv and the "
+                            f"checkout elsewhere, or start the cluster with CLUSTER_SHARE naming them")  # fmt: skip
     yield {"started_here": started_here}
     if started_here:
         down = subprocess.run(["bash", str(DOWN)], capture_output=True, text=True, timeout=180)
