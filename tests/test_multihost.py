@@ -112,7 +112,8 @@ def cluster():
     tests failed), or a failure that says why."""
     if os.geteuid() != 0:
         pytest.fail("the multihost tests need root (namespaces, SLURM daemons); run as root")
-    software = [str(p) for p in (VENV, SOURCE) if str(p).startswith("/tmp/")]  # the nodes' /tmp is their own
+    # a node's /tmp is its own: a venv or checkout there must be shared with the nodes
+    software = [str(p) for p in (VENV, SOURCE) if str(p).startswith("/tmp/")]
     env = {**os.environ, "CLUSTER_NODES": str(len(NODES)), "CLUSTER_SHARE": ":".join(software)}
     proc = subprocess.run(["bash", str(UP)], env=env, capture_output=True, text=True, timeout=600)
     if proc.returncode != 0:
