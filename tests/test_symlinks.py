@@ -9,6 +9,7 @@ import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 import tempfile
 from pathlib import Path
 
@@ -16,7 +17,12 @@ import pytest
 from conftest import TINY
 
 ROOT = Path(__file__).resolve().parents[1]
-SITE = next((ROOT / ".venv" / "lib").glob("python3*/site-packages"), None)
+SITE = Path(sysconfig.get_paths()["purelib"])  # this venv's packages, for the system python
+
+
+def _readable_by_others(path: Path) -> bool:
+    """Whether every directory down to ``path`` lets other users in (not under /root)."""
+    return all(p.stat().st_mode & 0o005 == 0o005 for p in (path, *path.parents))
 
 
 def as_user(user: str, *args: str, cwd: Path) -> subprocess.CompletedProcess:
@@ -38,8 +44,19 @@ def as_user(user: str, *args: str, cwd: Path) -> subprocess.CompletedProcess:
 def user(request):
     if os.geteuid() != 0:
         pytest.skip("switching users needs root (as CI has)")
-    if request.param == "nobody" and (SITE is None or not Path("/usr/bin/python3").exists()):
-        pytest.skip("no system python for the ordinary user")
+    if request.param == "nobody":
+        system = Path("/usr/bin/python3")
+        if not system.exists():
+            pytest.skip("no system python for the ordinary user")
+        same = subprocess.run([system, "-c", "import sys; print(sys.version_info[:2])"],
+                              capture_output=True, text=True).stdout.strip()  # fmt: skip
+        if same != str(sys.version_info[:2]):
+            pytest.skip(
+                f"the system python is {same}, this venv's packages are for {sys.version_info[:2]}"
+            )
+        for needed in (ROOT, SITE):
+            if not _readable_by_others(needed):
+                pytest.skip(f"the ordinary user cannot read {needed}")
     return request.param
 
 

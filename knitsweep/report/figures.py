@@ -170,12 +170,23 @@ def render_figures(
     global _JOB
     _JOB = (red, options)
     try:
-        with multiprocessing.get_context("fork").Pool(workers) as pool:
+        with multiprocessing.get_context("fork").Pool(workers, initializer=_plain_signals) as pool:
             for name, (outcome, files) in zip(names, pool.imap(_render_named, names),
                                               strict=True):  # fmt: skip
                 yield name, outcome, files
+            pool.close()  # done: the workers leave by themselves (terminate() is for errors)
+            pool.join()
     finally:
         _JOB = None
+
+
+def _plain_signals() -> None:
+    """In a drawing process: SIGTERM ends it at once (the parent's handler, inherited
+    by the fork, would report a stopped job), SIGINT is the parent's to handle."""
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 # reproducible files: no creation dates in PDF/SVG metadata

@@ -81,35 +81,54 @@ def _update(h, value: Any) -> None:
             h.update(a.dtype.str.encode() + b":" + a.tobytes())
 
 
-def _attrs(h, attrs, skip: tuple[str, ...]) -> None:
-    for name in sorted(attrs.keys()):
-        if name in skip:
-            continue
-        h.update(b"A" + name.encode() + b"\0")
-        _update(h, attrs[name])
-
-
 def group_digest(group) -> str:
     """The hex SHA-256 digest of a task group as stored (see the module docstring)."""
+    return read_sealed(group)[0]
+
+
+def read_sealed(group) -> tuple[str, dict[str, Any], dict[str, Any]]:
+    """(digest, attributes, datasets) of a task group, each object read once: the
+    digest as ``group_digest`` defines it, the group's attributes (the digest
+    attributes left out) and the values of its datasets but the dimension scales
+    (``is_scale``: coordinates, not data)."""
     import h5py
 
     h = hashlib.sha256(_DOMAIN)
-    _attrs(h, group.attrs, DIGEST_ATTRS)
+    attrs = {
+        name: group.attrs[name] for name in sorted(group.attrs.keys()) if name not in DIGEST_ATTRS
+    }
+    _feed(h, attrs)
+    data = {}
     for name in sorted(group.keys()):
         obj = group[name]
         if not isinstance(obj, h5py.Dataset):
             h.update(b"G" + name.encode() + b"\0")  # no subgroups are written
             continue
         h.update(b"D" + name.encode() + b"\0")
-        _update(h, obj[()])
-        _attrs(h, obj.attrs, _REFERENCES)
-    return h.hexdigest()
+        value = obj[()]
+        _update(h, value)
+        ds_attrs = {a: obj.attrs[a] for a in sorted(obj.attrs.keys()) if a not in _REFERENCES}
+        _feed(h, ds_attrs)
+        if _as_text(ds_attrs.get("CLASS")) != "DIMENSION_SCALE":
+            data[name] = value
+    return h.hexdigest(), attrs, data
+
+
+def _as_text(value: Any) -> str | None:
+    return value.decode(errors="replace") if isinstance(value, bytes) else value
+
+
+def _feed(h, attrs: dict[str, Any]) -> None:
+    """Feed attributes already read and sorted by name."""
+    for name, value in attrs.items():
+        h.update(b"A" + name.encode() + b"\0")
+        _update(h, value)
 
 
 def root_digest(f) -> str:
     """The hex SHA-256 digest of a file's root attributes (the digest itself excluded)."""
     h = hashlib.sha256(_DOMAIN + b"root\0")
-    _attrs(h, f.attrs, DIGEST_ATTRS)
+    _feed(h, {name: f.attrs[name] for name in sorted(f.attrs.keys()) if name not in DIGEST_ATTRS})
     return h.hexdigest()
 
 
@@ -133,16 +152,21 @@ def _stored(attrs, name: str) -> str | None:
 def verify_group(group) -> bool:
     """True if the group matches its digest, False if it has none (written before
     checksums); ``Damaged`` if it does not match or cannot be read."""
+    return read_verified(group)[0]
+
+
+def read_verified(group) -> tuple[bool, dict[str, Any], dict[str, Any]]:
+    """(verified, attributes, datasets) of a task group, read once (``read_sealed``):
+    verified as ``verify_group`` says; ``Damaged`` if it does not match or cannot be
+    read."""
     try:
         stored = _stored(group.attrs, GROUP_DIGEST)
-        if stored is None:
-            return False
-        actual = group_digest(group)
+        actual, attrs, data = read_sealed(group)
     except Exception as e:  # HDF5 raises OSError, KeyError, RuntimeError … on damage
         raise Damaged(f"unreadable ({_why(e)})") from None
-    if actual != stored:
+    if stored is not None and actual != stored:
         raise Damaged("checksum mismatch (the stored data changed after it was written)")
-    return True
+    return stored is not None, attrs, data
 
 
 def verify_root(f) -> bool:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..stitches import DEFAULT_STITCH
-from .checksum import DIGEST_ATTRS, Damaged, FileCheck, seal_group, verify_group
+from .checksum import DIGEST_ATTRS, Damaged, FileCheck, read_verified, seal_group
 
 RESULTS_SCHEMA_VERSION = 2
 """The results-file format this knitsweep writes."""
@@ -144,19 +144,32 @@ def describe_dataset(group, kind: str, name: str) -> None:
 
 def _read_group(group, with_data: bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
     """(meta, record) of a task group, unchecked (``read_task`` checks it first)."""
-    attrs = {k: (v.item() if isinstance(v, np.generic) else v)
-             for k, v in group.attrs.items() if k not in DIGEST_ATTRS}  # fmt: skip
+    return _contents(*raw_group(group, with_data))
+
+
+def raw_group(group, with_data: bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(attributes, dataset values) of a task group as HDF5 gives them, unchecked
+    (dimension scales and the digest attributes left out)."""
+    attrs = {k: v for k, v in group.attrs.items() if k not in DIGEST_ATTRS}
     data = {}
-    if not with_data:
-        return attrs, data
-    for k, ds in group.items():
-        if not isinstance(ds, _h5().Dataset) or ds.is_scale:  # (scales: coordinates)
-            continue
-        v = ds[()]
-        if ds.dtype.kind == "O":
+    if with_data:
+        data = {
+            k: ds[()]
+            for k, ds in group.items()
+            if isinstance(ds, _h5().Dataset) and not ds.is_scale
+        }  # fmt: skip  (scales: coordinates)
+    return attrs, data
+
+
+def _contents(attrs: dict[str, Any], data: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(meta, record) from a group's attributes and dataset values as HDF5 gave them."""
+    meta = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in attrs.items()}
+    record = {}
+    for k, v in data.items():
+        if isinstance(v, np.ndarray) and v.dtype.kind == "O":
             v = np.array([s.decode() if isinstance(s, bytes) else s for s in v], dtype=object)
-        data[k] = v
-    return renamed(attrs), data
+        record[k] = v
+    return renamed(meta), record
 
 
 def read_task(group, with_data: bool, check: FileCheck | None = None):
@@ -164,8 +177,8 @@ def read_task(group, with_data: bool, check: FileCheck | None = None):
     unless ``with_data``); None if it is damaged, which ``check`` then records."""
     kind, tid = group.name.strip("/").split("/")[:2]
     try:
-        verified = verify_group(group)
-        meta, record = _read_group(group, with_data)
+        verified, attrs, data = read_verified(group)
+        meta, record = _contents(attrs, data if with_data else {})
     except Damaged as e:
         if check is not None:
             check.damaged.append((kind, tid, str(e)))
