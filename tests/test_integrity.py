@@ -81,6 +81,38 @@ def test_flipped_bytes_are_found_by_every_reader_and_recomputed(damaged, tiny_re
     assert service.status(out)["damaged"] == []
 
 
+def test_helpers_read_a_file_as_this_process_does(damaged, monkeypatch):
+    """A large file is read by forked helpers (here: every file): the same entries in
+    the same order, the same damage found, the same counts."""
+    from knitsweep.store import read
+
+    out, tid = damaged
+
+    def entries_and_check():
+        check = FileCheck()
+        got = [(e.kind, e.task_id, sorted(e.meta.items()), {k: np.asarray(v).tolist() for k, v in e.record.items()})
+               for e in iter_entries(out, with_data=True, check=check)]  # fmt: skip
+        return got, (check.damaged, check.verified, check.unverified, check.structure)
+
+    serial = entries_and_check()
+    monkeypatch.setattr(read, "PARALLEL_FROM", 1)
+    forked = []
+    import knitsweep.processes as processes
+
+    pool = processes.forked_pool
+
+    def counting_pool(workers):
+        forked.append(workers)
+        return pool(workers)
+
+    monkeypatch.setattr(processes, "fork_workers", lambda limit=4: 2)
+    monkeypatch.setattr(processes, "forked_pool", counting_pool)
+    parallel = entries_and_check()
+    assert forked == [2], "the helpers did not read"
+    assert parallel == serial
+    assert [d[1] for d in serial[1][0]] == [tid] and serial[1][1] == 5
+
+
 def test_a_changed_attribute_or_root_is_damage(tiny_reference, tmp_path):
     out = tmp_path / "a.h5"
     shutil.copy(tiny_reference, out)

@@ -21,6 +21,7 @@ LAYERS = [
     ["plain"],
     ["errors"],
     ["env"],
+    ["processes"],  # forked helpers (parallel reading and drawing)
     ["kernels"],  # generic numba: knows no stitch, no settings
     ["stitches"],  # geometries behind one interface; their kernels call down into kernels
     ["config"],

@@ -151,26 +151,19 @@ def render_figures(
     {format: bytes}); each as soon as it (and those before it) is drawn. ``workers``
     (default: the usable cores, at most 4) processes draw in parallel (forked, so
     the reduction is not copied); the bytes are the same as drawn one by one."""
-    import multiprocessing
-    import os
+    from ..processes import fork_workers, forked_pool
 
     options = options or FigureOptions()
     names = list(FIGURES)
-    if workers is None:
-        workers = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                      else os.cpu_count() or 1)  # fmt: skip
-    import threading
-
-    # fork only a single-threaded process (forking threads can deadlock the child)
-    forkable = "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1
-    if workers <= 1 or not forkable:
+    workers = fork_workers(4 if workers is None else workers)
+    if workers <= 1:
         for name in names:
             yield (name, *render_figure(red, name, FIGURES[name], options))
         return
     global _JOB
     _JOB = (red, options)
     try:
-        with multiprocessing.get_context("fork").Pool(workers, initializer=_plain_signals) as pool:
+        with forked_pool(workers) as pool:
             for name, (outcome, files) in zip(names, pool.imap(_render_named, names),
                                               strict=True):  # fmt: skip
                 yield name, outcome, files
@@ -178,15 +171,6 @@ def render_figures(
             pool.join()
     finally:
         _JOB = None
-
-
-def _plain_signals() -> None:
-    """In a drawing process: SIGTERM ends it at once (the parent's handler, inherited
-    by the fork, would report a stopped job), SIGINT is the parent's to handle."""
-    import signal
-
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 # reproducible files: no creation dates in PDF/SVG metadata

@@ -46,6 +46,13 @@ class FileCheck:
     unverified: int = 0
     structure: list[str] = field(default_factory=list)
 
+    def merge(self, other: FileCheck) -> None:
+        """Add what ``other`` found (a share of the same file, read elsewhere)."""
+        self.damaged += other.damaged
+        self.verified += other.verified
+        self.unverified += other.unverified
+        self.structure += other.structure
+
     def lines(self, path: Any) -> list[str]:
         """One line per damaged task or structure problem, and one for the unverified."""
         out = [f"damaged {kind[:-1]} {tid}: {why}: not used, recomputed on resume"

@@ -95,36 +95,75 @@ def recover_hint(path: Path) -> str:
     return ""
 
 
-def _groups(f, kind: str, check: FileCheck | None = None):
-    """(task id, group) of one kind in an open file; foreign members are skipped, and
-    members HDF5 cannot open are recorded in ``check`` as damaged."""
-    h5py = _h5()
-    try:
-        parent = f.get(kind)
-        names = list(parent.keys()) if isinstance(parent, h5py.Group) else []
-    except Exception as e:  # the group's index is damaged: its tasks cannot be named
-        if check is not None:
-            check.structure.append(f"the index of /{kind} is unreadable ({type(e).__name__})")
-        return
-    for tid in names:
-        try:
-            group = parent[tid]
-        except Exception as e:
-            if check is not None:
-                check.damaged.append((kind, tid, f"unreadable ({type(e).__name__})"))
-            continue
-        if isinstance(group, h5py.Group):
-            yield tid, group
+PARALLEL_FROM = 256
+"""Files of at least this many task groups are read by forked helpers in parallel
+(each verifies its share; the entries come in the file's order)."""
 
 
 def file_entries(f, with_data: bool, check: FileCheck | None = None,
                  skip: set | frozenset = frozenset()) -> Iterator[Entry]:  # fmt: skip
     """The verified task groups of an open file (damaged ones recorded in ``check``
     and left out), but those in ``skip`` ((kind, task id) pairs)."""
-    for kind in KINDS:
-        for tid, group in _groups(f, kind, check):
-            if (kind, tid) in skip:
-                continue
+    from ..processes import fork_workers, forked_pool
+
+    names = [(kind, tid) for kind in KINDS for tid in _names(f, kind, check)
+             if (kind, tid) not in skip]  # fmt: skip
+    workers = fork_workers() if with_data and len(names) >= PARALLEL_FROM else 1
+    if workers <= 1:
+        yield from _read_named(f, names, with_data, check)
+        return
+    global _SHARE
+    size = -(-len(names) // (4 * workers))  # a few shares a helper: they finish together
+    shares = [names[i : i + size] for i in range(0, len(names), size)]
+    _SHARE = (f.filename, with_data)
+    try:
+        with forked_pool(workers) as pool:
+            for entries, found in pool.imap(_read_share, shares):
+                if check is not None:
+                    check.merge(found)
+                yield from entries
+            pool.close()
+            pool.join()
+    finally:
+        _SHARE = None
+
+
+_SHARE: tuple[str, bool] | None = None  # (file, with data) for the helpers of file_entries
+
+
+def _read_share(names: list[tuple[str, str]]) -> tuple[list[Entry], FileCheck]:
+    """In a helper: the entries of ``names`` from the file, read and verified here."""
+    path, with_data = _SHARE
+    check = FileCheck()
+    with _h5().File(path, "r") as f:
+        return list(_read_named(f, names, with_data, check)), check
+
+
+def _names(f, kind: str, check: FileCheck | None) -> list[str]:
+    """The task ids of one kind in an open file (none if its index is unreadable,
+    which ``check`` then records)."""
+    h5py = _h5()
+    try:
+        parent = f.get(kind)
+        return list(parent.keys()) if isinstance(parent, h5py.Group) else []
+    except Exception as e:  # the group's index is damaged: its tasks cannot be named
+        if check is not None:
+            check.structure.append(f"the index of /{kind} is unreadable ({type(e).__name__})")
+        return []
+
+
+def _read_named(f, names, with_data: bool, check: FileCheck | None) -> Iterator[Entry]:
+    """The verified entries of the task groups ``names`` ((kind, task id) pairs) of an
+    open file; foreign members are skipped, damaged ones recorded in ``check``."""
+    h5py = _h5()
+    for kind, tid in names:
+        try:
+            group = f[kind][tid]
+        except Exception as e:
+            if check is not None:
+                check.damaged.append((kind, tid, f"unreadable ({type(e).__name__})"))
+            continue
+        if isinstance(group, h5py.Group):
             task = read_task(group, with_data, check)
             if task is not None:
                 yield Entry(kind, tid, task[1], task[0])
