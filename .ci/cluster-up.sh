@@ -184,35 +184,14 @@ NODE_MEM=$(((MEM_MIB * 9 / 10) / NODES))
     echo "ClusterName=knitsweep-mh"
     echo "SlurmctldHost=knit1($(addr knit1))"
     cat <<EOF
-SlurmUser=root
-SlurmdUser=root
-AuthType=auth/munge
-CryptoType=crypto/munge
-MpiDefault=none
-ProctrackType=proctrack/linuxproc
-TaskPlugin=task/none
-SelectType=select/cons_tres
-SelectTypeParameters=CR_Core
-SchedulerType=sched/backfill
-JobAcctGatherType=jobacct_gather/none
-AccountingStorageType=accounting_storage/none
-JobCompType=jobcomp/none
-MailProg=/bin/true
-ReturnToService=2
 SlurmctldPidFile=$RUN_DIR/slurmctld.pid
 SlurmdPidFile=$RUN_DIR/slurmd-%n.pid
 StateSaveLocation=$BASE/ctld-state
 SlurmdSpoolDir=$BASE/nodes/%n/spool
 SlurmctldLogFile=$BASE/log/slurmctld.log
 SlurmdLogFile=$BASE/log/slurmd-%n.log
-SlurmctldDebug=info
-SlurmdDebug=info
-SlurmctldTimeout=30
-SlurmdTimeout=60
-InactiveLimit=0
-KillWait=30
-MinJobAge=300
 EOF
+    cat "$HERE/slurm-policy.conf"
     for n in "${NAMES[@]}"; do
         echo "NodeName=$n NodeAddr=$(addr "$n") NodeHostname=$n CPUs=$NCPU RealMemory=$NODE_MEM State=UNKNOWN"
     done

@@ -19,6 +19,7 @@ set -Eeuo pipefail
 TIMEOUT="${SLURM_UP_TIMEOUT:-60}"
 PARTITION="${SLURM_PARTITION:-debug}"
 CLUSTER="${SLURM_CLUSTER:-knitsweep-ci}"
+HERE=$(cd "$(dirname "$0")" && pwd)
 
 CONF_DIR=/etc/slurm
 CONF="$CONF_DIR/slurm.conf"
@@ -198,42 +199,23 @@ REAL_MEM=$((MEM_MIB - HEADROOM))
 ((REAL_MEM >= 256)) || REAL_MEM=256
 
 NEW_CONF=$(mktemp)
-cat >"$NEW_CONF" <<EOF
+{
+    cat <<EOF
 $MARKER -- edits are overwritten on the next run.
 # Single-node cluster for CI: host $HOST, $NCPU CPUs, ${MEM_MIB} MiB RAM.
 ClusterName=$CLUSTER
 SlurmctldHost=$HOST(127.0.0.1)
-SlurmUser=root
-SlurmdUser=root
-AuthType=auth/munge
-CryptoType=crypto/munge
-MpiDefault=none
-ProctrackType=proctrack/linuxproc
-TaskPlugin=task/none
-SelectType=select/cons_tres
-SelectTypeParameters=CR_Core
-SchedulerType=sched/backfill
-JobAcctGatherType=jobacct_gather/none
-AccountingStorageType=accounting_storage/none
-JobCompType=jobcomp/none
-MailProg=/bin/true
-ReturnToService=2
 SlurmctldPidFile=$CTLD_PID
 SlurmdPidFile=$SLURMD_PID
 StateSaveLocation=$STATE_DIR
 SlurmdSpoolDir=$SPOOL_DIR
 SlurmctldLogFile=$CTLD_LOG
 SlurmdLogFile=$SLURMD_LOG
-SlurmctldDebug=info
-SlurmdDebug=info
-SlurmctldTimeout=30
-SlurmdTimeout=60
-InactiveLimit=0
-KillWait=30
-MinJobAge=300
 NodeName=$HOST NodeAddr=127.0.0.1 CPUs=$NCPU RealMemory=$REAL_MEM State=UNKNOWN
 PartitionName=$PARTITION Nodes=$HOST Default=YES MaxTime=INFINITE State=UP
 EOF
+    cat "$HERE/slurm-policy.conf"
+} >"$NEW_CONF"
 
 CONF_CHANGED=0
 install -d -m 0755 "$CONF_DIR" /var/log/slurm /var/lib/slurm "$STATE_DIR" "$SPOOL_DIR"
