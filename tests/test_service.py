@@ -181,6 +181,27 @@ def test_task_wall_time_budget(tmp_path):
                    for g in f["sweeps"].values())  # fmt: skip
 
 
+def test_a_timeout_that_interrupted_code_replaced_is_still_a_timeout(monkeypatch):
+    """Code the budget's signal interrupts may wrap or replace the exception (C code
+    reporting a pending error as its own): the task is recorded as timed out all the same."""
+    from knitsweep.service import worker
+    from knitsweep.service.jobs import point_task
+
+    def wrapping_point(job, task):
+        try:
+            while True:
+                time.sleep(0.001)
+        except worker.TaskTimeout:
+            pass  # (no trace of it left in what is raised)
+        raise RuntimeError("something else")
+
+    monkeypatch.setattr(worker, "run_point", wrapping_point)
+    tiny = load_job(TINY)
+    job = tiny.model_copy(update={"run": tiny.run.model_copy(update={"task_timeout_s": 0.01})})
+    reply = worker.execute(job, point_task(job, job.points()[0]), None, 0)
+    assert reply.error["kind"] == "timeout" and "wall-time budget" in reply.error["message"]
+
+
 def test_shards_merge_into_the_whole_job(tiny_reference, tmp_path):
     shards = [tmp_path / f"s{i}.h5" for i in range(2)]
     for i, path in enumerate(shards):

@@ -43,15 +43,19 @@ class Reply:
 
 @contextlib.contextmanager
 def wall_time_budget(seconds: float):
-    """Raise ``TaskTimeout`` in this (main) thread after ``seconds``."""
+    """Raise ``TaskTimeout`` in this (main) thread after ``seconds``; yields the
+    exception once raised (a list, empty until then), so that a caller knows the
+    budget ran out even if the code it interrupted wrapped or replaced it."""
+    raised: list[TaskTimeout] = []
 
     def _alarm(signum, frame):
-        raise TaskTimeout(f"task exceeded its wall-time budget of {seconds:g} s")
+        raised.append(TaskTimeout(f"task exceeded its wall-time budget of {seconds:g} s"))
+        raise raised[-1]
 
     previous = signal.signal(signal.SIGALRM, _alarm)
     signal.setitimer(signal.ITIMER_REAL, seconds)
     try:
-        yield
+        yield raised
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
@@ -141,8 +145,9 @@ def execute(job: JobSpec, task: PointTask | SweepTask, zero: dict | None, rank: 
 
     t0 = time.perf_counter()
     host = socket.gethostname()
+    timed_out: list[TaskTimeout] = []
     try:
-        with threadpool_limits(1), wall_time_budget(job.run.task_timeout_s):
+        with threadpool_limits(1), wall_time_budget(job.run.task_timeout_s) as timed_out:
             if isinstance(task, PointTask):
                 record = run_point(job, task)
             else:
@@ -151,6 +156,8 @@ def execute(job: JobSpec, task: PointTask | SweepTask, zero: dict | None, rank: 
         return Reply(task.task_id, record, None, rank, host, time.perf_counter() - t0)
     except Exception as e:  # isolation: a failing task never takes the run down
         e = _signal_cause(e)
+        if timed_out and not isinstance(e, TaskTimeout):  # interrupted code replaced it
+            e = timed_out[0]
         kind = "timeout" if isinstance(e, TaskTimeout) else type(e).__name__
         error = {"kind": kind, "message": str(e), "traceback": traceback.format_exc()}
         return Reply(task.task_id, None, error, rank, host, time.perf_counter() - t0)
