@@ -328,7 +328,7 @@ def _garter_stitch():
 def test_render_tile_mirrors_garter_rows():
     """Garter's tile: row n is row 0 mirrored (z -> -z) when n is odd, plus n t_w; the
     copies along a row are the cell's path repeated by t_c, as stockinette's."""
-    from knitsweep.report.render import cell_path, copy_mirrored, row_path
+    from knitsweep.report.render import cell_path, copy_mirrored, row_path, unit_cell
 
     stitch = _garter_stitch()
     assert stitch.mirror_parity == (0, 1) and stitch.mirrors
@@ -347,23 +347,26 @@ def test_render_tile_mirrors_garter_rows():
         assert all(copy_mirrored(stitch, n, m) is mirrored for m in columns)
     # the mirrored rows are not the translated ones
     assert not np.allclose(row_path(stitch, one, 1, columns), base + t_w, atol=0.1)
+    # --highlight saturates the cell itself, not a purl image of it
+    assert unit_cell(stitch, 3) == (0, 1) and unit_cell(stitch, 4) == (2, 2)
 
 
 def test_render_stockinette_tile_is_translations_alone():
     """Stockinette mirrors nothing: every row is the old sum, bit for bit (its pictures
     are unchanged), and its colours are the rows' cycle."""
-    from knitsweep.report.render import cell_path, copy_mirrored, row_path, stitch_from_state
+    from knitsweep.report import render as rd
 
-    stitch = stitch_from_state(shipped_state(1), StitchParams())
+    stitch = rd.stitch_from_state(shipped_state(1), StitchParams())
     assert stitch.mirror_parity == (0, 0) and not stitch.mirrors
-    one = cell_path(stitch.control_points, 12)
+    one = rd.cell_path(stitch.control_points, 12)
     t_w = np.array([0.0, stitch.a_y, 0.0])
     cells = 3
     for row in range(-1, cells + 1):
         old = np.concatenate([one[:-1] + m * stitch.t_c + row * t_w for m in range(-1, cells + 1)]
                              + [one[-1:] + cells * stitch.t_c + row * t_w])  # fmt: skip
-        assert np.array_equal(row_path(stitch, one, row, range(-1, cells + 1)), old)
-        assert copy_mirrored(stitch, row, 0) is None
+        assert np.array_equal(rd.row_path(stitch, one, row, range(-1, cells + 1)), old)
+        assert rd.copy_mirrored(stitch, row, 0) is None
+    assert rd.unit_cell(stitch, 3) == (1, 1)
 
 
 def test_render_garter_draws_its_mirrored_rows(tmp_path):

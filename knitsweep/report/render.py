@@ -92,6 +92,17 @@ def copy_mirrored(stitch: Stitch, row: int, column: int) -> bool | None:
     return stitch.mirrored(column * cs[0], column * cs[1] + row)
 
 
+def unit_cell(stitch: Stitch, cells: int) -> tuple[int, int]:
+    """(row, column) of the copy ``--highlight`` saturates: the middle one of the
+    ``cells`` × ``cells`` window, or, if that copy is a mirror image, the nearest
+    unmirrored copy below or to the left (the cell itself, not its purl image)."""
+    mid = cells // 2
+    for row, column in ((mid, mid), (mid - 1, mid), (mid, mid - 1), (mid - 1, mid - 1)):
+        if not copy_mirrored(stitch, row, column):
+            return row, column
+    return mid, mid
+
+
 def row_path(stitch: Stitch, one: np.ndarray, row: int, columns: range) -> np.ndarray:
     """The yarn of row ``row`` through the cells ``columns`` (consecutive), shape
     (len(columns)·(k − 1) + 1, 3), mm: the cell's path ``one`` (k, 3) at each copy
@@ -250,7 +261,7 @@ def rasterize(stitch: Stitch, cells: int, radius: float, view: np.ndarray, box: 
     per_cell = len(one) - 1
     eye = view[2]  # unit vector towards the viewer, fabric coordinates
     offsets = np.linspace(-0.56 * np.pi, 0.56 * np.pi, int(np.ceil(1.12 * np.pi * radius / step)))
-    centre = (cells // 2, cells // 2) if highlight else None
+    centre = unit_cell(stitch, cells) if highlight else None
     reach = radius + 2.0 * px
     for row in range(-1, cells + 1):
         path = row_path(stitch, one, row, range(-1, cells + 1))
