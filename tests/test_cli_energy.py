@@ -66,3 +66,22 @@ def test_import_is_quiet_and_light():
         [sys.executable, "-W", "error", "-c", code], capture_output=True, text=True
     )
     assert out.returncode == 0 and out.stdout == "" and out.stderr == ""
+
+
+def test_relax_json_reports_the_periods_and_writes_the_state(tmp_path):
+    """``relax --json`` gives the per-stitch course and wale spacings a_x, a_y; ``--out``
+    writes the relaxed state, which ``energy --state`` reads back to the same energy."""
+    state = tmp_path / "relaxed.dat"
+    out = knitsweep("relax", "--L", "11.0", "--starts", "1", "--preset", "draft", "--json",
+                    "--out", str(state))  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    got = json.loads(out.stdout)
+    assert got["converged"] and got["state_file"] == str(state)
+    x = [float(v) for v in state.read_text().split()]
+    assert (x[-2], x[-1]) == (got["a_x"], got["a_y"]) and 2.0 < got["a_x"] < 4.0
+    again = knitsweep("energy", "--state", str(state), "--L", "11.0", "--json")
+    assert again.returncode == 0, again.stderr
+    assert json.loads(again.stdout)["total_energy"] == pytest.approx(got["total_energy"],
+                                                                     rel=1e-6)  # fmt: skip
+    bad = knitsweep("relax", "--out", str(tmp_path / "no" / "dir" / "s.dat"))
+    assert bad.returncode == 2 and "--out" in bad.stderr and "does not exist" in bad.stderr

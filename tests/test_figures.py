@@ -312,3 +312,98 @@ def test_phase_diagram_along_any_series_parameter(tmp_path, param, value):
     assert param in reduce_results([a, b]).varying
     assert_image(tmp_path / "pd" / "fig4c_phase_diagram.png")
     assert all(f.path is not None or "skipped" in f.line for f in report.figures)
+
+
+# ---- render: a pattern's images (docs/model.md §11) ---------------------------------
+
+
+def _garter_stitch():
+    from knitsweep.report.render import stitch_from_state
+    from knitsweep.stitches import get_stitch
+
+    x = get_stitch("garter").start(1)
+    return stitch_from_state(x, StitchParams(stitch="garter"))
+
+
+def test_render_tile_mirrors_garter_rows():
+    """Garter's tile: row n is row 0 mirrored (z -> -z) when n is odd, plus n t_w; the
+    copies along a row are the cell's path repeated by t_c, as stockinette's."""
+    from knitsweep.report.render import cell_path, copy_mirrored, row_path, unit_cell
+
+    stitch = _garter_stitch()
+    assert stitch.mirror_parity == (0, 1) and stitch.mirrors
+    one = cell_path(stitch.control_points, 12)
+    columns = range(-1, 4)
+    base = row_path(stitch, one, 0, columns)
+    t_w = np.array([0.0, stitch.a_y, 0.0])
+    expect_row0 = np.concatenate([one[:-1] + m * stitch.t_c for m in columns]
+                                 + [one[-1:] + columns[-1] * stitch.t_c])  # fmt: skip
+    np.testing.assert_allclose(base, expect_row0, rtol=0, atol=1e-12)
+    assert np.abs(base[:, 2]).max() > 1.0  # far off the mirror plane: a mirror shows
+    for n in (-1, 1, 2, 3):
+        mirrored = n % 2 == 1
+        expect = base * np.array([1.0, 1.0, -1.0 if mirrored else 1.0]) + n * t_w
+        np.testing.assert_allclose(row_path(stitch, one, n, columns), expect, rtol=0, atol=1e-12)
+        assert all(copy_mirrored(stitch, n, m) is mirrored for m in columns)
+    # the mirrored rows are not the translated ones
+    assert not np.allclose(row_path(stitch, one, 1, columns), base + t_w, atol=0.1)
+    # --highlight saturates the cell itself, not a purl image of it
+    assert unit_cell(stitch, 3) == (0, 1) and unit_cell(stitch, 4) == (2, 2)
+
+
+def test_render_stockinette_tile_is_translations_alone():
+    """Stockinette mirrors nothing: every row is the old sum, bit for bit (its pictures
+    are unchanged), and its colours are the rows' cycle."""
+    from knitsweep.report import render as rd
+
+    stitch = rd.stitch_from_state(shipped_state(1), StitchParams())
+    assert stitch.mirror_parity == (0, 0) and not stitch.mirrors
+    one = rd.cell_path(stitch.control_points, 12)
+    t_w = np.array([0.0, stitch.a_y, 0.0])
+    cells = 3
+    for row in range(-1, cells + 1):
+        old = np.concatenate([one[:-1] + m * stitch.t_c + row * t_w for m in range(-1, cells + 1)]
+                             + [one[-1:] + cells * stitch.t_c + row * t_w])  # fmt: skip
+        assert np.array_equal(rd.row_path(stitch, one, row, range(-1, cells + 1)), old)
+        assert rd.copy_mirrored(stitch, row, 0) is None
+    assert rd.unit_cell(stitch, 3) == (1, 1)
+
+
+def test_render_garter_draws_its_mirrored_rows(tmp_path):
+    """``render --stitch garter`` draws the purl rows: the picture is not the one of the
+    cell translated, and shows both the warm (cell) and the cool (mirrored) colours."""
+    import dataclasses
+
+    from knitsweep.report.render import _view_matrix, rasterize, window
+    from knitsweep.stitches import get_stitch
+
+    state = tmp_path / "g.dat"
+    write_state(state, get_stitch("garter").start(1))
+    out = knitsweep("render", "--stitch", "garter", "--state", str(state), "--out",
+                    str(tmp_path / "g.png"), "--pixels", "300")  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert_image(tmp_path / "g.png", 10_000)
+    stitch = _garter_stitch()
+    view = _view_matrix(72.0, 0.0, "face")
+    box = window(stitch, 2, view)
+    image = rasterize(stitch, 2, 0.5, view, box, 160)
+    flat = rasterize(dataclasses.replace(stitch, mirror_parity=(0, 0)), 2, 0.5, view, box, 160)
+    assert np.abs(image - flat).max() > 0.3
+    warm = (image[..., 0] > image[..., 2] + 0.15).mean()
+    cool = (image[..., 2] > image[..., 0] + 0.15).mean()
+    assert warm > 0.05 and cool > 0.05, (warm, cool)
+
+
+def test_contact_volumes_of_a_pattern_are_refused(tmp_path):
+    """The tube estimator's images are translations: a pattern's contact volumes would be
+    another fabric's, so they are refused in one line, as its contact forces by class."""
+    from knitsweep.stitches import get_stitch
+
+    state = tmp_path / "g.dat"
+    write_state(state, get_stitch("garter").start(1))
+    out = knitsweep("render", "--stitch", "garter", "--state", str(state), "--contact-volumes",
+                    "--out", str(tmp_path / "cv.png"))  # fmt: skip
+    assert out.returncode == 2, out.stdout
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "contact volumes are not implemented for mirrored" in lines[0]
+    assert not (tmp_path / "cv.png").exists()

@@ -78,17 +78,22 @@ def relax(
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     preset: PresetOpt = None, ftol: FtolOpt = None, starts: StartsOpt = None, seed: SeedOpt = 0,
     as_json: JsonOpt = False,
+    out: Annotated[Path | None, option("--out", help="also write the relaxed state to this "
+                                       "state file (one number per line, as --state reads)",
+                                       default="printed only")] = None,
 ) -> None:  # fmt: skip
     """Relax the zero-force state at fixed yarn length (both periods free)."""
     import time
 
     from ..config import Numerics, StartSettings
-    from ..errors import check_seed
-    from ..formats import read_state
+    from ..errors import InputError, check_seed
+    from ..formats import check_writable, read_state, write_state
     from ..zero_force import zero_force
 
     with user_errors():
         check_seed(seed)
+        if out is not None:
+            check_writable(out, "--out")  # before the relaxation, not after
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
                                   regularization=regularization, stitch=stitch)  # fmt: skip
         n = Numerics.from_preset(preset, ftol=ftol, samples_per_segment=samples,
@@ -106,6 +111,13 @@ def relax(
         "message": best.message, "iterations": best.iterations, "evaluations": best.evaluations,
         "min_zeta": best.min_zeta, "seconds": seconds,
     }  # fmt: skip
+    if out is not None:  # the best state, converged or not (the status says which)
+        with user_errors():
+            try:
+                write_state(out, best.x)
+            except OSError as e:  # the disk filled or the directory went away meanwhile
+                raise InputError(f"--out {out}: cannot write it ({e.strerror or e})") from None
+        result["state_file"] = str(out)
     _print_result(result, as_json, ENERGY_UNITS)
     if not best.converged:
         raise typer.Exit(1)

@@ -47,7 +47,17 @@ MAX_SAMPLES = 1 << 20
 def contact_volume_points(stitch: Stitch, samples: int = 1 << 15) -> dict[str, np.ndarray]:
     """Label → points (n, 3), mm, of the stitch's tube that lie in a contact volume of
     that kind (labels of :data:`VOLUME_COLOUR`; a point in several is drawn in the
-    class of its nearest other stitch, a self overlap first)."""
+    class of its nearest other stitch, a self overlap first).
+
+    Raises:
+        InputError: a stitch with mirrored images (a knit/purl pattern): the tube
+            estimator's images are translations only (as the contact forces by class,
+            docs/model.md §11), so its classes would be those of another fabric.
+    """
+    if stitch.mirrors:
+        raise InputError(f"mirror parity = {stitch.mirror_parity}: contact volumes are not "
+                         "implemented for mirrored images yet (docs/model.md §11); draw the "
+                         "stitch without --contact-volumes")  # fmt: skip
     from scipy.stats import qmc
 
     from ..analysis.volumes import build_pieces, contact_class, tube_samples
@@ -115,7 +125,8 @@ def render_contact_volumes(out: str | Path, *, results: str | Path | None = None
 
     Raises:
         InputError: bad output suffix, samples not a power of 2 in 2^10..2^20, both or
-            neither source, unknown task or bad step.
+            neither source, unknown task or bad step, a stitch with mirrored images
+            (``contact_volume_points``).
     """
     out = Path(out)
     if out.suffix.lower() not in OUT_SUFFIXES:

@@ -5,7 +5,12 @@ The yarn centre-line of one cell is the quintic Bézier segments of
 drawing order (``Stitch.path_order``); the last segment ends where the first starts,
 shifted by the stitch's ``closing_shift`` in periods (stockinette: the course period
 t_c = (a_x, 0, 0)), so one row's yarn is the cell's path repeated by that shift, and
-the rows repeat along the wale period t_w = (0, a_y, 0). Each row is drawn as a tube of radius r around
+the rows repeat along the wale period t_w = (0, a_y, 0). The copies are the stitch's
+images (``Stitch.images``, docs/model.md §11): the copy at lattice offset (m, n) is
+g p = M^μ p + m t_c + n t_w with M = diag(1, 1, −1) (the mirror z → −z through the
+fabric plane) and μ = (pm m + pn n) mod 2, (pm, pn) the stitch's ``mirror_parity``
+((0, 0) for a pattern of translations: stockinette; (0, 1) garter, whose odd rows are
+purl rows). Each row is drawn as a tube of radius r around
 its centre-line, seen along a tilted direction in orthographic projection, shaded
 (Lambert + specular) and depth-sorted face by face (painter's algorithm), so that
 interlocking loops hide each other correctly. Lengths in mm.
@@ -29,6 +34,11 @@ from ..kernels.bezier import basis_tables
 
 ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
 """Base colour of each row (course) of yarn, cycling."""
+PATTERN_COLOURS = {False: ("#c8553d", "#d9a21b"), True: ("#3a7ca5", "#6a994e")}
+"""With mirrored images (a knit/purl pattern): warm colours (red, gold) for the cell's
+unmirrored copies, cool ones (blue, green) for the mirrored copies, alternating every
+second row within each, so that the knit and the purl rows (garter) or columns (rib)
+tell apart at a glance."""
 
 OUT_SUFFIXES = (".png", ".pdf", ".svg")
 
@@ -41,7 +51,9 @@ one (a white background made the small holes at the cell corners look like defec
 class Stitch:
     """What is drawn: the cell's control points (S, 6, 3) in drawing order, mm, its
     periods a_x, a_y (mm), the yarn radius r (mm), a one-line description and the
-    shift in periods (course, wale) after which the path repeats along its row."""
+    shift in periods (course, wale) after which the path repeats along its row, and the
+    mirror parity (pm, pn) of its images: the copy at lattice offset (m, n) is mirrored
+    (z → −z) when pm m + pn n is odd ((0, 0): translations only)."""
 
     control_points: np.ndarray
     a_x: float
@@ -49,11 +61,65 @@ class Stitch:
     r_mm: float
     label: str
     closing_shift: tuple[int, int] = (1, 0)
+    mirror_parity: tuple[int, int] = (0, 0)
 
     @property
     def t_c(self) -> np.ndarray:
         """The vector by which one cell's path repeats along its row, mm."""
         return np.array([self.closing_shift[0] * self.a_x, self.closing_shift[1] * self.a_y, 0.0])
+
+    @property
+    def mirrors(self) -> bool:
+        """Whether some images are mirrored (a knit/purl pattern, docs/model.md §11)."""
+        return any(self.mirror_parity)
+
+    def mirrored(self, m: int, n: int) -> bool:
+        """Whether the image at lattice offset (m, n) (m t_c + n t_w) is mirrored."""
+        pm, pn = self.mirror_parity
+        return bool((pm * m + pn * n) % 2)
+
+
+MIRROR = np.array([1.0, 1.0, -1.0])
+"""M = diag(1, 1, −1): the mirror z → −z through the fabric plane z = 0."""
+
+
+def copy_mirrored(stitch: Stitch, row: int, column: int) -> bool | None:
+    """Whether the copy ``column`` of row ``row`` (lattice offset column·closing_shift +
+    (0, row)) is mirrored; None for a stitch of translations alone."""
+    if not stitch.mirrors:
+        return None
+    cs = stitch.closing_shift
+    return stitch.mirrored(column * cs[0], column * cs[1] + row)
+
+
+def unit_cell(stitch: Stitch, cells: int) -> tuple[int, int]:
+    """(row, column) of the copy ``--highlight`` saturates: the middle one of the
+    ``cells`` × ``cells`` window, or, if that copy is a mirror image, the nearest
+    unmirrored copy below or to the left (the cell itself, not its purl image)."""
+    mid = cells // 2
+    for row, column in ((mid, mid), (mid - 1, mid), (mid, mid - 1), (mid - 1, mid - 1)):
+        if not copy_mirrored(stitch, row, column):
+            return row, column
+    return mid, mid
+
+
+def row_path(stitch: Stitch, one: np.ndarray, row: int, columns: range) -> np.ndarray:
+    """The yarn of row ``row`` through the cells ``columns`` (consecutive), shape
+    (len(columns)·(k − 1) + 1, 3), mm: the cell's path ``one`` (k, 3) at each copy
+    j = column·closing_shift + (0, row), mirrored (z → −z) where the stitch's images
+    are (``Stitch.mirrored``), then shifted by column t_c + row t_w; the end point of the
+    last copy closes the row. With no mirrored image: the translations alone, computed
+    as before mirrors existed (the same floating-point sums, the same pictures)."""
+    t_c = stitch.t_c
+    t_w = np.array([0.0, stitch.a_y, 0.0])
+
+    def copy(points: np.ndarray, c: int) -> np.ndarray:
+        if copy_mirrored(stitch, row, c):
+            points = points * MIRROR
+        return points + c * t_c + row * t_w
+
+    return np.concatenate([copy(one[:-1], c) for c in columns]
+                          + [copy(one[-1:], columns[-1])])  # fmt: skip
 
 
 def cell_path(control_points: np.ndarray, samples: int = 24) -> np.ndarray:
@@ -123,12 +189,18 @@ def _shade(base: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return np.clip(rgb, 0.0, 1.0)
 
 
-def _cell_tint(row: int, column: int, centre: tuple[int, int] | None) -> np.ndarray:
-    """The row's hue, the same along the whole yarn (no seams where cells meet);
-    with a ``centre`` cell, the others washed towards grey so that it stands out."""
+def _cell_tint(row: int, column: int, centre: tuple[int, int] | None,
+               mirrored: bool | None = None) -> np.ndarray:  # fmt: skip
+    """The row's hue, the same along the whole yarn (no seams where cells meet); with
+    ``mirrored`` (a pattern with mirrored images: whether this copy is one), the hue of
+    :data:`PATTERN_COLOURS`; with a ``centre`` cell, the others washed towards grey so
+    that it stands out."""
     from matplotlib.colors import to_rgb
 
-    rgb = np.array(to_rgb(ROW_COLOURS[row % len(ROW_COLOURS)]))
+    if mirrored is None:
+        rgb = np.array(to_rgb(ROW_COLOURS[row % len(ROW_COLOURS)]))
+    else:
+        rgb = np.array(to_rgb(PATTERN_COLOURS[mirrored][(row // 2) % 2]))
     if centre is not None and (row, column) != centre:
         rgb = 0.55 * rgb + 0.45 * np.array([0.78, 0.76, 0.72])
     return np.clip(rgb, 0.0, 1.0)
@@ -161,6 +233,8 @@ def window(stitch: Stitch, cells: int, view: np.ndarray) -> np.ndarray:
     """Screen box (x_lo, x_hi, y_lo, y_hi), mm, of ``cells`` × ``cells`` cell periods
     centred on the patch."""
     mid = cell_path(stitch.control_points, 8).mean(axis=0)
+    if stitch.mirrors:  # the fabric's middle is the mirror plane z = 0
+        mid[2] = 0.0
     t_c = stitch.t_c
     t_w = np.array([0.0, stitch.a_y, 0.0])
     corners = np.array([mid + (i - 0.5) * t_c + (j - 0.5) * t_w
@@ -187,20 +261,18 @@ def rasterize(stitch: Stitch, cells: int, radius: float, view: np.ndarray, box: 
     per_cell = len(one) - 1
     eye = view[2]  # unit vector towards the viewer, fabric coordinates
     offsets = np.linspace(-0.56 * np.pi, 0.56 * np.pi, int(np.ceil(1.12 * np.pi * radius / step)))
-    centre = (cells // 2, cells // 2) if highlight else None
-    t_c = stitch.t_c
-    t_w = np.array([0.0, stitch.a_y, 0.0])
+    centre = unit_cell(stitch, cells) if highlight else None
     reach = radius + 2.0 * px
     for row in range(-1, cells + 1):
-        path = np.concatenate([one[:-1] + m * t_c + row * t_w for m in range(-1, cells + 1)]
-                              + [one[-1:] + cells * t_c + row * t_w])  # fmt: skip
+        path = row_path(stitch, one, row, range(-1, cells + 1))
         screen = path @ view.T
         near = ((screen[:, 0] > box[0] - reach) & (screen[:, 0] < box[1] + reach)
                 & (screen[:, 1] > box[2] - reach) & (screen[:, 1] < box[3] + reach))  # fmt: skip
         if not near.any():
             continue
         _, normal, binormal = frames(path)
-        tints = np.array([_cell_tint(row, c, centre) for c in range(-1, cells + 1)])
+        tints = np.array([_cell_tint(row, c, centre, copy_mirrored(stitch, row, c))
+                          for c in range(-1, cells + 1)])  # fmt: skip
         column = np.minimum(np.arange(len(path)) // per_cell, cells + 1)
         idx = np.flatnonzero(near)
         for chunk in np.array_split(idx, max(1, len(idx) // 1500)):
@@ -271,7 +343,7 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
     image = rasterize(stitch, cells, r, view, box, width_px, highlight)
     out = Path(out)
     width = 7.0  # inches at 160 dpi: the picture is shown 1120 px wide whatever width_px is
-    height = width * image.shape[0] / image.shape[1] + 0.8
+    height = width * image.shape[0] / image.shape[1] + (1.0 if stitch.mirrors else 0.8)
     with matplotlib.rc_context({"font.size": 11, "font.family": "DejaVu Sans"}):
         fig = Figure(figsize=(width + 0.3, height), layout="constrained")
         FigureCanvasAgg(fig)
@@ -285,6 +357,8 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
         ax.set_title(stitch.label, fontsize=11)
         note = f"{cells} × {cells} stitches, {side} side; tube radius {r:.3g} mm (yarn r = "
         note += f"{stitch.r_mm:g} mm)" + ("; saturated: one unit cell" if highlight else "")
+        if stitch.mirrors:
+            note += "\nwarm colours: the cell's copies; cool: its mirror images (z → −z)"
         ax.text(1.0, -0.01, note, transform=ax.transAxes, ha="right", va="top", fontsize=10,
                 color="0.35")  # fmt: skip
         buf = io.BytesIO()
@@ -306,13 +380,15 @@ def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> S
 
 def drawn(cp: np.ndarray, a_x: float, a_y: float, params: StitchParams, label: str) -> Stitch:
     """The picture of control points (S, 6, 3) of the stitch ``params.stitch``, in its
-    drawing order."""
+    drawing order, with its images as the stitch declares them (``images``: translations,
+    or glides with its ``mirror_parity``)."""
     from ..stitches import get_stitch
 
     geometry = get_stitch(params.stitch)
     order = list(geometry.path_order)
+    parity = tuple(geometry.mirror_parity) if geometry.images == "glides" else (0, 0)
     return Stitch(np.asarray(cp, dtype=float)[order], a_x, a_y, params.r_mm, label,
-                  geometry.closing_shift)  # fmt: skip
+                  geometry.closing_shift, parity)  # fmt: skip
 
 
 def _find_task(results: Path, task: str) -> Any:

@@ -28,7 +28,8 @@ change to the kernels, the relaxation, the sweeps, the store or the renderer
   (``n_state``,), ±inf where free; ``twist_index`` is the entry bounded by the
   twist constraint cos(x[i]) >= c_tw (None: no such constraint).
 * **drawing**: the renderer draws the segments in ``path_order`` as one yarn and
-  repeats it by ``closing_shift`` (in periods) along a row.
+  repeats it by ``closing_shift`` (in periods) along a row, each copy mirrored where
+  ``images`` and ``mirror_parity`` say so.
 
 Geometry kernels load on first use (``control_points``), so that reading a stitch's
 layout (the store's dimension labels, ``knitsweep status``) imports no numba.
