@@ -447,14 +447,14 @@ def reduce_results(
     fidelity_of = {r["file"]: job_fidelity(r) for r in roots}  # each file's own job
     points, sweeps, problems, curves = [], [], [], []
     pair_of: dict[str, dict[str, Any]] = {}
-    for e, meta in sorted(tasks[POINTS], key=lambda em: (series_key(em[1]), em[1]["L_mm"])):
+    for e, meta in sorted(tasks[POINTS], key=lambda em: (series_values(em[1]), em[1]["L_mm"])):
         row = _point_row(e, meta, fidelity_of[meta["file"]])
         points.append(row)
         pair_of[e.task_id] = {k: row[k] for k in PAIR_KEYS}
         if row["status"] != "done":
             problems.append(_problem("point", row, meta, str(meta.get("message", ""))))
     for e, meta in sorted(
-        tasks[SWEEPS], key=lambda em: (em[1]["direction"], series_key(em[1]), em[1]["L_mm"])
+        tasks[SWEEPS], key=lambda em: (em[1]["direction"], series_values(em[1]), em[1]["L_mm"])
     ):
         base = _base_row(e, meta)
         if base["status"] != "done":
