@@ -17,24 +17,30 @@ from knitsweep.service.jobs import JobSpec, load_job, plan
 STITCHES = ("stockinette", "stockinette_free")  # the free yarn holds the stockinette ansatz
 
 
-def _two_stitch_job(directory):
-    """The tiny job (draft numerics, k = 0.1) at L = 11.3 and 12.0 mm for both stitches:
-    2 x 2 points, 8 sweeps, ~15 s serially (the free yarn's tasks take 1-3 s each)."""
-    text = TINY.read_text().replace("[11.4, 12.0]", "[11.3, 12.0]")
-    text = text.replace("k_mN_per_mm2 = 0.1", 'k_mN_per_mm2 = 0.1\nstitch = ["stockinette", '
-                        '"stockinette_free"]').replace('name = "tiny"', 'name = "two_stitches"')  # fmt: skip
-    path = directory / "two.toml"
-    path.write_text(text)
-    return path
+def _jobs(directory):
+    """The tiny job (draft numerics, k = 0.1) at L = 11.3 and 12.0 mm for stockinette,
+    and for both stitches: 2 x 2 points, 8 sweeps, ~15 s serially (the free yarn's
+    tasks take 1-3 s each)."""
+    alone = TINY.read_text().replace("[11.4, 12.0]", "[11.3, 12.0]")
+    both = alone.replace("k_mN_per_mm2 = 0.1", 'k_mN_per_mm2 = 0.1\nstitch = ["stockinette", '
+                         '"stockinette_free"]')  # fmt: skip
+    (directory / "alone.toml").write_text(alone)
+    (directory / "two.toml").write_text(both)
+    return directory / "alone.toml", directory / "two.toml"
 
 
 @pytest.fixture(scope="module")
 def two(tmp_path_factory):
+    """The stockinette job run, then grown into both stitches in the same file: only
+    the free yarn's tasks are new."""
     d = tmp_path_factory.mktemp("two_stitches")
-    job = _two_stitch_job(d)
+    alone, job = _jobs(d)
     out = d / "two.h5"
+    service.run(alone, out, executor="serial", show_progress=False)
     summary = service.run(job, out, executor="serial", show_progress=False)
-    assert summary.total == 12 and summary.counts["failed"] == 0
+    assert (summary.total, summary.skipped, summary.counts["failed"]) == (12, 6, 0)
+    with h5py.File(out) as f:
+        assert f.attrs["grown_from"] == load_job(alone).job_hash
     return job, out
 
 
@@ -54,6 +60,7 @@ def test_every_point_is_computed_and_recorded_per_stitch(two):
         **job.grid.model_dump(), "stitch": None}})  # fmt: skip
     assert {p.task_id for p in plan(alone)[0]} == {
         p.task_id for p in points if p.params.stitch == "stockinette"}  # fmt: skip
+    assert service.status(out, by="stitch")["by"]["stitch"].keys() == set(STITCHES)
 
 
 def test_tables_carry_the_stitch_and_transitions_are_per_stitch(two):

@@ -1,5 +1,6 @@
 """The parameter grid of a job: numbers, lists, ``{start, stop, step}`` ranges, ties
-(``r_core_mm = "0.45 * r_mm"``) and zipped axes, and the grid points they make.
+(``r_core_mm = "0.45 * r_mm"``), zipped axes and the stitches, and the grid points they
+make.
 Validated when a job file is read (``jobs.JobSpec`` checks each point as a stitch).
 """
 
@@ -107,7 +108,10 @@ class Grid(BaseModel):
     ``{start, stop, step}`` range, or a tie to another entry (``r_core_mm = "0.45 *
     r_mm"``: r_core follows r). The grid is the Cartesian product of its axes, where
     the axes named together in one ``zip`` group count as one axis and vary together
-    (same number of values; e.g. ``zip = [["L_mm", "r_mm"]]``)."""
+    (same number of values; e.g. ``zip = [["L_mm", "r_mm"]]``). ``stitch`` is one more
+    axis, of names (``stitch = ["stockinette", "garter"]``: every point for each stitch;
+    never tied or zipped); ``axes`` and ``combinations`` hold the numbers only and
+    ``JobSpec.points`` crosses them with the stitches."""
 
     model_config = _STRICT
 
