@@ -155,3 +155,17 @@ def test_the_adaptive_search_brackets_each_stitch_separately():
         assert lo < crossing[stitch] <= hi and hi - lo <= 0.1 + 1e-9, stitch
     metas = [refiner.series_meta(k, s) for k, s in refiner.states()]
     assert sorted(m.get("stitch", "stockinette") for m in metas) == sorted(STITCHES)
+
+
+def test_progress_lines_name_the_stitch_when_a_job_has_several(two):
+    from knitsweep.service.master import varying_parameters
+    from knitsweep.service.progress import task_line
+
+    job_path, _ = two
+    job = load_job(job_path)
+    varying = varying_parameters(job)
+    assert varying == ("stitch", "L_mm")
+    line = task_line("point", job.points()[-1], None, "done", 1.0, varying)
+    assert "L=12 stitch=stockinette_free" in line
+    alone = JobSpec(schema_version=1, name="t", grid={"L_mm": [11.0, 12.0]})
+    assert varying_parameters(alone) == ("L_mm",)
