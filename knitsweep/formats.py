@@ -109,7 +109,8 @@ class AuthorsConfig:
 
 
 # key -> (StitchParams field, factor from their units to ours)
-_PARAM_KEYS = {p.authors_key: (p.field, p.authors_factor) for p in PARAMETER_NAMES.values()}
+_PARAM_KEYS = {p.authors_key: (p.field, p.authors_factor) for p in PARAMETER_NAMES.values()
+               if p.authors_key}  # fmt: skip
 _FLOAT_KEYS = {"ftol", "step_size", "init_dimension", "final_dimension"}
 _OTHER_KEYS = {"interactions_per_segment", "sweep_direction", "init_file", "output_prefix"}
 KNOWN_KEYS = tuple(sorted(set(_PARAM_KEYS) | _FLOAT_KEYS | _OTHER_KEYS))

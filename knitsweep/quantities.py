@@ -69,6 +69,7 @@ def _q(name: str, units: str, long_name: str) -> tuple[str, Quantity]:
 
 PARAMETERS = dict(
     (
+        _q("stitch", "1", "stitch pattern (knitsweep.stitches.STITCH_NAMES)"),
         _q("L_mm", "mm", "yarn length per stitch L"),
         _q("k_mN_per_mm2", "mN/mm2", "compression constant k"),
         _q("B_mN_mm2", "mN mm2", "bending modulus B"),
@@ -80,12 +81,21 @@ PARAMETERS = dict(
         _q("L_over_r", "1", "stitch density L/r"),
     )
 )
-"""The stitch parameters, named as in job files."""
+"""The stitch parameters, named as in job files (``stitch``: the pattern's name, text; in
+a results file absent for the default stitch, in tables always written out)."""
 
-SERIES_PARAMS = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regularization_mN_mm4",
-                 "twist_bound")  # fmt: skip
-"""The parameters held fixed along a series in L (the paper's k, B, r_core, r, p, and the
-regularisation and twist bound, which files of different jobs may differ in)."""
+SERIES_PARAMS = ("stitch", "k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p",
+                 "regularization_mN_mm4", "twist_bound")  # fmt: skip
+"""The parameters held fixed along a series in L (the stitch, the paper's k, B, r_core, r,
+p, and the regularisation and twist bound, which files of different jobs may differ in):
+two stitches are never one series."""
+NUMERIC_SERIES_PARAMS = SERIES_PARAMS[1:]
+"""The series parameters that are numbers (all but ``stitch``)."""
+
+
+def value_text(value: object) -> str:
+    """A parameter's value as text: a number as ``:g`` (0.1, 90), a stitch as its name."""
+    return format(value, "g") if isinstance(value, (int, float)) else str(value)
 
 
 @dataclass(frozen=True)
@@ -93,7 +103,8 @@ class Parameter:
     """Every name of one stitch parameter: its field (job files, tables, HDF5
     attributes), plain-text ``symbol`` and display ``unit`` (tables, progress lines),
     ``math`` symbol (figures, TeX math mode), command-line ``flag`` ("" if none), and
-    the authors' config key with the factor from their units to knitsweep's (docs/model.md §10)."""
+    the authors' config key ("" if none) with the factor from their units to
+    knitsweep's (docs/model.md §10)."""
 
     field: str
     symbol: str
@@ -107,6 +118,7 @@ class Parameter:
 PARAMETER_NAMES = {
     p.field: p
     for p in (
+        Parameter("stitch", "stitch", "", r"{\rm stitch}", "--stitch", ""),
         Parameter("L_mm", "L", "mm", "L", "--L", "stitch_length"),
         Parameter("k_mN_per_mm2", "k", "mN/mm²", "k", "--k", "contact_rigidity", 1e3),
         Parameter("B_mN_mm2", "B", "mN·mm²", "B", "--B", "bending_modulus", 2e3),  # from B/2

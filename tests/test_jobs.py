@@ -187,3 +187,108 @@ def test_observables_enter_sweep_ids_only_as_they_change_results():
     curve = ids(["curve"])
     assert curve[0] == gaps_first[0]  # the zero-force tasks are shared
     assert set(curve[1]).isdisjoint(gaps_first[1]) and curve[2] != gaps_first[2]
+
+
+# ---- the stitch as a grid axis ----------------------------------------------------
+TWO = MINIMAL + 'stitch = ["stockinette", "stockinette_free"]\n'
+
+
+@pytest.mark.parametrize(
+    ("name", "job_hash", "first_point", "ids", "job_json"),
+    [
+        ("jobs/demo.toml", "b9f39d31e58f548d", "0ad5a06cf18daf24", "e08742359b4cabe7",
+         "acbcfa15bdddc7e4"),
+        ("tests/data/jobs/tiny.toml", "6cdd72bb5f539776", "43f8c26538190f30", "139008e0c88a6345",
+         "0870030b6d60d1d6"),
+        ("jobs/adaptive_k0.1.toml", "006c3b907e2aa31a", "3190d5abd8ca4252", "c6ac2d67f4ed2d26",
+         "1556a9776a1ce864"),
+    ],
+)  # fmt: skip
+def test_stockinette_jobs_keep_their_hash_and_ids(name, job_hash, first_point, ids, job_json):
+    """The ids of jobs written before the stitch was a grid axis (computed by the
+    knitsweep before it): a stockinette job names no stitch anywhere it is hashed."""
+    import hashlib
+
+    def digest(text):
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    job = load_job(ROOT / name)
+    points, _ = plan(job)
+    assert job.job_hash == job_hash and points[0].task_id == first_point
+    assert digest(" ".join(p.task_id for p in points)) == ids
+    assert digest(job.model_dump_json()) == job_json  # the results file's job_json
+    assert "stitch" not in job.canonical() and "stitch" not in job.canonical()["grid"]
+    assert '"stitch":"stockinette"' in job.model_dump_json()  # the job_json as it was
+    assert '"grid":{' in job.model_dump_json() and "stitch" not in job.grid.model_dump()
+
+
+def test_stitch_axis_computes_every_point_for_every_stitch(tmp_path):
+    one = load_job(_job(tmp_path, MINIMAL.replace("[11.6]", "[11.0, 11.6]")))
+    two = load_job(_job(tmp_path, TWO.replace("[11.6]", "[11.0, 11.6]")))
+    assert two.stitches == ("stockinette", "stockinette_free") and two.grid.size() == 4
+    points, sweeps = plan(two)
+    assert [p.params.stitch for p in points] == ["stockinette"] * 2 + ["stockinette_free"] * 2
+    assert len(sweeps) == 8 and len({p.task_id for p in points}) == 4
+    # the stockinette points are the stockinette job's tasks: files of both combine
+    assert [p.task_id for p in points[:2]] == [p.task_id for p in plan(one)[0]]
+    assert two.job_hash != one.job_hash
+    assert two.canonical()["grid"]["stitch"] == ["stockinette", "stockinette_free"]
+    again = JobSpec.model_validate_json(two.model_dump_json())  # the results file's job_json
+    assert again.job_hash == two.job_hash and again.stitches == two.stitches
+
+
+def test_one_stitch_is_the_same_job_wherever_it_is_written(tmp_path):
+    top = load_job(_job(tmp_path, MINIMAL.replace("[grid]", 'stitch = "garter"\n[grid]')))
+    axis = load_job(_job(tmp_path, MINIMAL + 'stitch = "garter"\n'))
+    listed = load_job(_job(tmp_path, MINIMAL + 'stitch = ["garter"]\n'))
+    assert top.job_hash == axis.job_hash == listed.job_hash
+    assert plan(top)[0] == plan(axis)[0] == plan(listed)[0]
+    plain = load_job(_job(tmp_path, MINIMAL))
+    stockinette = load_job(_job(tmp_path, MINIMAL + 'stitch = ["stockinette"]\n'))
+    assert plain.job_hash == stockinette.job_hash and plan(plain)[0] == plan(stockinette)[0]
+
+
+KNOWN = "must be one of stockinette, stockinette_free, garter"
+
+
+@pytest.mark.parametrize(
+    ("line", "fragment"),
+    [
+        ('stitch = ["stockinette", "purl"]\n', f"grid.stitch = ['stockinette', 'purl']: 'purl' "
+                                               f"is not a stitch: {KNOWN}"),
+        ('stitch = "purl"\n', f"grid.stitch = 'purl': 'purl' is not a stitch: {KNOWN}"),
+        ('stitch = ["garter", 3]\n', f"3 is not a stitch: {KNOWN}"),
+        ('stitch = ["garter", "garter"]\n', "grid.stitch = ['garter', 'garter']: repeated values"),
+        ("stitch = []\n", "grid.stitch = []: expected a stitch name or a non-empty list"),
+    ],
+)  # fmt: skip
+def test_bad_stitch_axes_name_the_field_and_the_stitches(tmp_path, line, fragment):
+    with pytest.raises(InputError) as e:
+        load_job(_job(tmp_path, MINIMAL + line))
+    assert fragment in str(e.value) and str(e.value).count("\n") == 0
+
+
+@pytest.mark.parametrize(
+    ("text", "fragment"),
+    [
+        (MINIMAL.replace("[grid]", 'stitch = "purl"\n[grid]'), f"stitch = 'purl': {KNOWN}"),
+        (MINIMAL.replace("[grid]", 'stitch = ["garter"]\n[grid]'),
+         "several stitches are a grid axis: [grid] stitch = [...]"),
+        (MINIMAL.replace("[grid]", 'stitch = "garter"\n[grid]') + 'stitch = ["garter"]\n',
+         "give the stitch in one place"),
+    ],
+)  # fmt: skip
+def test_the_one_stitch_field_takes_one_name(tmp_path, text, fragment):
+    with pytest.raises(InputError) as e:
+        load_job(_job(tmp_path, text))
+    assert fragment in str(e.value)
+
+
+def test_unknown_stitch_via_cli_exits_2_before_any_compute(tmp_path):
+    path = _job(tmp_path, MINIMAL + 'stitch = ["stockinette", "purl"]\n')
+    out = tmp_path / "out.h5"
+    proc = subprocess.run([sys.executable, "-m", "knitsweep", "run", str(path), "--out", str(out)],
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "grid.stitch" in proc.stderr and KNOWN in proc.stderr
+    assert list(tmp_path.iterdir()) == [path]

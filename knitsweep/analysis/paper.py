@@ -10,15 +10,20 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from itertools import pairwise
-from typing import NamedTuple
+from typing import Any, NamedTuple
+
+from ..stitches import DEFAULT_STITCH
 
 TABLE_1 = {"B_mN_mm2": 90.0, "r_core_mm": 0.325, "r_mm": 0.74, "p": 2.4}
 """Paper Table 1's B, r_core, r and p (its k, 0.6 mN/mm², varies between the tables)."""
 
 
-def at_table_1(params: Mapping[str, float], **values: float) -> bool:
+def at_table_1(params: Mapping[str, Any], **values: float) -> bool:
     """Whether ``params`` (names as in ``StitchParams``) hold Table 1's B, r_core, r, p
-    and the given ``values`` (e.g. ``k_mN_per_mm2=0.1``), to 1e-12."""
+    and the given ``values`` (e.g. ``k_mN_per_mm2=0.1``), to 1e-12, for the paper's
+    stitch (a ``stitch`` other than the default one never is)."""
+    if params.get("stitch", DEFAULT_STITCH) != DEFAULT_STITCH:
+        return False
     want = TABLE_1 | values
     return all(abs(float(params[k]) - v) <= 1e-12 for k, v in want.items())
 

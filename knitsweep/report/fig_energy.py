@@ -353,7 +353,7 @@ def fig4c_phase_diagram(red: Reduction, notes: list[str]) -> Any:
     keys = sorted({k for k, _ in by_key})
     panels = []
     for pi, p in enumerate(SERIES_PARAMS):
-        if p not in red.varying:
+        if p not in red.varying or p == "stitch":  # a name, no axis: a panel per stitch
             continue
         groups: dict[tuple, list] = {}
         for k in keys:
@@ -361,6 +361,9 @@ def fig4c_phase_diagram(red: Reduction, notes: list[str]) -> Any:
         panels += [(p, pi, g, sorted(ks, key=lambda k: k[pi]))
                    for g, ks in groups.items() if len(ks) >= 2]  # fmt: skip
     if not panels:
+        if len(keys) > 1:  # only the stitch varies: the first stitch's series
+            notes.append(f"fig4c: the regimes of {label_of(red, keys[0])}, the first of "
+                         f"{len(keys)} series")  # fmt: skip
         return _regime_strip(red, keys[0], by_key)
     panels = limit_panels(panels, "fig4c", notes)
     ncols = min(len(panels), 2)
@@ -425,5 +428,7 @@ def _regime_strip(red: Reduction, key: tuple, by_key: dict) -> Any:
     ax.text(0.99, 0.02, "filled: jammed (gap ≥ threshold), open: unjammed",
             transform=ax.transAxes, ha="right", va="bottom", fontsize="medium", color="0.3")  # fmt: skip
     _regime_legend(fig, [ax], with_lines=False)
-    title(fig, red, r"Regimes along $L/r$ (one series: no parameter varies)")
+    lab = label_of(red, key)
+    title(fig, red, r"Regimes along $L/r$ " + (f"({lab})" if lab else
+                                              "(one series: no parameter varies)"))  # fmt: skip
     return fig

@@ -197,6 +197,10 @@ def report_html(
     )  # fmt: skip
     prov_head = "".join(f"<th>{html.escape(Path(r['file']).name)}</th>" for r in roots)
     skipped_html = "".join(f"<li class='skipped'>{s}</li>" for s in skipped)
+
+    def cols(columns: tuple[str, ...]) -> tuple[str, ...]:  # the stitch, when it varies
+        return ("stitch", *columns) if "stitch" in red.varying else columns
+
     sections = [
         f"<h1>{html.escape(title)}</h1>",
         f"<p class='meta'>{len(red.points)} points, {len(red.sweeps)} sweeps, "
@@ -208,16 +212,16 @@ def report_html(
         "<p>The onset of unjamming (L/r)<sub>trans</sub> of each series: the first L/r whose "
         "jamming gap (ΔE<sub>c</sub> in x, ΔE<sub>b</sub> in y) falls below the threshold; "
         "the bracket is (last jammed, first unjammed].</p>",
-        table(results.transitions, _TRANSITION_COLUMNS, "transitions-table"),
+        table(results.transitions, cols(_TRANSITION_COLUMNS), "transitions-table"),
         "<h2>Figures</h2>",
         *blocks,
         f"<ul>{skipped_html}</ul>" if skipped else "",
         "<h2>Sweeps</h2>",
-        table(results.sweeps, _SWEEP_COLUMNS, "sweeps-table"),
+        table(results.sweeps, cols(_SWEEP_COLUMNS), "sweeps-table"),
         "<h2>Zero-force states</h2>",
-        table(results.points, _POINT_COLUMNS, "points-table"),
+        table(results.points, cols(_POINT_COLUMNS), "points-table"),
         "<h2 id='problems'>Failed and not knittable</h2>",
-        table(results.problems, _PROBLEM_COLUMNS, "problems-table"),
+        table(results.problems, cols(_PROBLEM_COLUMNS), "problems-table"),
         "<h2>Jobs</h2>",
         jobs,
         "<h2>Provenance</h2>",

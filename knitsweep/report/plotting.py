@@ -268,19 +268,19 @@ def _wrap(text: str, chars: int, parameters: bool = False) -> list[str]:
     return [*lines, line] if line else lines
 
 
-def series_keys(red: Reduction, direction: str | None = None) -> list[tuple[float, ...]]:
-    """The series (values of k, B, r_core, r, p) with analysed sweeps, sorted."""
+def series_keys(red: Reduction, direction: str | None = None) -> list[tuple[Any, ...]]:
+    """The series (values of the stitch, k, B, r_core, r, p …) with analysed sweeps, sorted."""
     keys = {c.series for c in red.curves if direction is None or c.direction == direction}
     return sorted(keys)
 
 
-def series_rows(red: Reduction, key: Sequence[float], direction: str) -> list[dict[str, Any]]:
+def series_rows(red: Reduction, key: Sequence[Any], direction: str) -> list[dict[str, Any]]:
     """The sweep rows of one series and direction, by L/r."""
     rows = (r for r in red.sweeps if r["direction"] == direction and series_key(r) == key)
     return sorted(rows, key=lambda r: r["L_over_r"])
 
 
-def label_of(red: Reduction, key: Sequence[float]) -> str:
+def label_of(red: Reduction, key: Sequence[Any]) -> str:
     """Label of a series by the parameters that vary in the file ('' if none vary)."""
     return series_label(dict(zip(SERIES_PARAMS, key, strict=True)), red.varying)
 

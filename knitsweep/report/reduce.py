@@ -39,7 +39,8 @@ from ..analysis.transitions import Transition, series_transitions
 from ..config import Fidelity
 from ..errors import InputError
 from ..plain import plain_value
-from ..quantities import PARAM_SYMBOLS, SERIES_PARAMS
+from ..quantities import NUMERIC_SERIES_PARAMS, PARAM_SYMBOLS, SERIES_PARAMS, value_text
+from ..stitches import DEFAULT_STITCH
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
 from ..store.read import read_files
@@ -48,7 +49,8 @@ from .force_columns import PAIR_KEYS, force_columns, job_fidelity, pair_force_co
 MIN_THRESHOLD, MAX_THRESHOLD = 1e-12, 1.0
 """The energy-gap thresholds (mJ) a reduction accepts (the paper's: GAP_THRESHOLD)."""
 _SWEEP_ARRAYS = ("strain", "stress", "bending_energy", "contact_energy", "a_x", "a_y", "thickness")
-_REQUIRED_META = ("status", "L_mm", "L_over_r", *SERIES_PARAMS)
+_REQUIRED_META = ("status", "L_mm", "L_over_r", *NUMERIC_SERIES_PARAMS)
+"""Attributes every task has (``stitch`` is absent for the default stitch)."""
 
 
 @dataclass(frozen=True)
@@ -64,7 +66,7 @@ class SweepCurves:
     direction: str
     L_mm: float
     L_over_r: float
-    series: tuple[float, ...]
+    series: tuple[Any, ...]
     jammed: bool
     strain: np.ndarray
     stress: np.ndarray
@@ -88,9 +90,11 @@ class Reduction:
         threshold: the energy-gap threshold, mJ.
         sweeps, transitions, points, problems: the table rows (see module docstring).
         curves: per-step arrays of every analysed sweep.
-        transition_of: {(series values, direction): Transition}.
+        transition_of: {(series values, direction): Transition}; the values are those
+            of ``SERIES_PARAMS`` (the stitch's name first), so stitches never share one.
         varying: the series parameters that take more than one value in the file.
-        constants: the series parameters that take one value, with it.
+        constants: the series parameters that take one value, with it (the stitch
+            only if it is not the default one).
         notes: remarks worth printing (e.g. an adaptive bracket that disagrees).
         entries: every task read (with its arrays), for the per-step tables.
         roots: each file's root attributes (with ``file`` and ``n_found``).
@@ -109,9 +113,9 @@ class Reduction:
     points: list[dict[str, Any]] = field(default_factory=list)
     problems: list[dict[str, Any]] = field(default_factory=list)
     curves: list[SweepCurves] = field(default_factory=list)
-    transition_of: dict[tuple[tuple[float, ...], str], Transition] = field(default_factory=dict)
+    transition_of: dict[tuple[tuple[Any, ...], str], Transition] = field(default_factory=dict)
     varying: tuple[str, ...] = ()
-    constants: dict[str, float] = field(default_factory=dict)
+    constants: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     paths: tuple[Path, ...] = ()
     entries: list[Entry] = field(default_factory=list, repr=False)
@@ -144,7 +148,18 @@ def _check_meta(path: Path, entry: Entry) -> dict[str, Any]:
         if isinstance(meta[k], bool) or not isinstance(meta[k], (int, float)):
             raise InputError(f"{path}: {entry.kind[:-1]} {entry.task_id}: {k} = {meta[k]!r}: "
                              "must be a number: not a knitsweep results file of this schema")  # fmt: skip
+    if not isinstance(meta.get("stitch", DEFAULT_STITCH), str):
+        raise InputError(f"{path}: {entry.kind[:-1]} {entry.task_id}: stitch = "
+                         f"{meta['stitch']!r}: must be a stitch's name: not a knitsweep results "
+                         "file of this schema")  # fmt: skip
     return meta
+
+
+def series_values(meta: Mapping[str, Any]) -> tuple[Any, ...]:
+    """The series of a task's attributes: its stitch (absent: the default) and the
+    numbers of ``NUMERIC_SERIES_PARAMS``, in the order of ``SERIES_PARAMS``."""
+    return tuple(str(meta.get(k, DEFAULT_STITCH)) if k == "stitch" else float(meta[k])
+                 for k in SERIES_PARAMS)  # fmt: skip
 
 
 def _base_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
@@ -152,7 +167,7 @@ def _base_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
     if entry.kind == SWEEPS:
         row |= {"point_id": str(meta.get("point_id", "")), "direction": str(meta["direction"])}
     row |= {"L_mm": float(meta["L_mm"]), "L_over_r": float(meta["L_over_r"])}
-    row |= {k: float(meta[k]) for k in SERIES_PARAMS}
+    row |= dict(zip(SERIES_PARAMS, series_values(meta), strict=True))
     return row
 
 
@@ -276,7 +291,7 @@ def _problem(kind: str, row: Mapping[str, Any], meta: Mapping[str, Any], why: st
 
 
 def transition_row(
-    values: tuple[float, ...], direction: str, t: Transition, n_missing: int
+    values: tuple[Any, ...], direction: str, t: Transition, n_missing: int
 ) -> dict[str, Any]:
     """One row of transitions.csv: the series, (L/r)_trans, bracket, the Table S4 fit of
     the linear jammed regime, its zero and ΔL/r.
@@ -324,8 +339,9 @@ def transition_row(
     }
 
 
-def series_key(row: Mapping[str, Any]) -> tuple[float, ...]:
-    """The series a table row belongs to: its values of ``SERIES_PARAMS``."""
+def series_key(row: Mapping[str, Any]) -> tuple[Any, ...]:
+    """The series a table row belongs to: its values of ``SERIES_PARAMS`` (its stitch
+    first: two stitches are two series)."""
     return tuple(row[k] for k in SERIES_PARAMS)
 
 
@@ -336,7 +352,7 @@ def _transitions(
 
     Every analysed L counts, so the series of an adaptive job (coarse grid plus
     bisection points) gives its refined bracket here too."""
-    missing: dict[tuple[tuple[float, ...], str], int] = {}
+    missing: dict[tuple[tuple[Any, ...], str], int] = {}
     for p in problems:
         if p["kind"] == "sweep":
             key = (series_key(p), p["direction"])
@@ -353,8 +369,8 @@ def _adaptive(entries: list[Entry], rows: list[dict[str, Any]], notes: list[str]
     found = {}
     for e in entries:
         meta = {k: plain_value(v) for k, v in e.meta.items()}
-        if all(k in meta for k in ("direction", *SERIES_PARAMS)):
-            found[(tuple(float(meta[k]) for k in SERIES_PARAMS), meta["direction"])] = meta
+        if all(k in meta for k in ("direction", *NUMERIC_SERIES_PARAMS)):
+            found[(series_values(meta), meta["direction"])] = meta
     for row in rows:
         meta = found.get((series_key(row), row["direction"]))
         if meta is None:
@@ -373,8 +389,10 @@ def _adaptive(entries: list[Entry], rows: list[dict[str, Any]], notes: list[str]
 
 
 def series_text(row: Mapping[str, Any]) -> str:
-    """'k = 0.1, B = 90, r_core = 0.325, r = 0.74, p = 2.4' (no units)."""
-    return ", ".join(f"{PARAM_SYMBOLS[k][0]} = {row[k]:g}" for k in SERIES_PARAMS)
+    """'k = 0.1, B = 90, r_core = 0.325, r = 0.74, p = 2.4' (no units; the stitch first
+    unless it is the default one)."""
+    return ", ".join(f"{PARAM_SYMBOLS[k][0]} = {value_text(row[k])}" for k in SERIES_PARAMS
+                     if k != "stitch" or row[k] != DEFAULT_STITCH)  # fmt: skip
 
 
 def _partial_reasons(root: Mapping[str, Any], n_found: int) -> list[str]:
@@ -429,14 +447,14 @@ def reduce_results(
     fidelity_of = {r["file"]: job_fidelity(r) for r in roots}  # each file's own job
     points, sweeps, problems, curves = [], [], [], []
     pair_of: dict[str, dict[str, Any]] = {}
-    for e, meta in sorted(tasks[POINTS], key=lambda em: (series_key(em[1]), em[1]["L_mm"])):
+    for e, meta in sorted(tasks[POINTS], key=lambda em: (series_values(em[1]), em[1]["L_mm"])):
         row = _point_row(e, meta, fidelity_of[meta["file"]])
         points.append(row)
         pair_of[e.task_id] = {k: row[k] for k in PAIR_KEYS}
         if row["status"] != "done":
             problems.append(_problem("point", row, meta, str(meta.get("message", ""))))
     for e, meta in sorted(
-        tasks[SWEEPS], key=lambda em: (em[1]["direction"], series_key(em[1]), em[1]["L_mm"])
+        tasks[SWEEPS], key=lambda em: (em[1]["direction"], series_values(em[1]), em[1]["L_mm"])
     ):
         base = _base_row(e, meta)
         if base["status"] != "done":
@@ -485,7 +503,11 @@ def reduce_results(
         curves=curves,
         transition_of=transition_of,
         varying=tuple(k for k, v in values.items() if len(v) > 1),
-        constants={k: v[0] for k, v in values.items() if len(v) == 1},
+        constants={
+            k: v[0]
+            for k, v in values.items()  # (the default stitch goes unsaid)
+            if len(v) == 1 and (k != "stitch" or v[0] != DEFAULT_STITCH)
+        },
         notes=notes,
         paths=tuple(paths),
         roots=roots,

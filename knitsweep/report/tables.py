@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ..formats import make_output_dir, replace_file
-from ..quantities import PARAM_SYMBOLS, table_column
+from ..quantities import PARAM_SYMBOLS, table_column, value_text
 from .reduce import Reduction
 from .results import Results
 
@@ -76,12 +76,13 @@ def _missing(value: Any) -> Any:
     return None if not isinstance(value, (list, tuple)) and pd.isna(value) else value
 
 
-def series_label(values: Mapping[str, float], names: Iterable[str]) -> str:
-    """'k = 0.1 mN/mm², B = 90 mN·mm²' for the given series parameter names."""
+def series_label(values: Mapping[str, Any], names: Iterable[str]) -> str:
+    """'stitch = garter, k = 0.1 mN/mm², B = 90 mN·mm²' for the given series parameter
+    names."""
     parts = []
     for name in names:
         symbol, unit = PARAM_SYMBOLS[name]
-        parts.append(f"{symbol} = {values[name]:g}{f' {unit}' if unit else ''}")
+        parts.append(f"{symbol} = {value_text(values[name])}{f' {unit}' if unit else ''}")
     return ", ".join(parts)
 
 
@@ -144,7 +145,7 @@ def transitions_text(red: Reduction) -> str:
         lines.append("fixed: " + series_label(red.constants, red.constants))
     head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying),
             *(c.header for c in TRANSITION_SUMMARY)]  # fmt: skip
-    body = [[t["direction"], *(f"{t[k]:g}" for k in red.varying),
+    body = [[t["direction"], *(value_text(t[k]) for k in red.varying),
              *(summary_cell(c, t) for c in TRANSITION_SUMMARY)]
             for t in red.transitions]  # fmt: skip
     widths = [max(len(r[i]) for r in [head, *body]) for i in range(len(head))]

@@ -5,8 +5,8 @@ Layout (CF Conventions 1.10 attributes: every variable has ``units`` and
 ``long_name``):
 
 * dimensions: ``direction`` (x, y), each parameter that takes more than one value in
-  the results (``L_mm`` always; ``k_mN_per_mm2``, ``B_mN_mm2``, ``r_core_mm`` … when
-  they vary; those that do not are scalar coordinates), and ``step`` (strain step, 0:
+  the results (``L_mm`` always; ``stitch`` (names), ``k_mN_per_mm2``, ``B_mN_mm2``,
+  ``r_core_mm`` … when they vary; those that do not are scalar coordinates), and ``step`` (strain step, 0:
   the zero-force state). The grid is the outer product of each parameter's values;
   cells without a task (an adaptive search's L values differ between series) are
   missing;
@@ -59,6 +59,14 @@ def _axes(frames: Sequence[pd.DataFrame]) -> tuple[dict[str, np.ndarray], dict[s
     """(dimension parameters → sorted values, constant parameters → value)."""
     dims, consts = {}, {}
     for p in GRID_PARAMETERS:
+        if p == "stitch":  # names: a dimension of its own when a study has several
+            values = np.array(sorted({str(v) for f in frames if p in f for v in f[p]}),
+                              dtype=object)  # fmt: skip
+            if len(values) > 1:
+                dims[p] = values
+            elif len(values) == 1:
+                consts[p] = str(values[0])
+            continue
         values = np.unique(np.concatenate([f[p].to_numpy(float) for f in frames if p in f]
                                           or [np.empty(0)]))  # fmt: skip
         values = values[np.isfinite(values)]
@@ -74,7 +82,7 @@ def _cells(frame: pd.DataFrame, axes: dict[str, np.ndarray]) -> tuple[np.ndarray
     out = []
     for name, values in axes.items():
         col = frame[name].to_numpy()
-        out.append(np.searchsorted(values, col) if name != "direction"
+        out.append(np.searchsorted(values, col) if name not in ("direction", "stitch")
                    else np.array([list(values).index(v) for v in col], dtype=int))  # fmt: skip
     return tuple(out)
 

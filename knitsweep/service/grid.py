@@ -1,5 +1,6 @@
 """The parameter grid of a job: numbers, lists, ``{start, stop, step}`` ranges, ties
-(``r_core_mm = "0.45 * r_mm"``) and zipped axes, and the grid points they make.
+(``r_core_mm = "0.45 * r_mm"``), zipped axes and the stitches, and the grid points they
+make.
 Validated when a job file is read (``jobs.JobSpec`` checks each point as a stitch).
 """
 
@@ -19,10 +20,12 @@ from pydantic import (
     ValidationError,
     field_serializer,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
 from ..errors import describe_validation_error
+from ..stitches import STITCH_NAMES
 
 _STRICT = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, strict=True)
 MAX_POINTS = 1_000_000
@@ -105,7 +108,10 @@ class Grid(BaseModel):
     ``{start, stop, step}`` range, or a tie to another entry (``r_core_mm = "0.45 *
     r_mm"``: r_core follows r). The grid is the Cartesian product of its axes, where
     the axes named together in one ``zip`` group count as one axis and vary together
-    (same number of values; e.g. ``zip = [["L_mm", "r_mm"]]``)."""
+    (same number of values; e.g. ``zip = [["L_mm", "r_mm"]]``). ``stitch`` is one more
+    axis, of names (``stitch = ["stockinette", "garter"]``: every point for each stitch;
+    never tied or zipped); ``axes`` and ``combinations`` hold the numbers only and
+    ``JobSpec.points`` crosses them with the stitches."""
 
     model_config = _STRICT
 
@@ -117,9 +123,40 @@ class Grid(BaseModel):
     p: Axis = 2.4
     regularization_mN_mm4: Axis = 2.0
     twist_bound: float = 0.9
+    stitch: tuple[str, ...] | None = Field(
+        None,
+        description="stitch pattern(s): a name or a list of distinct names, one of "
+        f"{', '.join(STITCH_NAMES)}; every point is computed for every stitch",
+    )
     zip: list[list[str]] = Field(
         default_factory=list, description="groups of axes that vary together, not crossed"
     )
+
+    @field_validator("stitch", mode="before")
+    @classmethod
+    def _parse_stitches(cls, v: Any) -> Any:
+        """A stitch name or a non-empty list of distinct names -> a tuple of names."""
+        if v is None:
+            return v
+        names = [v] if isinstance(v, str) else v
+        if not isinstance(names, (list, tuple)) or not names:
+            raise ValueError(f"expected a stitch name or a non-empty list of names, one of "
+                             f"{', '.join(STITCH_NAMES)}")  # fmt: skip
+        for name in names:
+            if not isinstance(name, str) or name not in STITCH_NAMES:
+                raise ValueError(f"{name!r} is not a stitch: must be one of "
+                                 f"{', '.join(STITCH_NAMES)}")  # fmt: skip
+        if len(set(names)) != len(names):
+            raise ValueError("repeated values")
+        return tuple(names)
+
+    @model_serializer(mode="wrap")
+    def _without_default_stitch(self, handler: Any) -> dict[str, Any]:
+        # absent unless given: the job_json of every job without it stays as it was
+        out = handler(self)
+        if out.get("stitch") is None:
+            out.pop("stitch", None)
+        return out
 
     @field_validator(*GRID_PARAMETERS, mode="before")
     @classmethod
@@ -217,9 +254,10 @@ class Grid(BaseModel):
         return out
 
     def size(self) -> int:
-        """Number of grid points (ties and zips counted as they combine)."""
+        """Number of grid points (ties and zips counted as they combine), times the
+        number of stitches of ``stitch``."""
         axes = self.axes()
-        n = 1
+        n = len(self.stitch) if self.stitch is not None else 1
         for name, values in axes.items():
             group = next((g for g in self.zip if name in g), None)
             if group is None or group[0] == name:

@@ -26,6 +26,7 @@ from pydantic import (
     Field,
     ValidationError,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -155,7 +156,8 @@ class JobSpec(BaseModel):
     preset: str = DEFAULT_PRESET
     stitch: StitchName = Field(
         DEFAULT_STITCH,
-        description=f"stitch pattern of every point: one of {', '.join(STITCH_NAMES)}",
+        description=f"stitch pattern of every point: one of {', '.join(STITCH_NAMES)} "
+        "(several: the grid axis grid.stitch)",
     )
     mode: Literal["grid", "adaptive"] = Field(
         "grid", description="'grid': every grid point; 'adaptive': bisect each L series' transition"
@@ -206,6 +208,23 @@ class JobSpec(BaseModel):
             raise ValueError(f"must be one of {', '.join(PRESETS)}")
         return v
 
+    @model_serializer(mode="wrap")
+    def _stitch_once(self, handler: Any) -> dict[str, Any]:
+        # with the grid axis grid.stitch, the one-stitch field is not written (job_json
+        # then reads back as the same job)
+        out = handler(self)
+        if self.grid.stitch is not None:
+            out.pop("stitch", None)
+        return out
+
+    @field_validator("stitch", mode="before")
+    @classmethod
+    def _one_stitch(cls, v: Any) -> Any:
+        if isinstance(v, (list, tuple)):
+            raise ValueError("one stitch name here; several stitches are a grid axis: "
+                             "[grid] stitch = [...]")  # fmt: skip
+        return v
+
     @field_validator("directions")
     @classmethod
     def _unique_directions(cls, v: list[str]) -> list[str]:
@@ -215,6 +234,9 @@ class JobSpec(BaseModel):
 
     @model_validator(mode="after")
     def _valid_points(self) -> JobSpec:
+        if self.grid.stitch is not None and "stitch" in self.model_fields_set:
+            raise ValueError(f"stitch = {self.stitch!r} and grid.stitch = "
+                             f"{list(self.grid.stitch)}: give the stitch in one place")  # fmt: skip
         self.grid.check_ties_and_zips()
         axes = self.grid.axes()
         n = self.grid.size()
@@ -237,27 +259,40 @@ class JobSpec(BaseModel):
                 raise ValueError("mode = 'adaptive' needs at least 2 coarse values in grid.L_mm")
         return self
 
+    @property
+    def stitches(self) -> tuple[str, ...]:
+        """The stitches every grid point is computed for: ``grid.stitch``, else the
+        one ``stitch``."""
+        return self.grid.stitch if self.grid.stitch is not None else (self.stitch,)
+
     def points(self) -> list[StitchParams]:
-        """Every grid point, in a fixed order (k, B, r_core, r, p, reg, then L)."""
+        """Every grid point, in a fixed order (stitch, k, B, r_core, r, p, reg, then L)."""
         order = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regularization_mN_mm4",
                  "L_mm")  # fmt: skip
         out = []
-        for values in self.grid.combinations(order):
-            try:
-                out.append(StitchParams(twist_bound=self.grid.twist_bound, stitch=self.stitch,
-                                        **values))  # fmt: skip
-            except ValidationError as e:
-                where = ", ".join(f"{k}={v}" for k, v in values.items())
-                raise ValueError(f"grid point ({where}): {describe_validation_error(e)}") from None
+        combinations = self.grid.combinations(order)
+        for stitch in self.stitches:
+            for values in combinations:
+                try:
+                    out.append(StitchParams(twist_bound=self.grid.twist_bound, stitch=stitch,
+                                            **values))  # fmt: skip
+                except ValidationError as e:
+                    where = ", ".join(f"{k}={v}" for k, v in values.items())
+                    raise ValueError(f"grid point ({where}): "
+                                     f"{describe_validation_error(e)}") from None  # fmt: skip
         return out
 
     def canonical(self) -> dict[str, Any]:
         """Everything that determines the results (name, description and run
         settings excluded), with effective settings after the preset."""
         d = self.model_dump(mode="json", exclude={"name", "description", "run", "preset"})
-        if d["stitch"] == DEFAULT_STITCH:  # (absent: the hashes of stockinette jobs stay)
-            del d["stitch"]
+        d.pop("stitch", None)  # one stitch where it was before, several as an axis of the grid
+        stitches = self.stitches
+        if len(stitches) == 1 and stitches[0] != DEFAULT_STITCH:
+            d["stitch"] = stitches[0]  # (absent for stockinette: the hashes of its jobs stay)
         d["grid"] = self.grid.axes() | {"twist_bound": self.grid.twist_bound}
+        if len(stitches) > 1:
+            d["grid"]["stitch"] = list(stitches)
         ties = {n: str(tie) for n, tie in self.grid.ties().items()}
         if ties:  # (absent when empty: the hashes of plain grids stay what they were)
             d["grid"]["ties"] = ties

@@ -319,10 +319,11 @@ class _Master:
 
 
 def varying_parameters(job: JobSpec) -> tuple[str, ...]:
-    """The grid parameters that take more than one value (ties included)."""
+    """The grid parameters that take more than one value (ties and the stitch included)."""
     axes = job.grid.axes()
     tied = tuple(n for n, tie in job.grid.ties().items() if len(axes.get(tie.to, ())) > 1)
-    return tuple(n for n, v in axes.items() if len(v) > 1) + tied
+    stitch = ("stitch",) if len(job.stitches) > 1 else ()
+    return stitch + tuple(n for n, v in axes.items() if len(v) > 1) + tied
 
 
 def run_job(

@@ -169,9 +169,10 @@ def task_line(kind: str, params: Any, direction: str | None, status: str, second
               varying: tuple[str, ...], where: str = "") -> str:  # fmt: skip
     """'sweep x  L=11.4 k=0.1  done  1.32 s  rank 2@host' for a finished task."""
     names = ["L_mm", *(n for n in varying if n != "L_mm")]
-    from ..quantities import PARAMETER_NAMES
+    from ..quantities import PARAMETER_NAMES, value_text
 
-    values = " ".join(f"{PARAMETER_NAMES[n].symbol}={getattr(params, n):g}" for n in names)
+    values = " ".join(f"{PARAMETER_NAMES[n].symbol}={value_text(getattr(params, n))}"
+                      for n in names)  # fmt: skip
     head = f"{kind} {direction}" if direction else f"{kind}  "
     return f"{head}  {values}  {status}  {seconds:.2f} s" + (f"  {where}" if where else "")
 

@@ -17,8 +17,9 @@ from typing import TYPE_CHECKING, Any
 from ..config import DONE, FAILED
 from ..errors import InputError
 from ..plain import plain_value
+from ..stitches import DEFAULT_STITCH
 from ..store.checksum import FileCheck
-from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, journal_dir, lock_path
+from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, SWEEPS, journal_dir, lock_path
 from ..store.journal import scan
 from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root
 from ..store.writer import writer_alive
@@ -166,6 +167,8 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
         counts[s] = counts.get(s, 0) + 1
         if by is not None:
             value = e.meta.get(by, "-") if by != "direction" or e.kind != POINTS else "-"
+            if by == "stitch" and e.kind in (POINTS, SWEEPS):  # absent: the default stitch
+                value = e.meta.get(by, DEFAULT_STITCH)
             group = groups.setdefault(plain_value(value), {})
             group[s] = group.get(s, 0) + 1
         if s == FAILED:
@@ -240,7 +243,6 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     present in several inputs is taken once, a 'done' result winning over a
     failed one. Returns counts of what ``out`` holds.
     """
-    from ..store.format import SWEEPS
     from ..store.writer import ResultWriter
     from .jobs import JobSpec, plan
 

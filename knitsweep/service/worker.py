@@ -82,8 +82,8 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
     if not kernels.cached():
         with compile_lock(notice):
             if not kernels.cached():  # nobody compiled them while this one waited
-                compile_kernels(job.fidelity, heard, (job.stitch,))
-    compile_kernels(job.fidelity, heard, (job.stitch,))  # loads them (at once if just compiled)
+                compile_kernels(job.fidelity, heard, job.stitches)
+    compile_kernels(job.fidelity, heard, job.stitches)  # loads them (at once if just compiled)
     return time.perf_counter() - t0 if compiled else 0.0
 
 

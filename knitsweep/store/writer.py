@@ -504,10 +504,11 @@ def writer_alive(lock: Path) -> bool:
     return _lockable(lock, fcntl.LOCK_SH) is False
 
 
-GROWABLE = ("grid", "directions")
+GROWABLE = ("grid", "directions", "stitch")
 """What a job may change and still run into an existing results file: its tasks are
 content-addressed, so a grown grid adds only the new tasks (a shrunk one keeps the
-old results in the file)."""
+old results in the file). ``stitch``: a job's one stitch (the stitches of several are
+``grid.stitch``), so that one stitch can grow into several."""
 
 
 def check_compatible(path: Path, job, root: dict[str, Any] | None = None) -> str | None:
