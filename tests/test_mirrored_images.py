@@ -8,7 +8,11 @@ import pytest
 from knitsweep.config import StitchParams
 from knitsweep.kernels.bezier import basis_tables, midpoints
 from knitsweep.kernels.contact import IMAGES_CUTOFF, contact_energy
-from knitsweep.kernels.mirrored import N_MIRROR_CLASSES, mirrored_contact_energy
+from knitsweep.kernels.mirrored import (
+    N_MIRROR_CLASSES,
+    mirrored_contact_energy,
+    mirrored_contact_energy_exhaustive,
+)
 from knitsweep.model import CellModel
 
 PATTERNS = {"stockinette": (0, 0), "garter": (0, 1), "rib": (1, 0), "seed": (1, 1)}
@@ -24,9 +28,9 @@ def _state(lift=0.0):
     return cp, x[-2], x[-1]
 
 
-def _energy(cp, ax, ay, parity, only=-1, with_grad=False):
+def _energy(cp, ax, ay, parity, only=-1, with_grad=False, kernel=mirrored_contact_energy):
     g, gc, ce = np.zeros_like(cp), np.zeros(2), np.zeros(N_MIRROR_CLASSES)
-    e = mirrored_contact_energy(cp, TAB, ax, ay, IP.r, IP.rc, IP.k, IP.p, *parity, only,
+    e = kernel(cp, TAB, ax, ay, IP.r, IP.rc, IP.k, IP.p, *parity, only,
                                 with_grad, g, gc, ce)  # fmt: skip
     return e, g, gc, ce
 
@@ -73,3 +77,33 @@ def test_forces_by_class_match_central_differences(name):
             fd = (_energy(cp, ax + dax, ay + day, PATTERNS[name], c)[0]
                   - _energy(cp, ax - dax, ay - day, PATTERNS[name], c)[0]) / (2 * h)  # fmt: skip
             assert fd == pytest.approx(gc[col], rel=1e-5, abs=1e-9), (c, col)
+
+
+def _same_as_exhaustive(cp, ax, ay, parity):
+    for only in range(-1, N_MIRROR_CLASSES):
+        e, g, gc, ce = _energy(cp, ax, ay, parity, only, True)
+        e0, g0, gc0, ce0 = _energy(cp, ax, ay, parity, only, True,
+                                   mirrored_contact_energy_exhaustive)  # fmt: skip
+        assert e == pytest.approx(e0, rel=1e-13, abs=0.0), only
+        np.testing.assert_allclose(ce, ce0, rtol=1e-13, atol=1e-15 * abs(e0))
+        scale = max(np.abs(g0).max(), 1e-300)
+        np.testing.assert_allclose(g, g0, rtol=0.0, atol=1e-13 * scale)
+        np.testing.assert_allclose(gc, gc0, rtol=0.0, atol=1e-13 * max(np.abs(gc0).max(), 1e-300))
+
+
+@pytest.mark.parametrize("i", range(1, 8))
+def test_culled_sum_is_the_exhaustive_one_on_garter_starts(i):
+    """The bounding-box culls drop only pairs beyond the cut-off: garter's shipped
+    starts, every class, energies and gradients as the reference kernel's."""
+    m = CellModel(StitchParams(L_mm=11.0, k_mN_per_mm2=0.1, stitch="garter"))
+    x = m.stitch.start(i)
+    cp = m.control_points(x)
+    e = _energy(cp, x[-2], x[-1], PATTERNS["garter"])[3]
+    assert e[3] > 0.0  # the mirrored rows touch
+    _same_as_exhaustive(cp, x[-2], x[-1], PATTERNS["garter"])
+
+
+@pytest.mark.parametrize(("name", "lift"), [("stockinette", 0.0), ("rib", 0.55), ("seed", 0.55)])
+def test_culled_sum_is_the_exhaustive_one(name, lift):
+    cp, ax, ay = _state(lift)
+    _same_as_exhaustive(cp, ax, ay, PATTERNS[name])

@@ -16,9 +16,18 @@ once with weight 2: the inverse of g is g^-1 p = M^mu p - m t_c - n t_w, mirrore
 exactly when g is, and |p_j - g^-1 p_i| = |p_i - g p_j|, so (j, i, g^-1) has the same
 distance and exclusion. Images are the half (n > 0, or n = 0 and m > 0) of every
 (m, n) whose offset the samples' extent plus 2r can reach (mirroring leaves x and y
-unchanged, so the translations' reach bounds them); sample pairs are tested in full,
-without the bounding-box culls of ``partition`` (a reference kernel: ~10x the
-distance tests of the culled stockinette search).
+unchanged, so the translations' reach bounds them).
+
+Candidate search (``mirrored_contact_energy``): the culls of ``partition``, each exact.
+The samples are held twice, as they are and mirrored (z -> -z), with one box per
+segment of each copy (``segment_boxes_soa``); an image whose cell box is 2r away is
+skipped, and in a kept image only the segment pairs whose boxes (the partner's from
+the mirrored copy when the image is mirrored) come within 2r are searched, sample by
+sample (``search_pairs``), the pairs evaluated in batches (``accumulate_pairs``) as in
+``contact.contact_energy``. A sample pair is never tested unless its segments' boxes
+come within 2r. ``mirrored_contact_energy_exhaustive`` tests every sample pair of every
+reachable image: the reference the culled sum is checked against (the same pairs;
+equal to round-off, tests/test_mirrored_images.py).
 
 Contact classes (``MIRROR_CLASSES``): 0 self (0, 0); 1 same row, not mirrored
 (n = 0, m != 0); 2 same column, not mirrored (m = 0, n != 0); 3 mirrored (any
@@ -33,7 +42,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .contact import EXCLUSION_FACTOR, pair_potential, project_gradient, sample_cell
+from .contact import (
+    EXCLUSION_FACTOR,
+    accumulate_pairs,
+    pair_buffers,
+    pair_potential,
+    project_gradient,
+    sample_cell,
+)
+from .partition import image_reaches, search_pairs, segment_boxes_soa, segment_gaps
 
 MIRROR_CLASSES = ("self", "same_row", "same_column", "mirrored", "other")
 """Contact classes of a pattern with mirrored images, in ``mirror_class`` order."""
@@ -81,11 +98,12 @@ def half_images(pts, ax, ay, r):
 
 
 @njit(cache=True)
-def mirrored_contact_energy(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
+def mirrored_contact_energy_exhaustive(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
                             grad_cp, grad_cell, class_energy):  # fmt: skip
     """Contact energy E_c (N mm) of the cell ``cp`` (S, 6, 3) over its images for
     mirror parities (pm, pn) (module docstring), of every class (``only_class`` = -1)
-    or of one.
+    or of one, testing every sample pair of every reachable image: the reference of
+    ``mirrored_contact_energy`` (same arguments, same pairs).
 
     tab (2, N, 6): contact sample tables; periods ax, ay and radii in mm, k in N/mm²,
     p the exponent. Writes ``class_energy`` (5,), N mm, E_c by class (of the classes
@@ -138,6 +156,110 @@ def mirrored_contact_energy(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, wi
                     gax -= m * f * dx
                     gay -= nn * f * dy
     if with_grad:
+        project_gradient(g, speed, r1, tab, grad_cp)
+        grad_cell[0] = gax
+        grad_cell[1] = gay
+    return energy
+
+
+@njit(cache=True)
+def mirrored_blocks(box2, images, ax, ay, reach, pm, pn, only_class):
+    """Every (image, segment a, segment b) whose boxes come within ``reach``, each
+    unordered pair of segments once in the image (0, 0), in image order, of every class
+    (``only_class`` = -1) or of one. ``box2`` (6, 2S): the boxes of the S segments' samples
+    and then of their mirrored copies; b >= S names the mirrored copy's segment b - S (the
+    partner of a mirrored image). Returns (k, 3) int64 rows (image, a, b); image -1 is
+    (0, 0), others index ``images`` (q, 2)."""
+    nseg = box2.shape[1] // 2
+    reach2 = reach * reach
+    gaps = np.empty(2 * nseg)
+    out = np.empty(((images.shape[0] + 1) * nseg * nseg, 3), dtype=np.int64)
+    k = 0
+    for im in range(-1, images.shape[0]):
+        m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
+        mir = is_mirrored(m, nn, pm, pn)
+        if only_class >= 0 and mirror_class(m, nn, mir) != only_class:
+            continue
+        ox, oy = m * ax, nn * ay
+        # both copies' boxes together: the same extent in x and y (mirroring keeps them)
+        if im >= 0 and not image_reaches(box2, ox, oy, reach):
+            continue
+        base = nseg if mir else 0
+        for sa in range(nseg):
+            segment_gaps(box2, sa, ox, oy, gaps)
+            for sb in range(sa if im < 0 else 0, nseg):
+                if gaps[base + sb] < reach2:
+                    out[k, 0], out[k, 1], out[k, 2] = im, sa, base + sb
+                    k += 1
+    return out[:k]
+
+
+@njit(cache=True)
+def mirrored_contact_energy(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
+                            grad_cp, grad_cell, class_energy):  # fmt: skip
+    """Contact energy E_c (N mm) of the cell ``cp`` (S, 6, 3) over its images for
+    mirror parities (pm, pn) (module docstring), of every class (``only_class`` = -1)
+    or of one; candidates culled by bounding boxes (``mirrored_blocks``).
+
+    tab (2, N, 6): contact sample tables; periods ax, ay and radii in mm, k in N/mm²,
+    p the exponent. Writes ``class_energy`` (5,), N mm, E_c by class (of the classes
+    summed), and with ``with_grad`` dE/dcp (S, 6, 3) into ``grad_cp`` and the explicit
+    dE/d(a_x, a_y) (2,) through the image offsets into ``grad_cell``. Returns E_c.
+
+    The samples are held twice (the second copy mirrored, z -> -z), so that a mirrored
+    partner is a sample of that copy and the translations' search and pair sums apply
+    unchanged; the copy's gradient is folded back onto its samples at the end.
+    """
+    nseg = cp.shape[0]
+    n = tab.shape[1]
+    dt2 = 1.0 / (n * n)
+    pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
+    ns = pts.shape[0]
+    pos2 = np.empty((3, 2 * ns))
+    s_mid2 = np.empty(2 * ns)
+    speed2 = np.empty(2 * ns)
+    for i in range(ns):
+        pos2[0, i] = pos2[0, ns + i] = pos[0, i]
+        pos2[1, i] = pos2[1, ns + i] = pos[1, i]
+        pos2[2, i] = pos[2, i]
+        pos2[2, ns + i] = -pos[2, i]
+        s_mid2[i] = s_mid2[ns + i] = s_mid[i]
+        speed2[i] = speed2[ns + i] = speed[i]
+    box2 = segment_boxes_soa(pos2, 2 * nseg, n)
+    cut = 2.0 * r
+    images = half_images(pts, ax, ay, r)
+    blocks = mirrored_blocks(box2, images, ax, ay, cut, pm, pn, only_class)
+    s_excl = EXCLUSION_FACTOR * r
+    ib, fb, work, g2 = pair_buffers(n, 2 * ns)
+    class_energy[:] = 0.0
+    energy, gax, gay = 0.0, 0.0, 0.0
+    c = 0
+    cls_now = 0
+    for q in range(blocks.shape[0]):
+        im, sa, sb = blocks[q, 0], blocks[q, 1], blocks[q, 2]
+        m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
+        cls = mirror_class(m, nn, is_mirrored(m, nn, pm, pn))
+        # a batch holds one class: its sum is that class's share
+        if c > 0 and (cls != cls_now or c + n * n > ib.shape[1]):
+            e, gax, gay = accumulate_pairs(ib, fb, c, speed2, dt2, r, rc, k, p, with_grad, work,
+                                           g2, 0.0, gax, gay)  # fmt: skip
+            class_energy[cls_now] += e
+            energy += e
+            c = 0
+        cls_now = cls
+        c = search_pairs(pos2, s_mid2, box2, n, sa, sb, im < 0, m, nn, m * ax, nn * ay,
+                         m * s_tot, cut * cut, s_excl, ib, fb, c)  # fmt: skip
+    e, gax, gay = accumulate_pairs(ib, fb, c, speed2, dt2, r, rc, k, p, with_grad, work, g2, 0.0,
+                                   gax, gay)  # fmt: skip
+    class_energy[cls_now] += e
+    energy += e
+    if with_grad:
+        g = np.empty((ns, 4))
+        for i in range(ns):  # the mirrored copy's z is -z: dE/dz = -dE/dz'
+            g[i, 0] = g2[i, 0] + g2[ns + i, 0]
+            g[i, 1] = g2[i, 1] + g2[ns + i, 1]
+            g[i, 2] = g2[i, 2] - g2[ns + i, 2]
+            g[i, 3] = g2[i, 3] + g2[ns + i, 3]
         project_gradient(g, speed, r1, tab, grad_cp)
         grad_cell[0] = gax
         grad_cell[1] = gay
