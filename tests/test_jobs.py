@@ -20,7 +20,7 @@ def _job(tmp_path, text):
     return path
 
 
-@pytest.mark.parametrize("name", ["demo", "paper_k0.1_L_sweep", "paper_phase_kB"])
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "jobs").glob("*.toml")))
 def test_shipped_jobs_are_valid(name):
     job = load_job(ROOT / "jobs" / f"{name}.toml")
     points, sweeps = plan(job)
