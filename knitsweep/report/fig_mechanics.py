@@ -266,7 +266,8 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
     from matplotlib.patches import Patch
 
     keys = sorted({series_key(r) for r in rows})
-    fig = new_figure(8.0, 5.2)
+    below = len(keys) > 4  # many series: the legend below the axes, not over the curves
+    fig = new_figure(8.0, 5.2 + (0.13 * len(keys) if below else 0.0))
     ax = fig.subplots()
     if len(keys) == 1:  # one series: shade the regimes along (L/r)², as the paper does
         pts = sorted(rows, key=lambda r: r["L_over_r"])
@@ -300,7 +301,11 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
                     for i, k in enumerate(keys)]  # fmt: skip
     if not regimes:
         notes.append("fig5a: regimes need sweeps in both x and y; symbols left white")
-    ax.legend(handles=handles, loc="best", frameon=True, framealpha=0.9)
+    if below:
+        fig.legend(handles=handles, loc="outside lower center", ncols=legend_columns(2),
+                   frameon=False)  # fmt: skip
+    else:
+        ax.legend(handles=handles, loc="best", frameon=True, framealpha=0.9)
     title(fig, red, "Zero-force stitch aspect ratio against $(L/r)^2$")
     return fig
 
