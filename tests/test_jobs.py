@@ -80,14 +80,21 @@ def test_bad_job_specs_name_the_field(tmp_path, text, fragment):
     assert str(e.value).count(" = ") <= 2, "one problem, one message"
 
 
-def test_bad_job_via_cli_writes_nothing(tmp_path):
-    path = _job(tmp_path, MINIMAL + "k_mN_per_mm2 = -1\n")
-    out = tmp_path / "out.h5"
-    proc = subprocess.run([sys.executable, "-m", "knitsweep", "run", str(path), "--out", str(out)],
-                          capture_output=True, text=True, timeout=120)  # fmt: skip
+def _run_refused(tmp_path, text):
+    """``knitsweep run`` of a job file holding ``text``: exit 2, nothing written
+    beside the job file; its stderr."""
+    path = _job(tmp_path, text)
+    proc = subprocess.run([sys.executable, "-m", "knitsweep", "run", str(path), "--out",
+                           str(tmp_path / "out.h5")], capture_output=True, text=True,
+                          timeout=120)  # fmt: skip
     assert proc.returncode == 2
-    assert proc.stderr.count("\n") == 1 and "k_mN_per_mm2" in proc.stderr
     assert list(tmp_path.iterdir()) == [path]
+    return proc.stderr
+
+
+def test_bad_job_via_cli_writes_nothing(tmp_path):
+    stderr = _run_refused(tmp_path, MINIMAL + "k_mN_per_mm2 = -1\n")
+    assert stderr.count("\n") == 1 and "k_mN_per_mm2" in stderr
 
 
 def test_presets_and_overrides():
@@ -285,10 +292,5 @@ def test_the_one_stitch_field_takes_one_name(tmp_path, text, fragment):
 
 
 def test_unknown_stitch_via_cli_exits_2_before_any_compute(tmp_path):
-    path = _job(tmp_path, MINIMAL + 'stitch = ["stockinette", "purl"]\n')
-    out = tmp_path / "out.h5"
-    proc = subprocess.run([sys.executable, "-m", "knitsweep", "run", str(path), "--out", str(out)],
-                          capture_output=True, text=True, timeout=120)  # fmt: skip
-    assert proc.returncode == 2
-    assert proc.stderr.count("\n") == 1 and "grid.stitch" in proc.stderr and KNOWN in proc.stderr
-    assert list(tmp_path.iterdir()) == [path]
+    stderr = _run_refused(tmp_path, MINIMAL + 'stitch = ["stockinette", "purl"]\n')
+    assert stderr.count("\n") == 1 and "grid.stitch" in stderr and KNOWN in stderr
