@@ -7,6 +7,11 @@ import multiprocessing
 import os
 import signal
 import threading
+from collections.abc import Callable, Iterable, Iterator
+from typing import TypeVar
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 
 def fork_workers(limit: int = 4) -> int:
@@ -21,10 +26,15 @@ def fork_workers(limit: int = 4) -> int:
     return max(1, min(limit, cores or 1))
 
 
-def forked_pool(workers: int):
-    """A pool of ``workers`` forked helpers (they share this process's memory as it
-    was); close and join it when done, so that they leave by themselves."""
-    return multiprocessing.get_context("fork").Pool(workers, initializer=_helper_signals)
+def forked_map(workers: int, fn: Callable[[T], R], items: Iterable[T]) -> Iterator[R]:
+    """``fn`` of each item by ``workers`` forked helpers (they share this process's
+    memory as it was: what ``fn`` needs besides its item goes in a module global set
+    before the call), the results in order as they come; the helpers leave by
+    themselves once done, or are terminated if the caller stops or fails."""
+    with multiprocessing.get_context("fork").Pool(workers, initializer=_helper_signals) as pool:
+        yield from pool.imap(fn, items)
+        pool.close()  # done: the helpers leave by themselves (terminate() is for errors)
+        pool.join()
 
 
 def _helper_signals() -> None:

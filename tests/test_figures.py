@@ -56,6 +56,16 @@ def test_every_figure_is_written(synthetic_report):
         assert f.line == f"wrote {f.path}"
 
 
+def test_figures_drawn_by_forked_helpers_are_the_same_bytes(synthetic_report, monkeypatch):
+    from knitsweep import processes
+    from knitsweep.report.figures import render_figures
+
+    red = synthetic_report.reduction
+    alone = [(name, files) for name, _, files in render_figures(red, workers=1)]
+    monkeypatch.setattr(processes, "fork_workers", lambda limit=4: 2)  # even on one core
+    assert [(name, files) for name, _, files in render_figures(red)] == alone
+
+
 def test_skipped_figures_say_why(tmp_path):
     path = write_results(tmp_path / "one_k.h5", ks=(0.1,), contact_forces=False)
     out = knitsweep("phase-diagram", str(path), "--out", str(tmp_path / "pd"))

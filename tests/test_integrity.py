@@ -99,14 +99,14 @@ def test_helpers_read_a_file_as_this_process_does(damaged, monkeypatch):
     forked = []
     import knitsweep.processes as processes
 
-    pool = processes.forked_pool
+    real_map = processes.forked_map
 
-    def counting_pool(workers):
+    def counting_map(workers, fn, items):
         forked.append(workers)
-        return pool(workers)
+        return real_map(workers, fn, items)
 
     monkeypatch.setattr(processes, "fork_workers", lambda limit=4: 2)
-    monkeypatch.setattr(processes, "forked_pool", counting_pool)
+    monkeypatch.setattr(processes, "forked_map", counting_map)
     parallel = entries_and_check()
     assert forked == [2], "the helpers did not read"
     assert parallel == serial

@@ -151,7 +151,7 @@ def render_figures(
     {format: bytes}); each as soon as it (and those before it) is drawn. ``workers``
     (default: the usable cores, at most 4) processes draw in parallel (forked, so
     the reduction is not copied); the bytes are the same as drawn one by one."""
-    from ..processes import fork_workers, forked_pool
+    from ..processes import fork_workers, forked_map
 
     options = options or FigureOptions()
     names = list(FIGURES)
@@ -163,12 +163,9 @@ def render_figures(
     global _JOB
     _JOB = (red, options)
     try:
-        with forked_pool(workers) as pool:
-            for name, (outcome, files) in zip(names, pool.imap(_render_named, names),
-                                              strict=True):  # fmt: skip
-                yield name, outcome, files
-            pool.close()  # done: the workers leave by themselves (terminate() is for errors)
-            pool.join()
+        drawn = forked_map(workers, _render_named, names)
+        for name, (outcome, files) in zip(names, drawn, strict=True):
+            yield name, outcome, files
     finally:
         _JOB = None
 

@@ -104,7 +104,7 @@ def file_entries(f, with_data: bool, check: FileCheck | None = None,
                  skip: set | frozenset = frozenset()) -> Iterator[Entry]:  # fmt: skip
     """The verified task groups of an open file (damaged ones recorded in ``check``
     and left out), but those in ``skip`` ((kind, task id) pairs)."""
-    from ..processes import fork_workers, forked_pool
+    from ..processes import fork_workers, forked_map
 
     names = [(kind, tid) for kind in KINDS for tid in _names(f, kind, check)
              if (kind, tid) not in skip]  # fmt: skip
@@ -117,13 +117,10 @@ def file_entries(f, with_data: bool, check: FileCheck | None = None,
     shares = [names[i : i + size] for i in range(0, len(names), size)]
     _SHARE = (f.filename, with_data)
     try:
-        with forked_pool(workers) as pool:
-            for entries, found in pool.imap(_read_share, shares):
-                if check is not None:
-                    check.merge(found)
-                yield from entries
-            pool.close()
-            pool.join()
+        for entries, found in forked_map(workers, _read_share, shares):
+            if check is not None:
+                check.merge(found)
+            yield from entries
     finally:
         _SHARE = None
 
