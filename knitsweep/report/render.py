@@ -31,6 +31,7 @@ from ..config import StitchParams
 from ..errors import InputError
 from ..formats import check_writable, replace_file
 from ..kernels.bezier import basis_tables
+from ..stitches.base import is_mirrored
 
 ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
 """Base colour of each row (course) of yarn, cycling."""
@@ -75,8 +76,7 @@ class Stitch:
 
     def mirrored(self, m: int, n: int) -> bool:
         """Whether the image at lattice offset (m, n) (m t_c + n t_w) is mirrored."""
-        pm, pn = self.mirror_parity
-        return bool((pm * m + pn * n) % 2)
+        return is_mirrored(self.mirror_parity, m, n)
 
 
 MIRROR = np.array([1.0, 1.0, -1.0])

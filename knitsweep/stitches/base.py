@@ -56,6 +56,13 @@ same row (n = 0, m != 0), nearest and next-nearest same column (m = 0, |n| = 1, 
 other; the contact kernel's order (``kernels.forces.contact_class``, docs/model.md §9)."""
 
 
+def is_mirrored(parity: tuple[int, int], m: int, n: int) -> bool:
+    """Whether the image at lattice offset (m, n) is mirrored (z -> -z) for mirror
+    parity (pm, pn): pm m + pn n odd (docs/model.md §11; the compiled kernels' twin is
+    ``kernels.mirrored.is_mirrored``)."""
+    return bool((parity[0] * m + parity[1] * n) % 2)
+
+
 @dataclass(frozen=True, eq=False)
 class Stitch:
     """One stitch geometry (the module docstring states the contract)."""

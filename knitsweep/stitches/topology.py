@@ -22,6 +22,8 @@ from math import comb
 
 import numpy as np
 
+from .base import is_mirrored
+
 SAMPLES = 48
 """Polyline pieces per segment."""
 
@@ -52,7 +54,7 @@ def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
     for m in (-1, 0, 1):
         for n in (-2, -1, 0, 1, 2):
             shift = np.array([m * a_x, n * a_y, 0.0])
-            flip = np.array([1.0, 1.0, -1.0 if (parity[0] * m + parity[1] * n) % 2 else 1.0])
+            flip = np.array([1.0, 1.0, -1.0 if is_mirrored(parity, m, n) else 1.0])
             q0, q1 = p0 * flip + shift, p1 * flip + shift
             d = p1 - p0
             e = q1 - q0
