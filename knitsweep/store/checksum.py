@@ -116,13 +116,9 @@ def read_sealed(group) -> tuple[str, dict[str, Any], dict[str, Any]]:
         _update(h, value)
         ds_attrs = {a: obj.attrs[a] for a in sorted(obj.attrs.keys()) if a not in _REFERENCES}
         _feed(h, ds_attrs)
-        if _as_text(ds_attrs.get("CLASS")) != "DIMENSION_SCALE":
+        if _stored(ds_attrs, "CLASS") != "DIMENSION_SCALE":
             data[name] = value
     return h.hexdigest(), attrs, data
-
-
-def _as_text(value: Any) -> str | None:
-    return value.decode(errors="replace") if isinstance(value, bytes) else value
 
 
 def _feed(h, attrs: dict[str, Any]) -> None:
@@ -156,16 +152,10 @@ def _stored(attrs, name: str) -> str | None:
     return value.decode(errors="replace") if isinstance(value, bytes) else str(value)
 
 
-def verify_group(group) -> bool:
-    """True if the group matches its digest, False if it has none (written before
-    checksums); ``Damaged`` if it does not match or cannot be read."""
-    return read_verified(group)[0]
-
-
 def read_verified(group) -> tuple[bool, dict[str, Any], dict[str, Any]]:
     """(verified, attributes, datasets) of a task group, read once (``read_sealed``):
-    verified as ``verify_group`` says; ``Damaged`` if it does not match or cannot be
-    read."""
+    verified True if the group matches its digest, False if it has none (written before
+    checksums); ``Damaged`` if it does not match or cannot be read."""
     try:
         stored = _stored(group.attrs, GROUP_DIGEST)
         actual, attrs, data = read_sealed(group)
@@ -177,7 +167,7 @@ def read_verified(group) -> tuple[bool, dict[str, Any], dict[str, Any]]:
 
 
 def verify_root(f) -> bool:
-    """Like ``verify_group`` for the root attributes."""
+    """Like ``read_verified``'s verdict, for the root attributes."""
     try:
         stored = _stored(f.attrs, ROOT_DIGEST)
         if stored is None:
