@@ -184,11 +184,11 @@ class CellModel:
             return ""
         x = self._as_state(x)
         parity = self.stitch.mirror_parity
-        ref = self.stitch._kernels.get("gauss_word")
+        ref = self.stitch._loaded.get("gauss_word")
         if ref is None:
             x1 = self.stitch.start(1)
             ref = gauss_word(self.control_points(x1), x1[-2], x1[-1], parity)
-            self.stitch._kernels["gauss_word"] = ref
+            self.stitch._loaded["gauss_word"] = ref
         got = gauss_word(self.control_points(x), x[-2], x[-1], parity)
         if got == ref:
             return ""

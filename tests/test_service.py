@@ -202,6 +202,41 @@ def test_a_timeout_that_interrupted_code_replaced_is_still_a_timeout(monkeypatch
     assert reply.error["kind"] == "timeout" and "wall-time budget" in reply.error["message"]
 
 
+def test_a_prepared_task_opens_no_file(monkeypatch):
+    """Once ``prepare`` has run, a task reads nothing from disk (its starts are kept
+    in memory): the budget's signal can then never cut a file off half-opened, which
+    left an unclosed file behind (a ResourceWarning) when a start was read per task."""
+    import builtins
+    import io
+
+    from knitsweep.service import worker
+    from knitsweep.service.jobs import point_task, sweep_task
+
+    job = load_job(TINY)
+    worker.prepare(job)
+
+    def refused(*args, **kwargs):
+        raise AssertionError(f"a task opened {args[:1]}")
+
+    def without_files(run):
+        def task_without_files(*args):
+            with monkeypatch.context() as m:
+                m.setattr(builtins, "open", refused)
+                m.setattr(io, "open", refused)
+                return run(*args)
+
+        return task_without_files
+
+    monkeypatch.setattr(worker, "run_point", without_files(worker.run_point))
+    monkeypatch.setattr(worker, "run_sweep", without_files(worker.run_sweep))
+    point = point_task(job, job.points()[0])
+    reply = worker.execute(job, point, None, 0)
+    assert reply.error is None, reply.error
+    zero = {**reply.record, "params": point.params}  # as the master hands it on
+    sweep = worker.execute(job, sweep_task(job, point.task_id, "x"), zero, 0)
+    assert sweep.error is None, sweep.error
+
+
 def test_shards_merge_into_the_whole_job(tiny_reference, tmp_path):
     shards = [tmp_path / f"s{i}.h5" for i in range(2)]
     for i, path in enumerate(shards):

@@ -70,7 +70,13 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
     kernel was cached)."""
     from .. import kernels
     from ..model import compile_kernels
+    from ..relax import single_threaded
+    from ..stitches import get_stitch
 
+    for name in job.stitches:  # read now, so that no task opens a file under its budget
+        get_stitch(name).shipped_starts()
+    with single_threaded():  # (its BLAS inspection reads /proc/self/maps, once)
+        pass
     compiled = []
 
     def heard(message: str) -> None:
@@ -141,13 +147,13 @@ def stderr_notice(message: str) -> None:
 
 def execute(job: JobSpec, task: PointTask | SweepTask, zero: dict | None, rank: int) -> Reply:
     """Run one task under the job's wall-time budget, single-threaded; never raises."""
-    from threadpoolctl import threadpool_limits
+    from ..relax import single_threaded
 
     t0 = time.perf_counter()
     host = socket.gethostname()
     timed_out: list[TaskTimeout] = []
     try:
-        with threadpool_limits(1), wall_time_budget(job.run.task_timeout_s) as timed_out:
+        with single_threaded(), wall_time_budget(job.run.task_timeout_s) as timed_out:
             if isinstance(task, PointTask):
                 record = run_point(job, task)
             else:

@@ -84,7 +84,7 @@ class Stitch:
     mirror_parity: tuple[int, int] = (0, 0)
     """With ``images = "glides"``: image (m, n) is mirrored (z -> -z) when
     pm m + pn n is odd (docs/model.md §11; garter (0, 1), rib (1, 0), seed (1, 1))."""
-    _kernels: dict = field(default_factory=dict, repr=False)
+    _loaded: dict = field(default_factory=dict, repr=False)  # kernels, starts: loaded once
 
     def __post_init__(self) -> None:
         if len(self.segment_weights) != self.n_segments:
@@ -122,10 +122,10 @@ class Stitch:
     @property
     def control_points(self) -> Callable[[np.ndarray, np.ndarray, np.ndarray], None]:
         """The compiled ``control_points(x, cp, jac)`` kernel (imported on first use)."""
-        fn = self._kernels.get("control_points")
+        fn = self._loaded.get("control_points")
         if fn is None:
             fn = importlib.import_module(self.geometry_module).state_to_control_points
-            self._kernels["control_points"] = fn
+            self._loaded["control_points"] = fn
         return fn
 
     def buffers(self) -> tuple[np.ndarray, np.ndarray]:
@@ -142,8 +142,22 @@ class Stitch:
         """The ``index``-th shipped starting state (1-based), shape (``n_state``,)."""
         if not 1 <= index <= self.n_starts:
             raise InputError(f"shipped state index = {index}: must be in 1..{self.n_starts}")
+        return self.shipped_starts()[index - 1].copy()
+
+    def shipped_starts(self) -> tuple[np.ndarray, ...]:
+        """Every shipped starting state, read from the package once and kept: a task
+        then opens no file, so that its wall-time budget (a signal) cannot cut one
+        off half-opened (``service.worker.prepare`` reads them before any task)."""
+        starts = self._loaded.get("starts")
+        if starts is None:
+            starts = tuple(self._read_start(i) for i in range(1, self.n_starts + 1))
+            self._loaded["starts"] = starts
+        return starts
+
+    def _read_start(self, index: int) -> np.ndarray:
         text = (resources.files(self.data_package) / self.starts[index - 1]).read_text()
         x = np.array([float(v) for v in text.split()])  # as formats.read_state parses
         if x.shape != (self.n_state,):
             raise ValueError(f"{self.name} start {index}: {x.size} numbers, not {self.n_state}")
+        x.setflags(write=False)
         return x
