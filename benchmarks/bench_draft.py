@@ -7,7 +7,9 @@ A point of a study is one task for its zero-force state (``zero_force`` from
 ``--starts`` shipped starts) and one task per sweep direction (x and y), as a job runs
 them (``service.worker``). For each setting (``studies.accuracy.setting`` specs:
 ``draft``, ``draft:ftol=1e-5`` …; a ``@N`` suffix sets the number of starts, e.g.
-``draft@2``) this prints, per point of the series (k = 0.1 mN/mm^2 around the
+``draft@2``; a ``+carry`` suffix carries starts along the series as ``[starts] carry``
+does: the largest L from the shipped starts, every other point from the zero-force
+state of the next larger L, e.g. ``draft@4+carry``) this prints, per point of the series (k = 0.1 mN/mm^2 around the
 transition by default), the CPU seconds of the zero-force task and of both sweeps
 (medians over ``--repeats``), and the relative errors of Y_sec and of the jamming gap
 against the first setting (``converged`` unless told otherwise): the gap's error
@@ -32,19 +34,20 @@ from knitsweep.zero_force import zero_force
 THRESHOLD = 5e-5  # mJ: the jamming threshold of the energy gaps
 
 
-def point(L: float, k: float, spec: str, starts: int, repeats: int) -> dict:
+def point(L: float, k: float, spec: str, starts: int, repeats: int, carried=None) -> dict:
     s = setting(spec)
     params = StitchParams(L_mm=L, k_mN_per_mm2=k)
     zf_t, sw_t = [], []
     for _ in range(repeats):
         t = time.process_time()
-        zf = zero_force(params, s.fidelity, s.solver, StartSettings(count=starts), 0)
+        zf = zero_force(params, s.fidelity, s.solver, StartSettings(count=starts), 0,
+                        carried=carried)  # fmt: skip
         zf_t.append(time.process_time() - t)
         t = time.process_time()
         sweeps = {d: strain_sweep(params, zf, d, s.protocol, s.fidelity, s.solver) for d in "xy"}
         sw_t.append(time.process_time() - t)
     out = {"zf": statistics.median(zf_t), "sweeps": statistics.median(sw_t),
-           "E0": zf.best.total_energy}  # fmt: skip
+           "E0": zf.best.total_energy, "state": (zf.best.x, params)}  # fmt: skip
     for d, sw in sweeps.items():
         out[f"Y_{d}"] = secant_modulus(sw.strain, sw.stress).Y_sec
         out[f"gap_{d}"] = sw.energy_gaps.jamming_gap(d)
@@ -63,10 +66,18 @@ def main() -> None:
     compile_kernels()
     rows = {}
     for spec in args.variant:
-        name, _, n = spec.partition("@")
+        base, _, carry = spec.partition("+")
+        name, _, n = base.partition("@")
         starts = int(n) if n else args.starts
         compile_kernels(setting(name).fidelity)
-        rows[spec] = [point(L, args.k, name, starts, args.repeats) for L in args.L]
+        if carry != "carry":
+            rows[spec] = [point(L, args.k, name, starts, args.repeats) for L in args.L]
+            continue
+        done, carried = {}, None
+        for L in sorted(args.L, reverse=True):
+            done[L] = point(L, args.k, name, starts, args.repeats, carried)
+            carried = done[L]["state"]
+        rows[spec] = [done[L] for L in args.L]
     ref = rows[args.variant[0]]
     print(f"k = {args.k} mN/mm^2, L = {args.L} mm, CPU s per task (median of {args.repeats}); "
           f"errors against {args.variant[0]}")  # fmt: skip

@@ -379,6 +379,22 @@ class StartSettings(BaseModel):
         "their energies differ by at most this (mJ) and their states only along soft modes "
         "(energy cost 1/2 dx.H.dx at most this); 0: never",
     )
+    carry: bool = Field(
+        False,
+        description="along each series (the points that differ only in L): the point of "
+        "largest L relaxes from the shipped starts, every other one from the zero-force "
+        "state of its neighbour of next larger L, walked there by continuation (one start; "
+        "the shipped starts again if that neighbour failed)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _uncarried_as_before(self, handler) -> dict[str, Any]:
+        # carry = false is left out of every dump (task ids, the job's hash, the
+        # results file's job_json), so that jobs from before it existed keep them
+        out = handler(self)
+        if out.get("carry") is False:
+            del out["carry"]
+        return out
 
 
 # ---- presets ----------------------------------------------------------------------

@@ -199,17 +199,23 @@ def zero_force(
     starts: StartSettings | None = None,
     seed: int = 0,
     initial: np.ndarray | None = None,
+    carried: tuple[np.ndarray, StitchParams] | None = None,
 ) -> ZeroForce:
     """Relax the zero-force state (both periods free) from every start, walking
     from each start's parameters to ``params``; keep the lowest energy.
 
     ``initial``: one given state (n,) of the stitch to start from instead of ``starts`` (walked
-    from the shipped states' parameters at its own yarn length).
+    from the shipped states' parameters at its own yarn length). ``carried``: one state
+    and the parameters it is the zero-force state of (a neighbouring point of a series,
+    ``[starts] carry``), walked from there instead.
     """
     fidelity = fidelity or Fidelity()
     solver = solver or SolverSettings()
     starts = starts or StartSettings()
-    if initial is None:
+    if carried is not None:
+        x, source_params = carried
+        begin = [Start(f"carried from L = {source_params.L_mm:g} mm", x, source_params)]
+    elif initial is None:
         begin = start_states(starts, seed, fidelity, params.stitch)
     else:
         source = CellModel(shipped_source(params.stitch), fidelity)

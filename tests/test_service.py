@@ -132,10 +132,10 @@ def test_failing_task_is_isolated(tmp_path, monkeypatch):
 
     real = tasks.run_point
 
-    def flaky(job, task):
+    def flaky(job, task, carried=None):
         if task.params.L_mm == 12.0:
             raise RuntimeError("injected failure")
-        return real(job, task)
+        return real(job, task, carried)
 
     monkeypatch.setattr(tasks, "run_point", flaky)
     job = load_job(TINY)
@@ -187,7 +187,7 @@ def test_a_timeout_that_interrupted_code_replaced_is_still_a_timeout(monkeypatch
     from knitsweep.service import worker
     from knitsweep.service.jobs import point_task
 
-    def wrapping_point(job, task):
+    def wrapping_point(job, task, carried=None):
         try:
             while True:
                 time.sleep(0.001)

@@ -322,6 +322,9 @@ class PointTask:
     task_id: str
     params: StitchParams
     seed: int
+    carried_from: str | None = None
+    """With ``[starts] carry``: the id of the point whose zero-force state this one
+    starts from (its series neighbour of next larger L); None: the shipped starts."""
 
 
 @dataclass(frozen=True)
@@ -342,11 +345,21 @@ def _numerics(job: JobSpec) -> dict[str, Any]:
     }
 
 
-def point_task(job: JobSpec, params: StitchParams) -> PointTask:
-    """The zero-force task of one point; its id hashes the parameters and numerics."""
-    pid = digest({"params": params.model_dump(mode="json"), **_numerics(job)})
+def point_task(job: JobSpec, params: StitchParams, carried_from: str | None = None) -> PointTask:
+    """The zero-force task of one point; its id hashes the parameters and numerics
+    and, for a carried point, the id of the point it starts from (and so the chain of
+    its series up to it)."""
+    what = {"params": params.model_dump(mode="json"), **_numerics(job)}
+    if carried_from is not None:
+        what["carried_from"] = carried_from
+    pid = digest(what)
     seed = int(hashlib.sha256(f"{job.seed}:{pid}".encode()).hexdigest()[:15], 16)
-    return PointTask(pid, params, seed)
+    return PointTask(pid, params, seed, carried_from)
+
+
+def series_key(params: StitchParams) -> str:
+    """The series a point belongs to: its parameters but L."""
+    return canonical_json(params.model_dump(mode="json", exclude={"L_mm"}))
 
 
 def sweep_task(job: JobSpec, point_id: str, direction: str) -> SweepTask:
@@ -360,11 +373,33 @@ def plan(job: JobSpec) -> tuple[list[PointTask], list[SweepTask]]:
     zero-force task per point, one sweep per (point, direction). Ids hash the
     canonical parameters, never file names."""
     points, sweeps = [], []
+    carried = _carried_from(job) if job.starts.carry else {}
     for params in job.points():
-        p = point_task(job, params)
+        p = point_task(job, params, carried.get(_where(params)))
         points.append(p)
         sweeps.extend(sweep_task(job, p.task_id, d) for d in job.directions)
     return points, sweeps
+
+
+def _where(params: StitchParams) -> tuple[str, float]:
+    return series_key(params), params.L_mm
+
+
+def _carried_from(job: JobSpec) -> dict[tuple[str, float], str]:
+    """With ``[starts] carry``: per point (series, L), the id of the point it starts
+    from: its series' neighbour of next larger L (the largest has none)."""
+    series: dict[str, list[StitchParams]] = {}
+    for params in job.points():
+        series.setdefault(series_key(params), []).append(params)
+    out: dict[tuple[str, float], str] = {}
+    for members in series.values():
+        previous = None
+        for params in sorted(members, key=lambda q: -q.L_mm):
+            p = point_task(job, params, previous)
+            if previous is not None:
+                out[_where(params)] = previous
+            previous = p.task_id
+    return out
 
 
 def load_job(path: str | Path) -> JobSpec:

@@ -37,7 +37,7 @@ from ..store.journal import StorageError, atomic_write_bytes
 from ..store.writer import ResultWriter
 from . import signals
 from .adaptive import Refiner
-from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, sweep_task
+from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, series_key, sweep_task
 from .progress import RunProgress, task_line
 from .signals import EXIT_INTERRUPTED, Interrupted
 from .worker import Reply
@@ -85,12 +85,18 @@ def parse_shard(text: str | None) -> tuple[int, int] | None:
 
 
 def shard_tasks(job: JobSpec, shard: tuple[int, int] | None):
-    """The job's tasks, or one shard of them (points i, i+N, …, with their sweeps)."""
+    """The job's tasks, or one shard of them (points i, i+N, …, with their sweeps;
+    with ``[starts] carry`` series i, i+N, …, whose points carry from one another)."""
     points, sweeps = plan(job)
     if shard is None:
         return points, sweeps
     i, n = shard
-    points = [p for k, p in enumerate(points) if k % n == i]
+    if job.starts.carry:
+        series = list(dict.fromkeys(series_key(p.params) for p in points))
+        mine = set(series[i::n])
+        points = [p for p in points if series_key(p.params) in mine]
+    else:
+        points = [p for k, p in enumerate(points) if k % n == i]
     keep = {p.task_id for p in points}
     return points, [s for s in sweeps if s.point_id in keep]
 
@@ -117,6 +123,9 @@ class _Master:
         self.ready_points: deque = deque()
         self.ready_sweeps: deque = deque()
         self.zero: dict[str, dict[str, Any]] = {}  # done points' records, while sweeps need them
+        self.carries: dict[str, list[PointTask]] = {}  # ([starts] carry) waiting for a point
+        self._planned_at = {(series_key(p.params), p.params.L_mm): p.task_id for p in points}
+        self._refined_at: dict[tuple[str, float], str] = {}  # (refined series, L) -> point
         self.finished: dict[str, dict[str, dict[str, Any]]] = {POINTS: {}, SWEEPS: {}, SERIES: {}}
         for e in writer.entries():
             if str(e.meta.get("status")) != FAILED or not retry_failed or e.kind == SERIES:
@@ -124,6 +133,7 @@ class _Master:
         self.refiner = Refiner(job) if job.mode == "adaptive" else None
         for p in points:
             self._request(p, job.directions)
+        assert set(self.carries) <= set(self.points), "a carried point's neighbour is planned"
         if self.refiner is not None:
             for meta in self.finished[SWEEPS].values():
                 self.refiner.observe(meta)
@@ -136,6 +146,7 @@ class _Master:
     @property
     def pending(self) -> int:
         waiting = sum(len(v) for v in self.sweeps_of.values())
+        waiting += sum(len(v) for v in self.carries.values())
         return len(self.ready_points) + len(self.ready_sweeps) + waiting
 
     def _request(self, p: PointTask, directions) -> None:
@@ -164,7 +175,19 @@ class _Master:
             else:
                 self.sweeps_of.setdefault(pid, []).append(s)
         if new_point and pid not in self.finished[POINTS]:
-            self.ready_points.append((p, None))
+            if p.carried_from is None or p.carried_from in self.finished[POINTS]:
+                self.ready_points.append((p, self._carried(p)))
+            else:  # its series neighbour first (planned too: sharded by series)
+                self.carries.setdefault(p.carried_from, []).append(p)
+
+    def _carried(self, p: PointTask) -> dict[str, Any] | None:
+        """What a point starts from: its neighbour's zero-force state and parameters
+        (``[starts] carry``), or None (the shipped starts; also when the neighbour failed)."""
+        pid = p.carried_from
+        if pid is None or str(self.finished[POINTS][pid].get("status")) != DONE:
+            return None
+        zero = self._payload(pid)
+        return {"x": zero["x"][int(zero["winner"])], "params": zero["params"]}
 
     def _release(self, s: SweepTask, point_meta: dict[str, Any]) -> None:
         """A sweep whose point is finished: queue it, or pass the point's verdict on."""
@@ -207,11 +230,21 @@ class _Master:
         for key, state in self.refiner.states():
             if state.status == "refining":
                 params, direction = self.refiner.point_params(key, state.next_L)
-                self._request(point_task(self.job, params), [direction])
+                p = point_task(self.job, params, self._carry_source(key, params, state.hi))
+                self._refined_at[(key, params.L_mm)] = p.task_id
+                self._request(p, [direction])
             elif state.finished and key not in self.finished[SERIES]:
                 meta = self.refiner.series_meta(key, state)
                 self.writer.add(SERIES, key, {}, meta)
                 self.finished[SERIES][key] = meta
+
+    def _carry_source(self, key: str, params, hi: float) -> str | None:
+        """With ``[starts] carry``: the point a refinement starts from, the upper end of
+        its series' bracket (refined by this series, or planned), so that the ids stay
+        what they were whatever order the results came in."""
+        if not self.job.starts.carry:
+            return None
+        return self._refined_at.get((key, hi)) or self._planned_at.get((series_key(params), hi))
 
     def _meta(self, task, status: str, message: str, reply: Reply | None = None) -> dict[str, Any]:
         pid = task.point_id if isinstance(task, SweepTask) else task.task_id
@@ -262,7 +295,7 @@ class _Master:
         if reply.error is not None and reply.error["kind"] == "abandoned":
             # a worker dropped it on a signal: not a result; queue it again
             if isinstance(task, PointTask):
-                self.ready_points.appendleft((task, None))
+                self.ready_points.appendleft((task, self._carried(task)))
             else:
                 self.ready_sweeps.appendleft((task, self._payload(task.point_id)))
             return
@@ -292,6 +325,8 @@ class _Master:
             self.zero[task.task_id] = {**record, **meta}
         for s in self.sweeps_of.pop(task.task_id, []):
             self._release(s, meta)
+        for p in self.carries.pop(task.task_id, []):
+            self.ready_points.append((p, self._carried(p)))
 
     def _line(self, task, status: str, seconds: float, where: str = "") -> str:
         sweep = isinstance(task, SweepTask)

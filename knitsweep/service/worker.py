@@ -155,7 +155,7 @@ def execute(job: JobSpec, task: PointTask | SweepTask, zero: dict | None, rank: 
     try:
         with single_threaded(), wall_time_budget(job.run.task_timeout_s) as timed_out:
             if isinstance(task, PointTask):
-                record = run_point(job, task)
+                record = run_point(job, task, zero)
             else:
                 assert zero is not None, "a sweep needs its point's zero-force record"
                 record = run_sweep(job, task, zero)
@@ -190,13 +190,15 @@ def _signal_cause(e: Exception) -> Exception:
 # ---- zero-force -----------------------------------------------------------------
 
 
-def run_point(job: JobSpec, task: PointTask) -> dict[str, Any]:
+def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dict[str, Any]:
     """The zero-force record of one point (``ZeroForce.to_record`` plus the task
-    status, the winner's thickness and, if stored, its contact forces)."""
+    status, the winner's thickness and, if stored, its contact forces). ``carried``
+    (``[starts] carry``): the state ``x`` and ``params`` of the point it starts from."""
     from ..model import CellModel
     from ..zero_force import zero_force
 
-    zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed)
+    start = None if carried is None else (np.asarray(carried["x"]), carried["params"])
+    zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed, carried=start)
     record = zf.to_record()
     record["status"] = _STATUS.get(zf.status, FAILED)
     best = zf.best

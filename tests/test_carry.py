@@ -1,0 +1,93 @@
+"""``[starts] carry``: along a series each point starts from its neighbour's zero-force
+state (docs/model.md §7): the chain in the plan, its ids, what a carried point records,
+its minimum against the shipped starts', the same results serially and in processes,
+by shards, and in an adaptive job's refinements."""
+
+import h5py
+import numpy as np
+import pytest
+from conftest import DATA, TINY, assert_same_results
+
+from knitsweep import service
+from knitsweep.service.jobs import load_job, plan
+
+ADAPTIVE = DATA / "jobs" / "tiny_adaptive.toml"
+
+
+def _carrying(tmp_path, source, name, extra=""):
+    text = source.read_text().replace("[starts]\ncount = 1", f"[starts]\ncount = 4\n{extra}")
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text.replace("L_mm = [11.4, 12.0]", "L_mm = [11.2, 11.4, 11.6, 11.8]"))
+    return path
+
+
+def _zero(path):
+    with h5py.File(path) as f:
+        out = {}
+        for g in f["points"].values():
+            labels = [s.decode() if isinstance(s, bytes) else str(s) for s in g["labels"][()]]
+            energy = g["bending_energy"][()] + g["contact_energy"][()]
+            out[g.attrs["L_mm"]] = (labels, float(energy[int(g.attrs["winner"])]))
+        return out
+
+
+@pytest.fixture(scope="module")
+def jobs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("carry")
+    return _carrying(tmp, TINY, "carried", "carry = true"), _carrying(tmp, TINY, "shipped")
+
+
+def test_the_plan_chains_each_series_from_its_largest_L(jobs):
+    carried, shipped = (load_job(p) for p in jobs)
+    points, _ = plan(carried)
+    by_L = {p.params.L_mm: p for p in points}
+    assert by_L[11.8].carried_from is None
+    for L, above in ((11.6, 11.8), (11.4, 11.6), (11.2, 11.4)):
+        assert by_L[L].carried_from == by_L[above].task_id
+    plain, _ = plan(shipped)  # carrying off: the ids of the plain job, none carried
+    assert all(p.carried_from is None for p in plain)
+    assert {p.task_id for p in plain}.isdisjoint(by_L[L].task_id for L in by_L)
+    assert "carry" not in shipped.canonical()["starts"] and carried.job_hash != shipped.job_hash
+
+
+def test_carried_points_walk_one_start_to_a_minimum_no_higher(jobs, tmp_path):
+    carried, shipped = tmp_path / "c.h5", tmp_path / "s.h5"
+    service.run(jobs[0], carried, executor="serial", show_progress=False)
+    service.run(jobs[1], shipped, executor="serial", show_progress=False)
+    c, s = _zero(carried), _zero(shipped)
+    assert len(c[11.8][0]) == 4  # the series' first point: the shipped starts
+    for L, above in ((11.6, 11.8), (11.4, 11.6), (11.2, 11.4)):
+        assert c[L][0] == [f"carried from L = {above:g} mm"]
+        # draft's Newton tolerance is 1e-5 mJ: the same minimum to within it
+        assert c[L][1] <= s[L][1] + 1e-6, (L, c[L][1], s[L][1])
+    assert service.status(carried)["done"] == service.status(carried)["total"]
+    # in processes (results arrive in any order) the same, bit for bit
+    parallel = tmp_path / "p.h5"
+    service.run(jobs[0], parallel, executor="processes", workers=2, show_progress=False)
+    assert_same_results(carried, parallel)
+    # by shards (whole series per shard), merged: the same
+    shards = [tmp_path / f"{i}.h5" for i in range(2)]
+    for i, path in enumerate(shards):
+        service.run(jobs[0], path, executor="serial", shard=f"{i}/2", show_progress=False)
+    service.merge(tmp_path / "m.h5", shards)
+    assert_same_results(carried, tmp_path / "m.h5")
+
+
+def test_an_adaptive_job_carries_into_its_refinements(tmp_path):
+    job = tmp_path / "a.toml"
+    text = ADAPTIVE.read_text().replace("[starts]\ncount = 1", "[starts]\ncount = 1\ncarry = true")
+    job.write_text(
+        text.replace('observables = ["curve"]\nstep_control = "fixed"\nstep_mm = 0.001\n', "")
+    )
+    out = tmp_path / "a.h5"
+    service.run(job, out, executor="serial", show_progress=False)
+    zero = _zero(out)
+    carried = [L for L, (labels, _) in zero.items() if labels[0].startswith("carried from")]
+    assert len(carried) == len(zero) - 1 > 4  # all but the largest L, refinements too
+    with h5py.File(out) as f:
+        series = [dict(g.attrs) for g in f["series"].values()]
+    assert [s["status"] for s in series] == ["done", "done"]
+    assert all(s["hi_mm"] - s["lo_mm"] <= 0.02 + 1e-9 for s in series)
+    again = service.run(job, out, executor="serial", show_progress=False)  # resumes: nothing new
+    assert again.skipped == again.total
+    assert np.isfinite(list(v[1] for v in zero.values())).all()
