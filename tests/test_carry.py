@@ -3,6 +3,13 @@ state (docs/model.md §7): the chain in the plan, its ids, what a carried point 
 its minimum against the shipped starts', the same results serially and in processes,
 by shards, and in an adaptive job's refinements."""
 
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
 import h5py
 import numpy as np
 import pytest
@@ -73,14 +80,21 @@ def test_carried_points_walk_one_start_to_a_minimum_no_higher(jobs, tmp_path):
     assert_same_results(carried, tmp_path / "m.h5")
 
 
-def test_an_adaptive_job_carries_into_its_refinements(tmp_path):
-    job = tmp_path / "a.toml"
-    text = ADAPTIVE.read_text().replace("[starts]\ncount = 1", "[starts]\ncount = 1\ncarry = true")
+@pytest.fixture(scope="module")
+def adaptive(tmp_path_factory):
+    """tiny_adaptive carrying (whole curves at fixed steps: long enough to interrupt)."""
+    tmp = tmp_path_factory.mktemp("adaptive_carry")
+    job = tmp / "a.toml"
     job.write_text(
-        text.replace('observables = ["curve"]\nstep_control = "fixed"\nstep_mm = 0.001\n', "")
+        ADAPTIVE.read_text().replace("[starts]\ncount = 1", "[starts]\ncount = 1\ncarry = true")
     )
-    out = tmp_path / "a.h5"
+    out = tmp / "a.h5"
     service.run(job, out, executor="serial", show_progress=False)
+    return job, out
+
+
+def test_an_adaptive_job_carries_into_its_refinements(adaptive):
+    job, out = adaptive
     zero = _zero(out)
     carried = [L for L, (labels, _) in zero.items() if labels[0].startswith("carried from")]
     assert len(carried) == len(zero) - 1 > 4  # all but the largest L, refinements too
@@ -88,6 +102,31 @@ def test_an_adaptive_job_carries_into_its_refinements(tmp_path):
         series = [dict(g.attrs) for g in f["series"].values()]
     assert [s["status"] for s in series] == ["done", "done"]
     assert all(s["hi_mm"] - s["lo_mm"] <= 0.02 + 1e-9 for s in series)
-    again = service.run(job, out, executor="serial", show_progress=False)  # resumes: nothing new
+    again = service.run(job, out, executor="serial", show_progress=False)  # nothing new
     assert again.skipped == again.total
     assert np.isfinite(list(v[1] for v in zero.values())).all()
+
+
+def test_a_carried_refinement_resumed_mid_way_is_the_uninterrupted_one(adaptive, tmp_path):
+    """SIGTERM once the refinement has started, then resume: the same ids and results as
+    the uninterrupted run. (The resumed master reads where refinements carry from off
+    the file's sweeps; this interruption, timed by the progress file, does not always
+    fall where a refinement carries from an earlier refinement.)"""
+    job, whole = adaptive
+    out = tmp_path / "resumed.h5"
+    cmd = [sys.executable, "-m", "knitsweep", "run", str(job), "--out", str(out), "--quiet"]
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
+    progress = out.with_name(out.name + ".progress.json")
+    while proc.poll() is None:
+        try:
+            if json.loads(progress.read_text())["done"] >= 16:
+                break
+        except (FileNotFoundError, ValueError):
+            pass
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=120)
+    assert proc.returncode == 3
+    assert subprocess.run(cmd, env=env, capture_output=True, timeout=600).returncode == 0
+    assert_same_results(whole, out)

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..config import DONE, FAILED
+from ..config import DONE, FAILED, StitchParams
 from ..errors import InputError, remedy
 from ..store.format import POINTS, SERIES, SWEEPS, progress_path, split_record
 from ..store.journal import StorageError, atomic_write_bytes
@@ -137,6 +137,10 @@ class _Master:
         if self.refiner is not None:
             for meta in self.finished[SWEEPS].values():
                 self.refiner.observe(meta)
+                if "point_id" in meta:  # where a resumed refinement carries from
+                    params = StitchParams.from_flat(meta)
+                    key = self.refiner.key(params, str(meta["direction"]))
+                    self._refined_at[(key, params.L_mm)] = str(meta["point_id"])
             self._refine()
 
     # -- bookkeeping
