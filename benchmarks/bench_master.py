@@ -87,7 +87,7 @@ for name in ("knitsweep.service.executors", "knitsweep.service.executors.local",
         continue
     if hasattr(module, "execute"):
         module.execute = execute
-        module.prepare = lambda job, notice=None: None
+        module.prepare = lambda job, notice=None: 0.0
 
 job, out, executor, what = sys.argv[1:5]
 if what == "journal":  # no HDF5 fold: the results stay in the journal (counted below)

@@ -24,11 +24,12 @@ from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
 from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
+from .kernels.mirrored import mirrored_forces_by_class
 from .kernels.neighbours import build_neighbour_list
 from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
 from .stitches.patterns import min_zeta_where
-from .stitches.topology import gauss_word
+from .stitches.topology import interlocking
 
 
 class NeighbourList:
@@ -177,29 +178,33 @@ class CellModel:
                         self._mode)  # fmt: skip
 
     def topology_change(self, x: np.ndarray) -> str:
-        """For a stitch with mirrored images: "" if state ``x`` shows the crossing order of
-        the stitch's first shipped start (``topology.gauss_word``, docs/model.md §11), else
-        what changed. Stitches of translations alone are not checked ("")."""
+        """For a stitch with mirrored images: "" if state ``x`` shows how the rows of
+        the stitch's first shipped start interlock (``topology.interlocking``,
+        docs/model.md §11), else what changed. Stitches of translations alone are not
+        checked ("")."""
         if self.stitch.images != "glides":
             return ""
         x = self._as_state(x)
         parity = self.stitch.mirror_parity
-        ref = self.stitch._loaded.get("gauss_word")
+        ref = self.stitch._loaded.get("interlocking")
         if ref is None:
             x1 = self.stitch.start(1)
-            ref = gauss_word(self.control_points(x1), x1[-2], x1[-1], parity)
-            self.stitch._loaded["gauss_word"] = ref
-        got = gauss_word(self.control_points(x), x[-2], x[-1], parity)
+            ref = interlocking(self.control_points(x1), x1[-2], x1[-1], parity)
+            self.stitch._loaded["interlocking"] = ref
+        got = interlocking(self.control_points(x), x[-2], x[-1], parity)
         if got == ref:
             return ""
-        return (f"topology changed: {len(got)} crossings along the yarn in the order {got}, "
-                f"the {self.stitch.name} stitch has {len(ref)} in the order {ref}")  # fmt: skip
+        count = sum(len(signs) for _, signs in ref)
+        return (f"topology changed: the rows cross in projection as {_runs(got)} (row offset: "
+                f"signs), the {self.stitch.name} stitch has {count} crossings as "
+                f"{_runs(ref)}")  # fmt: skip
 
     def contact_forces_by_class(self, x: np.ndarray) -> np.ndarray:
         """Contact forces on the cell by class of image offset, shape (5, 3), N.
 
         Rows: the stitch's ``contact_classes`` (stockinette: self, same row, nearest and
-        next-nearest same column, other). Columns x, y: the class's generalised
+        next-nearest same column, other; a pattern with mirrored images: self, same
+        row, same column, mirrored, other, ``kernels.mirrored``). Columns x, y: the class's generalised
         force on the cell period, F_a = -dE_c(class)/da at fixed shape parameters
         (positive: the contacts push the cell to extend along a; negative: they pull
         it together). Summed over the classes they are -dE_c/da; adding the bending
@@ -215,13 +220,14 @@ class CellModel:
         the contact energy of each class; the five add up to E_c."""
         ip = self.ip
         x = self._as_state(x)
-        if self.stitch.images == "glides":
-            raise InputError(f"stitch = {self.stitch.name}: contact forces by class are not "
-                             "implemented for mirrored images yet (docs/model.md §11)")  # fmt: skip
         cp, jac = self.control_points_and_jacobian(x)
         dcp = np.ascontiguousarray(jac[..., -2:])
         forces = np.empty((N_CLASSES, 3))
         energies = np.empty(N_CLASSES)
+        if self.stitch.images == "glides":  # rows: the pattern's MIRROR_CLASSES
+            mirrored_forces_by_class(cp, dcp, self._ctab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
+                                     *self.stitch.mirror_parity, forces, energies)  # fmt: skip
+            return forces, energies
         _forces_by_class(cp, dcp, self._ctab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
                          self._mode, forces, energies)  # fmt: skip
         return forces, energies
@@ -350,6 +356,18 @@ def _compile_contact(model: CellModel, what: str) -> None:
     x = model.stitch.start(1)
     cp, jac = model.stitch.buffers()
     ip, tab, mode = model.ip, model._ctab, model._mode
+    if model.stitch.images == "glides":  # a knit/purl pattern: its own two kernels
+        pattern_cell_energy.compile(sig((cp, jac, x[-2], x[-1], model._qtab, model._qw, tab,
+                                         model._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
+                                         *model.stitch.mirror_parity, True, model._grad_e,
+                                         model._grad_l)))  # fmt: skip
+        if what == "run":
+            forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
+            mirrored_forces_by_class.compile(sig((cp, np.ascontiguousarray(jac[..., -2:]), tab,
+                                                  x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
+                                                  *model.stitch.mirror_parity, forces,
+                                                  energies)))  # fmt: skip
+        return
     energy_args = model._energy_args(cp, jac, x, True)
     cell_energy.compile(sig(energy_args))
     if what == "energy":
@@ -432,3 +450,11 @@ def as_state(x: np.ndarray, stitch: Stitch) -> np.ndarray:
     if x[-2] <= 0.0 or x[-1] <= 0.0:
         raise ValueError(f"cell periods must be > 0, got a_x = {x[-2]}, a_y = {x[-1]}")
     return x
+
+
+def _runs(word) -> str:
+    """An ``interlocking`` word in one line: runs as ``n:+-`` (sign +1 over, -1 under)."""
+    if not word:
+        return "no crossings"
+    return " ".join(f"{n:+d}:" + "".join("+" if s > 0 else "-" for s in signs)
+                    for n, signs in word)  # fmt: skip

@@ -225,7 +225,7 @@ SWEEP_START_QUANTITIES = dict(
 AXES = {
     "control_point": tuple(f"P{i}" for i in range(6)),
     "axis": ("x", "y", "z"),
-    "contact_class": TRANSLATION_CLASSES,
+    "contact_class": TRANSLATION_CLASSES,  # a stitch's own: ``axis_labels``
     "component": ("x", "y", "z"),
     "period": ("a_x", "a_y"),
 }
@@ -240,6 +240,8 @@ def axis_labels(dim: str, stitch: str = DEFAULT_STITCH) -> tuple[str, ...] | Non
         return get_stitch(stitch).state_names
     if dim == "segment":
         return tuple(f"segment_{i}" for i in range(get_stitch(stitch).n_segments))
+    if dim == "contact_class":
+        return get_stitch(stitch).contact_classes
     return AXES.get(dim)
 
 

@@ -8,10 +8,12 @@ import pytest
 from knitsweep.config import StitchParams
 from knitsweep.kernels.bezier import basis_tables, midpoints
 from knitsweep.kernels.contact import IMAGES_CUTOFF, contact_energy
+from knitsweep.kernels.forces import contact_forces_by_class
 from knitsweep.kernels.mirrored import (
     N_MIRROR_CLASSES,
     mirrored_contact_energy,
     mirrored_contact_energy_exhaustive,
+    mirrored_forces_by_class,
 )
 from knitsweep.model import CellModel
 
@@ -107,3 +109,81 @@ def test_culled_sum_is_the_exhaustive_one_on_garter_starts(i):
 def test_culled_sum_is_the_exhaustive_one(name, lift):
     cp, ax, ay = _state(lift)
     _same_as_exhaustive(cp, ax, ay, PATTERNS[name])
+
+
+# ---------------------------------------------------------------- forces on the periods
+
+
+def _period_forces(cp, dcp, ax, ay, parity):
+    forces, energies = np.empty((N_MIRROR_CLASSES, 3)), np.empty(N_MIRROR_CLASSES)
+    mirrored_forces_by_class(cp, dcp, TAB, ax, ay, IP.r, IP.rc, IP.k, IP.p, *parity, forces,
+                             energies)  # fmt: skip
+    return forces, energies
+
+
+def _stockinette_rest():
+    model = CellModel(StitchParams(L_mm=10.8, k_mN_per_mm2=0.6))  # jammed: classes touch
+    x = model.stitch.start(1)
+    cp, jac = model.control_points_and_jacobian(x)
+    return model, x, cp, np.ascontiguousarray(jac[..., -2:])
+
+
+def test_period_forces_without_mirrors_are_the_translation_kernels():
+    """With no mirror the five classes are stockinette's, NN and NNN same column merged:
+    every column (x, y and the out-of-plane push) equals forces.contact_forces_by_class
+    under the §6 cut-off."""
+    model, x, cp, dcp = _stockinette_rest()
+    ip = model.ip
+    ref, ref_e = np.empty((5, 3)), np.empty(5)
+    contact_forces_by_class(cp, dcp, TAB, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, IMAGES_CUTOFF,
+                            ref, ref_e)  # fmt: skip
+    forces, energies = np.empty((5, 3)), np.empty(5)
+    mirrored_forces_by_class(cp, dcp, TAB, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, 0, 0, forces,
+                             energies)  # fmt: skip
+    merged = np.array([ref[0], ref[1], ref[2] + ref[3], np.zeros(3), ref[4]])
+    merged_e = np.array([ref_e[0], ref_e[1], ref_e[2] + ref_e[3], 0.0, ref_e[4]])
+    assert np.all(ref_e[:4] > 0.0)
+    np.testing.assert_allclose(energies, merged_e, rtol=1e-11, atol=1e-16)
+    np.testing.assert_allclose(forces, merged, rtol=1e-9, atol=1e-13)
+
+
+@pytest.mark.parametrize("name", ["garter", "rib", "seed"])
+def test_period_forces_are_minus_the_period_derivative_of_class_energies(name):
+    """F_a = -dE_c(class)/da at fixed shape (the control points moving with a as the
+    Jacobian's last columns say, the images with it), by central differences."""
+    cp, ax, ay = _state(lift=0.55)
+    dcp = np.zeros((*cp.shape, 2))
+    dcp[7, 3:, 0, 0] = 1.0  # the cell's last segment ends at joint 0 + t_c
+    forces, energies = _period_forces(cp, dcp, ax, ay, PATTERNS[name])
+    assert energies[3] > 0.0 and energies.sum() == pytest.approx(
+        _energy(cp, ax, ay, PATTERNS[name])[0], rel=1e-13
+    )
+    h = 1e-6
+    for col in (0, 1):
+        step = np.array([h, 0.0]) if col == 0 else np.array([0.0, h])
+        ep = _period_forces(cp + h * dcp[..., col], dcp, ax + step[0], ay + step[1],
+                            PATTERNS[name])[1]  # fmt: skip
+        em = _period_forces(cp - h * dcp[..., col], dcp, ax - step[0], ay - step[1],
+                            PATTERNS[name])[1]  # fmt: skip
+        central = -(ep - em) / (2 * h)
+        scale = np.abs(forces[:, col]).max()
+        np.testing.assert_allclose(forces[:, col], central, atol=1e-6 * scale)
+    assert np.all(forces[:, 2] >= 0.0) and forces[3, 2] > 0.0  # the push out of plane
+
+
+def test_garter_model_forces_by_class():
+    """CellModel on garter: the five classes add up to E_c, and the forces are minus the
+    derivatives of the class energies with the state's periods."""
+    model = CellModel(StitchParams(stitch="garter", L_mm=11.6, k_mN_per_mm2=0.1))
+    x = model.stitch.start(1)
+    forces, energies = model.contacts_by_class(x)
+    assert energies.sum() == pytest.approx(model.energies(x).contact_energy, rel=1e-13)
+    assert energies[3] > 0.0  # the rows above and below touch
+    h = 1e-6
+    for col in (0, 1):
+        xp, xm = x.copy(), x.copy()
+        xp[col - 2] += h
+        xm[col - 2] -= h
+        central = -(model.contacts_by_class(xp)[1] - model.contacts_by_class(xm)[1]) / (2 * h)
+        scale = np.abs(forces[:, col]).max()
+        np.testing.assert_allclose(forces[:, col], central, atol=1e-6 * scale)

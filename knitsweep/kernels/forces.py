@@ -39,6 +39,18 @@ def contact_class(m, n):
 
 
 @njit(cache=True)
+def polygon_height(cp, r):
+    """Δz of the out-of-plane push: the control polygon's height plus 2r (mm)."""
+    z_lo = cp[0, 0, 2]
+    z_hi = z_lo
+    for s in range(cp.shape[0]):
+        for c in range(6):
+            z_lo = min(z_lo, cp[s, c, 2])
+            z_hi = max(z_hi, cp[s, c, 2])
+    return z_hi - z_lo + 2.0 * r
+
+
+@njit(cache=True)
 def contact_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, mode, forces, energies):
     """Each class's generalised forces on the cell periods and its contact energy.
 
@@ -77,13 +89,7 @@ def contact_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, mode, forces, ene
                     dp[i, d, col] = x
                     acc += r1[i, d] * y
                 dspeed[i, col] = acc / speed[i]
-    z_lo = cp[0, 0, 2]
-    z_hi = z_lo
-    for s in range(cp.shape[0]):
-        for c in range(6):
-            z_lo = min(z_lo, cp[s, c, 2])
-            z_hi = max(z_hi, cp[s, c, 2])
-    dz = z_hi - z_lo + 2.0 * r
+    dz = polygon_height(cp, r)
     forces[:] = 0.0
     energies[:] = 0.0
     for q in range(idx.shape[0]):

@@ -50,6 +50,7 @@ from .contact import (
     project_gradient,
     sample_cell,
 )
+from .forces import polygon_height
 from .partition import image_reaches, search_pairs, segment_boxes_soa, segment_gaps
 
 MIRROR_CLASSES = ("self", "same_row", "same_column", "mirrored", "other")
@@ -205,10 +206,40 @@ def mirrored_contact_energy(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, wi
     p the exponent. Writes ``class_energy`` (5,), N mm, E_c by class (of the classes
     summed), and with ``with_grad`` dE/dcp (S, 6, 3) into ``grad_cp`` and the explicit
     dE/d(a_x, a_y) (2,) through the image offsets into ``grad_cell``. Returns E_c.
+    """
+    energy, gax, gay, g2, _, speed, r1 = _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn,
+                                                        only_class, with_grad, class_energy)  # fmt: skip
+    if with_grad:
+        _fold_gradient(g2, speed, r1, tab, grad_cp)
+        grad_cell[0] = gax
+        grad_cell[1] = gay
+    return energy
+
+
+@njit(cache=True)
+def _fold_gradient(g2, speed, r1, tab, grad_cp):
+    """dE/dcp from the gradient ``g2`` (2 ns, 4) at the samples and their mirrored
+    copy (the copy's z is -z: dE/dz = -dE/dz')."""
+    ns = speed.shape[0]
+    g = np.empty((ns, 4))
+    for i in range(ns):
+        g[i, 0] = g2[i, 0] + g2[ns + i, 0]
+        g[i, 1] = g2[i, 1] + g2[ns + i, 1]
+        g[i, 2] = g2[i, 2] - g2[ns + i, 2]
+        g[i, 3] = g2[i, 3] + g2[ns + i, 3]
+    project_gradient(g, speed, r1, tab, grad_cp)
+
+
+@njit(cache=True)
+def _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad, class_energy):
+    """The sums of ``mirrored_contact_energy``: (E_c, explicit dE/da_x, dE/da_y, the
+    gradient (2 ns, 4) at the samples and at their mirrored copy (columns 0-2
+    dE/dposition, 3 dE/dspeed), the positions (3, 2 ns) of both, the samples' speeds
+    and first derivatives).
 
     The samples are held twice (the second copy mirrored, z -> -z), so that a mirrored
     partner is a sample of that copy and the translations' search and pair sums apply
-    unchanged; the copy's gradient is folded back onto its samples at the end.
+    unchanged.
     """
     nseg = cp.shape[0]
     n = tab.shape[1]
@@ -253,14 +284,39 @@ def mirrored_contact_energy(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, wi
                                    gax, gay)  # fmt: skip
     class_energy[cls_now] += e
     energy += e
-    if with_grad:
-        g = np.empty((ns, 4))
-        for i in range(ns):  # the mirrored copy's z is -z: dE/dz = -dE/dz'
-            g[i, 0] = g2[i, 0] + g2[ns + i, 0]
-            g[i, 1] = g2[i, 1] + g2[ns + i, 1]
-            g[i, 2] = g2[i, 2] - g2[ns + i, 2]
-            g[i, 3] = g2[i, 3] + g2[ns + i, 3]
-        project_gradient(g, speed, r1, tab, grad_cp)
-        grad_cell[0] = gax
-        grad_cell[1] = gay
-    return energy
+    return energy, gax, gay, g2, pos2, speed, r1
+
+
+@njit(cache=True)
+def mirrored_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, pm, pn, forces, energies):
+    """Each class's generalised forces on the cell periods and its contact energy, for
+    a pattern with mirrored images (as ``forces.contact_forces_by_class`` for
+    translations; rows ``MIRROR_CLASSES``).
+
+    dcp (S, 6, 3, 2): d(control points)/d(a_x, a_y) at fixed shape. Writes ``forces``
+    (5, 3), N: columns x, y F_a = -dE_c(class)/da (through the control points and the
+    image offsets), column z the class's push out of plane, -dE_c(class)/dλ / Δz under
+    the dilation z -> λ z about the mirror plane of the pair distances alone (the
+    speeds held), Δz the control polygon's height plus 2r; and ``energies`` (5,), N mm.
+    Each class is its own sum (``only_class``), so its forces are exact derivatives.
+    """
+    dz = polygon_height(cp, r)
+    grad_cp = np.empty(cp.shape)
+    ce = np.empty(N_MIRROR_CLASSES)
+    for cls in range(N_MIRROR_CLASSES):
+        e, gax, gay, g2, pos2, speed, r1 = _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn,
+                                                          cls, True, ce)  # fmt: skip
+        energies[cls] = e
+        _fold_gradient(g2, speed, r1, tab, grad_cp)
+        fx, fy = gax, gay
+        for s in range(cp.shape[0]):
+            for c in range(6):
+                for d in range(3):
+                    fx += grad_cp[s, c, d] * dcp[s, c, d, 0]
+                    fy += grad_cp[s, c, d] * dcp[s, c, d, 1]
+        push = 0.0
+        for i in range(pos2.shape[1]):
+            push += g2[i, 2] * pos2[2, i]
+        forces[cls, 0] = -fx
+        forces[cls, 1] = -fy
+        forces[cls, 2] = -push / dz

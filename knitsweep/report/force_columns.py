@@ -39,19 +39,30 @@ def fig6h_forces(f: np.ndarray) -> tuple[float, float, float | None]:
     return widen_x, column_y, abs(widen_x) / abs(column_y) if column_y != 0.0 else None
 
 
-def force_columns(forces: Any) -> dict[str, Any]:
-    """Stored generalised contact forces (5, 3) at zero strain → flat columns, totals
+def contact_classes(meta: Mapping[str, Any]) -> tuple[str, ...]:
+    """The contact classes (rows of the stored forces) of a task's stitch."""
+    from ..stitches import DEFAULT_STITCH, get_stitch
+
+    return get_stitch(str(meta.get("stitch", DEFAULT_STITCH))).contact_classes
+
+
+def force_columns(forces: Any, classes: tuple[str, ...] = CONTACT_CLASSES) -> dict[str, Any]:
+    """Stored generalised contact forces (5, 3) at zero strain → flat columns
+    ``F_<class>_<axis>_N`` (rows ``classes``: the stitch's, ``contact_classes``), totals
     over the classes and their version of the Fig. 6h ratio,
     ``generalised_force_ratio_xy`` = |F_x(self) + F_x(same row)| / |F_y(NN) + F_y(NNN)|
-    (not the paper's quantity: see :func:`pair_force_columns`)."""
-    keys = (*CONTACT_COLUMNS, "F_x_N", "F_y_N", "F_z_N", "generalised_force_ratio_xy")
+    (not the paper's quantity: see :func:`pair_force_columns`; None for a pattern with
+    mirrored images, whose column classes are not the paper's)."""
+    columns = tuple(f"F_{c}_{a}_N" for c in classes for a in "xyz")
+    keys = (*columns, "F_x_N", "F_y_N", "F_z_N", "generalised_force_ratio_xy")
     if forces is None:
         return dict.fromkeys(keys)
-    f = np.asarray(forces, dtype=float).reshape(len(CONTACT_CLASSES), 3)
-    out: dict[str, Any] = dict(zip(CONTACT_COLUMNS, map(float, f.ravel()), strict=True))
+    f = np.asarray(forces, dtype=float).reshape(len(classes), 3)
+    out: dict[str, Any] = dict(zip(columns, map(float, f.ravel()), strict=True))
     fx, fy, fz = (float(v) for v in f.sum(axis=0))
     out |= {"F_x_N": fx, "F_y_N": fy, "F_z_N": fz}
-    out["generalised_force_ratio_xy"] = fig6h_forces(f)[2]
+    translated = tuple(classes) == tuple(CONTACT_CLASSES)
+    out["generalised_force_ratio_xy"] = fig6h_forces(f)[2] if translated else None
     return out
 
 
@@ -66,8 +77,8 @@ def pair_force_columns(state: np.ndarray | None, meta: Mapping[str, Any],
     |y force of NN + NNN same-column contacts| (paper: "the sum of the self contacts
     and same-row contacts ... become larger than the NNN same-column and NN
     same-column contacts in the y-direction, shown in Fig. 6h")."""
-    if state is None:
-        return dict.fromkeys(PAIR_KEYS)
+    if state is None or contact_classes(meta) != tuple(CONTACT_CLASSES):
+        return dict.fromkeys(PAIR_KEYS)  # (pair forces over mirrored images: not yet)
     from ..model import CellModel  # numba: only for files that store the states
 
     f = CellModel(StitchParams.from_flat(meta), fidelity).contact_pair_forces_by_class(state)

@@ -44,7 +44,13 @@ from ..stitches import DEFAULT_STITCH
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
 from ..store.read import read_files
-from .force_columns import PAIR_KEYS, force_columns, job_fidelity, pair_force_columns
+from .force_columns import (
+    PAIR_KEYS,
+    contact_classes,
+    force_columns,
+    job_fidelity,
+    pair_force_columns,
+)
 
 MIN_THRESHOLD, MAX_THRESHOLD = 1e-12, 1.0
 """The energy-gap thresholds (mJ) a reduction accepts (the paper's: GAP_THRESHOLD)."""
@@ -195,7 +201,7 @@ def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dic
             row["packing_fraction"] = plain_value(phi[winner])
             row["packing_fraction_error"] = plain_value(rec["packing_fraction_error"][winner])
     stored = rec.get("contact_forces")
-    row |= force_columns(stored)
+    row |= force_columns(stored, contact_classes(meta))
     row |= pair_force_columns(best if stored is not None else None, meta, fidelity)
     return row
 
@@ -255,7 +261,7 @@ def _analyse_sweep(
     }
     stored = rec.get("contact_forces")
     zero_forces = np.asarray(stored)[0] if stored is not None and len(stored) else point_forces
-    row |= force_columns(zero_forces)
+    row |= force_columns(zero_forces, contact_classes(meta))
     curves = SweepCurves(
         task_id=entry.task_id,
         direction=direction,

@@ -108,3 +108,64 @@ def gauss_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] =
     if not word:
         return ()
     return min(tuple(word[k:] + word[:k]) for k in range(len(word)))
+
+
+def row_period(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0)):
+    """(control points, course period, parities) of one whole period of a row's yarn.
+
+    Where the course closes through a glide (rib, seed: pm = 1) a row repeats only every
+    two stitches: the cell's yarn followed by its mirror image one course period on.
+    That yarn closes by a translation of 2 a_x, and its images (2m, n) are mirrored
+    when pn n is odd. Elsewhere the cell's yarn is the row's period."""
+    if not parity[0]:
+        return np.asarray(cp, dtype=float), a_x, parity
+    cp = np.asarray(cp, dtype=float)
+    image = cp * np.array([1.0, 1.0, -1.0]) + np.array([a_x, 0.0, 0.0])
+    return np.concatenate([cp, image]), 2.0 * a_x, (0, parity[1])
+
+
+def fabric_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
+                samples: int = SAMPLES) -> tuple[tuple[int, int], ...]:  # fmt: skip
+    """How a row interlocks with the other rows: the cyclic ``gauss_word`` of one whole
+    row period (``row_period``) with the row's crossings with itself left out.
+
+    A row crossing itself in projection (n = 0: the cell with itself or the stitches
+    beside it) changes by Reidemeister moves without any change in how the rows hold
+    each other: knit and purl columns of a rib slide behind one another as the fabric
+    draws in. Over a whole row period a crossing sliding across the cell's end rotates
+    the word; over the cell alone, where the course closes through a glide, it would
+    come back mirrored (its sign flipped)."""
+    cp2, a_x2, parity2 = row_period(cp, a_x, a_y, parity)
+    along: list = []
+    crossings(cp2, a_x2, a_y, samples, parity2, along=along)
+    word = [(n, s) for _, n, s in sorted(along) if n != 0]
+    if not word:
+        return ()
+    return min(tuple(word[k:] + word[:k]) for k in range(len(word)))
+
+
+def interlocking(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
+                 samples: int = SAMPLES) -> tuple[tuple[int, tuple[int, ...]], ...]:  # fmt: skip
+    """What a relaxation must keep (``CellModel.topology_change``): along one row period,
+    the runs of consecutive crossings with the same other row, as (n, the run's signs
+    sorted), cyclic (``fabric_word`` grouped).
+
+    Within a run the order may change: the cell's strand sweeping across a crossing of
+    two strands of that row (a Reidemeister III move; in a drawn-in rib, where the row's
+    knit and purl columns overlap) swaps two of its crossings without any change in
+    how the rows hold each other. A sign that flips (yarn through yarn), a crossing
+    gained or lost, or a run that moves does change the word. Unlike ``gauss_word`` it
+    does not tell garter from stockinette, whose runs differ only in their order."""
+    word = fabric_word(cp, a_x, a_y, parity, samples)
+    if not word:
+        return ()
+    k = next((i for i in range(len(word)) if word[i][0] != word[i - 1][0]), 0)
+    word = word[k:] + word[:k]  # start at a run's first crossing
+    runs: list[tuple[int, tuple[int, ...]]] = []
+    for n, s in word:
+        if runs and runs[-1][0] == n:
+            runs[-1] = (n, (*runs[-1][1], s))
+        else:
+            runs.append((n, (s,)))
+    runs = [(n, tuple(sorted(signs))) for n, signs in runs]
+    return min(tuple(runs[i:] + runs[:i]) for i in range(len(runs)))
