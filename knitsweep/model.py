@@ -29,7 +29,7 @@ from .kernels.neighbours import build_neighbour_list
 from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
 from .stitches.patterns import min_zeta_where
-from .stitches.topology import interlocking
+from .stitches.topology import topology_word
 
 
 class NeighbourList:
@@ -178,20 +178,20 @@ class CellModel:
                         self._mode)  # fmt: skip
 
     def topology_change(self, x: np.ndarray) -> str:
-        """For a stitch with mirrored images: "" if state ``x`` shows how the rows of
-        the stitch's first shipped start interlock (``topology.interlocking``,
-        docs/model.md §11), else what changed. Stitches of translations alone are not
+        """For a stitch with mirrored images: "" if state ``x`` shows the crossings of
+        the stitch's first shipped start (``topology.topology_word``: their order for
+        garter, the rows' interlocking for rib; docs/model.md §11), else what changed. Stitches of translations alone are not
         checked ("")."""
         if self.stitch.images != "glides":
             return ""
         x = self._as_state(x)
         parity = self.stitch.mirror_parity
-        ref = self.stitch._loaded.get("interlocking")
+        ref = self.stitch._loaded.get("topology_word")
         if ref is None:
             x1 = self.stitch.start(1)
-            ref = interlocking(self.control_points(x1), x1[-2], x1[-1], parity)
-            self.stitch._loaded["interlocking"] = ref
-        got = interlocking(self.control_points(x), x[-2], x[-1], parity)
+            ref = topology_word(self.control_points(x1), x1[-2], x1[-1], parity)
+            self.stitch._loaded["topology_word"] = ref
+        got = topology_word(self.control_points(x), x[-2], x[-1], parity)
         if got == ref:
             return ""
         count = sum(len(signs) for _, signs in ref)
@@ -453,7 +453,7 @@ def as_state(x: np.ndarray, stitch: Stitch) -> np.ndarray:
 
 
 def _runs(word) -> str:
-    """An ``interlocking`` word in one line: runs as ``n:+-`` (sign +1 over, -1 under)."""
+    """A ``topology_word`` in one line: runs as ``n:+-`` (sign +1 over, -1 under)."""
     if not word:
         return "no crossings"
     return " ".join(f"{n:+d}:" + "".join("+" if s > 0 else "-" for s in signs)

@@ -9,11 +9,14 @@ from knitsweep.config import StitchParams
 from knitsweep.errors import InputError
 from knitsweep.model import CellModel
 from knitsweep.stitches.patterns import (
+    PARITIES,
     check_start,
     garter_crossings,
     garter_start,
     min_zeta_where,
+    pattern_crossings,
 )
+from knitsweep.stitches.rib.start import rib_start
 from knitsweep.stitches.topology import crossings
 
 P = StitchParams(L_mm=11.0, k_mN_per_mm2=0.1)
@@ -120,3 +123,84 @@ def test_a_changed_topology_is_named():
     why = mg.topology_change(xs)
     assert why.startswith("topology changed:") and "garter stitch has 8 crossings" in why
     assert ma.topology_change(x) == ""  # translations alone: not checked
+
+
+# ---------------------------------------------------------------- 1x1 rib
+
+
+@pytest.mark.parametrize("i", [1, 4, 7])
+def test_rib_start_has_rib_crossings_and_no_overlap(model, i):
+    """The stockinette yarn closed through the glide: every crossing with another row
+    has the sign that the stitch pulled through it gives (``pattern_crossings``: the
+    purl column's stitch flips its crossings), the cores apart; the shipped start is
+    that state, bit for bit."""
+    x = model.stitch.start(i)
+    cp = model.control_points(x)
+    rib = CellModel(P.model_copy(update={"stitch": "rib"}))
+    xr = rib_start(cp, x[-2], x[-1])
+    assert np.array_equal(xr, rib.stitch.start(i))
+    want = pattern_crossings(crossings(cp, x[-2], x[-1]), PARITIES["rib"])
+    assert want != crossings(cp, x[-2], x[-1])  # rib is not stockinette
+    cr = rib.control_points(xr)
+    assert crossings(cr, xr[-2], xr[-1], parity=PARITIES["rib"]) == want
+    assert check_start(cr, xr[-2], xr[-1], IP.r, IP.rc, PARITIES["rib"]) > 0.05
+    assert rib.topology_change(xr) == ""
+
+
+def test_pattern_crossings_pair_up_for_every_pattern(model):
+    """Seen from its partner a crossing keeps its sign if the partner is a mirror image
+    and flips it if it is a translate: the rule must agree with itself."""
+    x = model.stitch.start(1)
+    stock = crossings(model.control_points(x), x[-2], x[-1])
+    for name, parity in PARITIES.items():
+        c = pattern_crossings(stock, parity)
+        for (m, n, s), k in c.items():
+            mirrored = (parity[0] * m + parity[1] * n) % 2 == 1
+            partner = (-m, -n, s if mirrored else -s)
+            assert c[partner] == k, (name, (m, n, s))
+
+
+def test_rib_closes_g2_into_its_mirror_image_with_an_exact_jacobian():
+    from knitsweep.stitches.rib.geometry import state_to_control_points
+
+    rib = CellModel(P.model_copy(update={"stitch": "rib"}))
+    x = rib.stitch.start(2)
+    cp, jac = rib.control_points_and_jacobian(x)
+    np.testing.assert_allclose(cp[7, 5], [x[-2], 0.0, 0.0], atol=1e-15)
+    mirror = np.array([1.0, 1.0, -1.0])
+    t_end = (cp[7, 5] - cp[7, 4]) / np.linalg.norm(cp[7, 5] - cp[7, 4])
+    t0 = (cp[0, 1] - cp[0, 0]) / np.linalg.norm(cp[0, 1] - cp[0, 0])
+    np.testing.assert_allclose(t_end, t0 * mirror, atol=1e-13)
+    # curvature vector: from the second differences, as at every joint of §11
+    a_end = 5 * np.linalg.norm(cp[7, 5] - cp[7, 4])
+    a0 = 5 * np.linalg.norm(cp[0, 1] - cp[0, 0])
+    k_end = 20 * (cp[7, 3] - 2 * cp[7, 4] + cp[7, 5]) / a_end**2
+    k0 = 20 * (cp[0, 2] - 2 * cp[0, 1] + cp[0, 0]) / a0**2
+    np.testing.assert_allclose(k_end - (k_end @ t_end) * t_end, (k0 - (k0 @ t0) * t0) * mirror,
+                               atol=1e-12)  # fmt: skip
+    h = 1e-6
+    c1, c2, scratch = np.empty_like(cp), np.empty_like(cp), np.empty_like(jac)
+    for k in range(x.size):
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        state_to_control_points(xp, c1, scratch)
+        state_to_control_points(xm, c2, scratch)
+        np.testing.assert_allclose((c1 - c2) / (2 * h), jac[..., k], atol=1e-8)
+
+
+def test_a_relaxed_rib_keeps_its_interlocking(data_dir):
+    """A rib relaxed at L = 11.6 mm, k = 0.1 (``knitsweep relax --stitch rib``, one start)
+    draws in to a_x = 1.56 mm, its knit and purl columns overlapping in projection: the
+    rows' crossings change order within their runs (a strand sweeping across the
+    crossing of two strands of another row) and new crossings of a row with itself
+    appear, neither a change of how the rows interlock. A stitch pulled through its
+    neighbour instead flips a sign and is named."""
+    rib = CellModel(StitchParams(stitch="rib", L_mm=11.6, k_mN_per_mm2=0.1))
+    x = np.loadtxt(data_dir / "rib_relaxed_L11.6_k0.1.dat")
+    assert x[-2] < 0.6 * 2.849  # stockinette's a_x here: the rib draws in
+    assert rib.topology_change(x) == ""
+    flat = x.copy()
+    flat[-1] *= 2.0  # rows pulled apart: no longer interlocked
+    why = rib.topology_change(flat)
+    assert why.startswith("topology changed:") and "rib stitch has 16 crossings" in why

@@ -70,30 +70,6 @@ def garter_crossings(stockinette: Counter) -> Counter:
     return pattern_crossings(stockinette, PARITIES["garter"])
 
 
-SEED_MAP = (1.866, -0.573, -1.175, 0.806, 0.999)
-"""The map of ``course_glide_start`` for seed: (b, c, h, s_y, s_x) = (1.866, -0.573 /mm,
--1.175 mm, 0.806, 0.999). Found by a random search over the five (length of Init_1's
-yarn minimised among the maps that give seed's crossing signs with min ζ >= 0.06);
-rib needs none (``RIB_MAP``: its start is the stockinette yarn closed through the glide)."""
-RIB_MAP = (0.0, 0.0, 0.0, 1.0, 1.0)
-
-
-def course_glide_start(cp: np.ndarray, a_x: float, a_y: float,
-                       shape: tuple[float, float, float, float, float]):  # fmt: skip
-    """Control points (S, 6, 3) for a rib or seed start from a stockinette stitch's
-    (joint 0 at the origin): x -> s_x x, y -> s_y y, then z -> z + b y + c y² +
-    h sin²(π x / a_x) (zero at joint 0 and at its image one course on, both on the
-    mirror plane). Returns (cp, a_x, a_y); the rib geometry closes the yarn through the
-    glide (``rib.geometry``), so a state read off these (``ansatz.to_free``) is G2."""
-    b, c, h, sy, sx = shape
-    out = np.array(cp, dtype=float) - np.asarray(cp)[0, 0]
-    out[..., 0] *= sx
-    out[..., 1] *= sy
-    y = out[..., 1]
-    out[..., 2] += b * y + c * y * y + h * np.sin(np.pi * out[..., 0] / (sx * a_x)) ** 2
-    return out, sx * a_x, sy * a_y
-
-
 def _samples(cp: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, float]:
     """Midpoint samples (S n, 3), their midpoint arclengths (S n,) and the total (§6)."""
     t = (np.arange(n) + 0.5) / n

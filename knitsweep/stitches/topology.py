@@ -169,3 +169,15 @@ def interlocking(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int]
             runs.append((n, (s,)))
     runs = [(n, tuple(sorted(signs))) for n, signs in runs]
     return min(tuple(runs[i:] + runs[:i]) for i in range(len(runs)))
+
+
+def topology_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
+                  samples: int = SAMPLES) -> tuple[tuple[int, tuple[int, ...]], ...]:  # fmt: skip
+    """The word a relaxation of a pattern must keep (``CellModel.topology_change``), as
+    runs (n, signs). Where the course closes by a translation (garter): the cell's
+    ``gauss_word``, every crossing in its order (runs of one), which tells garter from
+    stockinette. Where it closes through a glide (rib): ``interlocking``, since there
+    the knit and purl columns slide behind one another as the fabric draws in."""
+    if parity[0]:
+        return interlocking(cp, a_x, a_y, parity, samples)
+    return tuple((n, (s,)) for n, s in gauss_word(cp, a_x, a_y, parity, samples))

@@ -7,11 +7,10 @@ glide (``geometry``); joint 0, where it does, is pinned at the origin on the mir
 plane. a_x and a_y are the per-stitch course and wale spacings, as stockinette's (the
 fabric repeats every 2 a_x along the course).
 
-* ``geometry``: state -> control points with their exact Jacobian (numba), shared with
-  seed;
+* ``geometry``: state -> control points with their exact Jacobian (numba);
 * the state, bounds and weights are the free yarn's (``stockinette_free.layout``); the
   starts (``data/``) are the authors' Init files made rib stitches
-  (``patterns.pattern_start``).
+  (``start.rib_start``).
 """
 
 from __future__ import annotations

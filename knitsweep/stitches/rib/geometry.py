@@ -1,7 +1,7 @@
-"""Rib and seed state -> the 8 segments' control points with the exact Jacobian
+"""Rib state -> the 8 segments' control points with the exact Jacobian
 (docs/model.md §11): the free yarn's kernel, its course closing through a glide.
 
-In 1×1 rib and in seed the yarn runs from the cell's knit stitch into the purl stitch
+In 1×1 rib (and in seed) the yarn runs from the cell's knit stitch into the purl stitch
 beside it, the cell's mirror image (z -> -z) one course period on. So the cell's last
 segment ends where that image's yarn begins, at joint 0 mirrored and shifted by
 t_c = (a_x, 0, 0), with joint 0's tangent and curvature vector mirrored: G2 into the
