@@ -204,3 +204,21 @@ def test_a_relaxed_rib_keeps_its_interlocking(data_dir):
     flat[-1] *= 2.0  # rows pulled apart: no longer interlocked
     why = rib.topology_change(flat)
     assert why.startswith("topology changed:") and "rib stitch has 16 crossings" in why
+
+
+@pytest.mark.slow
+def test_rib_relaxes_drawn_in_with_its_interlocking():
+    """The zero-force state of rib from its first start (measured: 833 Newton iterations,
+    E = 0.25078 mJ, a_x = 1.5608, a_y = 2.2354 mm): converged, topology kept, drawn in
+    across the course, lower in energy than stockinette at the same point."""
+    from knitsweep.config import SolverSettings, StartSettings
+    from knitsweep.zero_force import zero_force
+
+    p = StitchParams(stitch="rib", L_mm=11.6, k_mN_per_mm2=0.1)
+    zf = zero_force(p, None, SolverSettings(), StartSettings(count=1))
+    best = zf.best
+    assert best.converged, best.message
+    assert best.x[-2] < 0.6 * 2.8493 and 2.0 < best.x[-1] < 2.5
+    assert best.total_energy < 0.36541
+    assert best.min_zeta > 0.0
+    assert CellModel(p).topology_change(best.x) == ""
