@@ -180,8 +180,8 @@ class CellModel:
     def topology_change(self, x: np.ndarray) -> str:
         """For a stitch with mirrored images: "" if state ``x`` shows the crossings of
         the stitch's first shipped start (``topology.topology_word``: their order for
-        garter, the rows' interlocking for rib; docs/model.md §11), else what changed. Stitches of translations alone are not
-        checked ("")."""
+        garter, the rows' interlocking for rib; docs/model.md §11), else what changed.
+        Stitches of translations alone are not checked ("")."""
         if self.stitch.images != "glides":
             return ""
         x = self._as_state(x)
@@ -204,10 +204,10 @@ class CellModel:
 
         Rows: the stitch's ``contact_classes`` (stockinette: self, same row, nearest and
         next-nearest same column, other; a pattern with mirrored images: self, same
-        row, same column, mirrored, other, ``kernels.mirrored``). Columns x, y: the class's generalised
-        force on the cell period, F_a = -dE_c(class)/da at fixed shape parameters
-        (positive: the contacts push the cell to extend along a; negative: they pull
-        it together). Summed over the classes they are -dE_c/da; adding the bending
+        row, same column, mirrored, other, ``kernels.mirrored``). Columns x, y: the
+        class's generalised force on the cell period, F_a = -dE_c(class)/da at fixed
+        shape parameters (positive: the contacts push the cell to extend along a;
+        negative: they pull it together). Summed over the classes they are -dE_c/da; adding the bending
         term and the length constraint's share gives the cell's total force on a
         (``Relaxation.period_forces``), zero at zero force. Column z: the push out
         of plane (>= 0). Each physical contact counts twice, as in E_c (paper SI

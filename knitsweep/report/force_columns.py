@@ -1,13 +1,16 @@
 """Contact-force columns of the post-processor's tables (docs/model.md §9; paper SI
 "Contact Forces", Table 2, Table S3, Fig. 6h).
 
-Two kinds, both in N, rows :data:`~knitsweep.stitches.TRANSLATION_CLASSES`:
+Two kinds, both in N:
 
 * ``F_<class>_<axis>_N``: the generalised forces on the cell periods that a job stores
-  with ``[store] contact_forces = true`` (``CellModel.contact_forces_by_class``);
+  with ``[store] contact_forces = true`` (``CellModel.contact_forces_by_class``), rows
+  the stitch's contact classes (``contact_classes``: a pattern's include ``mirrored``);
 * ``pair_F_<class>_<axis>_N``: the paper's contact forces, unweighted pair forces
   between sampled yarn points (``CellModel.contact_pair_forces_by_class``), computed
-  here from the stored zero-force state. Their ratio ``force_ratio_xy`` is Fig. 6h's.
+  here from the stored zero-force state, rows
+  :data:`~knitsweep.stitches.TRANSLATION_CLASSES` (empty for a pattern with mirrored
+  images). Their ratio ``force_ratio_xy`` is Fig. 6h's.
 """
 
 from __future__ import annotations
@@ -20,10 +23,6 @@ import numpy as np
 
 from ..config import Fidelity, StitchParams
 from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
-
-CONTACT_COLUMNS = tuple(f"F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
-"""Columns of a stored ``contact_forces`` (5, 3) array (generalised forces on the
-periods, ``CellModel.contact_forces_by_class``): rows ``CONTACT_CLASSES``."""
 
 PAIR_COLUMNS = tuple(f"pair_F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
 """Columns of the pair forces by class (``CellModel.contact_pair_forces_by_class``,
