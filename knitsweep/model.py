@@ -356,7 +356,7 @@ def _compile_contact(model: CellModel, what: str) -> None:
     x = model.stitch.start(1)
     cp, jac = model.stitch.buffers()
     ip, tab, mode = model.ip, model._ctab, model._mode
-    if model.stitch.images == "glides":  # a knit/purl pattern: its own two kernels
+    if model.stitch.images == "glides":  # a knit/purl pattern: its own two kernels too
         pattern_cell_energy.compile(sig((cp, jac, x[-2], x[-1], model._qtab, model._qw, tab,
                                          model._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
                                          *model.stitch.mirror_parity, True, model._grad_e,
@@ -367,7 +367,8 @@ def _compile_contact(model: CellModel, what: str) -> None:
                                                   x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
                                                   *model.stitch.mirror_parity, forces,
                                                   energies)))  # fmt: skip
-        return
+    # the translations' kernels as well: ``kernels.cached`` looks for them, so a cache
+    # filled by a job of patterns alone must hold them too
     energy_args = model._energy_args(cp, jac, x, True)
     cell_energy.compile(sig(energy_args))
     if what == "energy":
