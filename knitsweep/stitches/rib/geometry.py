@@ -13,28 +13,14 @@ level; it must lie in the mirror plane, which pinning joint 0 at the origin does
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from ... import kernels  # noqa: F401  (first: it points numba's cache at this version's)
-from ..stockinette_free.geometry import _half, _joint_frame
-from ..stockinette_free.geometry import state_to_control_points as free_control_points
-from ..stockinette_free.layout import IDX_AX, N_SEGMENTS, PER_SEGMENT, SEG0
+from ..stockinette_free.geometry import closed_control_points
 
 
 @njit(cache=True)
 def state_to_control_points(x, cp, jac):
     """Fill ``cp`` (8, 6, 3) and ``jac`` (8, 6, 3, 87) from the state ``x`` (87,):
     segment 7 ends at M joint 0 + t_c with joint 0's frame mirrored, M = diag(1, 1, -1)."""
-    free_control_points(x, cp, jac)
-    fr = np.empty((8, 3))
-    ia, ip = _joint_frame(x, 0, fr)
-    for row in range(1, 8):  # the mirrored frame: M t, M cv and their derivatives
-        fr[row, 2] = -fr[row, 2]
-    last = N_SEGMENTS - 1
-    jac[last, 3:] = 0.0
-    _half(x, fr, ia, ip, SEG0 + PER_SEGMENT * last + 2, -1.0, np.array([5, 4, 3]), cp[last],
-          jac[last])  # fmt: skip
-    for i in (3, 4, 5):
-        cp[last, i, 0] += x[IDX_AX]
-        jac[last, i, 0, IDX_AX] += 1.0
+    closed_control_points(x, cp, jac, True)

@@ -94,6 +94,15 @@ def _half(x, fr, ia, ip, ib, sigma, slots, cp, jac):
 def state_to_control_points(x, cp, jac):
     """Fill ``cp`` (8, 6, 3) and ``jac`` (8, 6, 3, 87) from the free state ``x`` (87,)
     (docs/model.md §11); segment 7 ends at joint 0 shifted by t_c = (a_x, 0, 0)."""
+    closed_control_points(x, cp, jac, False)
+
+
+@njit(cache=True)
+def closed_control_points(x, cp, jac, mirrored):
+    """``state_to_control_points``, the course closing by a translation (``mirrored``
+    False) or through a glide (True: segment 7 ends at M joint 0 + t_c with joint 0's
+    frame mirrored, M = diag(1, 1, -1), as in rib; joint 0 is at the origin, so
+    M joint 0 = joint 0)."""
     fr = np.empty((8, 3))
     start_slots = np.array([0, 1, 2])
     end_slots = np.array([5, 4, 3])
@@ -105,6 +114,9 @@ def state_to_control_points(x, cp, jac):
         b_out = SEG0 + PER_SEGMENT * s_out
         b_in = SEG0 + PER_SEGMENT * s_in + 2
         _half(x, fr, ia, ip, b_out, 1.0, start_slots, cp[s_out], jac[s_out])
+        if j == 0 and mirrored:  # the mirrored frame: M t, M cv and their derivatives
+            for row in range(1, 8):
+                fr[row, 2] = -fr[row, 2]
         _half(x, fr, ia, ip, b_in, -1.0, end_slots, cp[s_in], jac[s_in])
     last = N_SEGMENTS - 1
     for i in (3, 4, 5):
