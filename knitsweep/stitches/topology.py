@@ -104,13 +104,15 @@ def gauss_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] =
     it does tell stockinette from garter, whose (n, sign) counts agree."""
     along: list = []
     crossings(cp, a_x, a_y, samples, parity, along=along)
-    word = [(n, s) for _, n, s in sorted(along)]
-    if not word:
-        return ()
-    return min(tuple(word[k:] + word[:k]) for k in range(len(word)))
+    return least_rotation([(n, s) for _, n, s in sorted(along)])
 
 
-def row_period(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0)):
+def least_rotation(word: list) -> tuple:
+    """The rotation of the cyclic ``word`` that sorts first (() for an empty word)."""
+    return min((tuple(word[k:] + word[:k]) for k in range(len(word))), default=())
+
+
+def row_period(cp: np.ndarray, a_x: float, parity: tuple[int, int] = (0, 0)):
     """(control points, course period, parities) of one whole period of a row's yarn.
 
     Where the course closes through a glide (rib, seed: pm = 1) a row repeats only every
@@ -135,13 +137,8 @@ def fabric_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] 
     draws in. Over a whole row period a crossing sliding across the cell's end rotates
     the word; over the cell alone, where the course closes through a glide, it would
     come back mirrored (its sign flipped)."""
-    cp2, a_x2, parity2 = row_period(cp, a_x, a_y, parity)
-    along: list = []
-    crossings(cp2, a_x2, a_y, samples, parity2, along=along)
-    word = [(n, s) for _, n, s in sorted(along) if n != 0]
-    if not word:
-        return ()
-    return min(tuple(word[k:] + word[:k]) for k in range(len(word)))
+    cp2, a_x2, parity2 = row_period(cp, a_x, parity)
+    return least_rotation([c for c in gauss_word(cp2, a_x2, a_y, parity2, samples) if c[0] != 0])
 
 
 def interlocking(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
@@ -167,8 +164,7 @@ def interlocking(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int]
             runs[-1] = (n, (*runs[-1][1], s))
         else:
             runs.append((n, (s,)))
-    runs = [(n, tuple(sorted(signs))) for n, signs in runs]
-    return min(tuple(runs[i:] + runs[:i]) for i in range(len(runs)))
+    return least_rotation([(n, tuple(sorted(signs))) for n, signs in runs])
 
 
 def topology_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
