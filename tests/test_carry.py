@@ -82,12 +82,13 @@ def test_carried_points_walk_one_start_to_a_minimum_no_higher(jobs, tmp_path):
 
 @pytest.fixture(scope="module")
 def adaptive(tmp_path_factory):
-    """tiny_adaptive carrying (whole curves at fixed steps: long enough to interrupt)."""
+    """tiny_adaptive carrying, to 0.01 mm (whole curves at fixed steps: long enough to
+    interrupt)."""
     tmp = tmp_path_factory.mktemp("adaptive_carry")
     job = tmp / "a.toml"
-    job.write_text(
-        ADAPTIVE.read_text().replace("[starts]\ncount = 1", "[starts]\ncount = 1\ncarry = true")
-    )
+    text = ADAPTIVE.read_text().replace("[starts]\ncount = 1", "[starts]\ncount = 1\ncarry = true")
+    # 0.01 mm: the last refinements carry from earlier refinements (upper bracket ends)
+    job.write_text(text.replace("tolerance_mm = 0.02", "tolerance_mm = 0.01"))
     out = tmp / "a.h5"
     service.run(job, out, executor="serial", show_progress=False)
     return job, out
@@ -101,7 +102,7 @@ def test_an_adaptive_job_carries_into_its_refinements(adaptive):
     with h5py.File(out) as f:
         series = [dict(g.attrs) for g in f["series"].values()]
     assert [s["status"] for s in series] == ["done", "done"]
-    assert all(s["hi_mm"] - s["lo_mm"] <= 0.02 + 1e-9 for s in series)
+    assert all(s["hi_mm"] - s["lo_mm"] <= 0.01 + 1e-9 for s in series)
     again = service.run(job, out, executor="serial", show_progress=False)  # nothing new
     assert again.skipped == again.total
     assert np.isfinite(list(v[1] for v in zero.values())).all()
@@ -129,4 +130,50 @@ def test_a_carried_refinement_resumed_mid_way_is_the_uninterrupted_one(adaptive,
     proc.communicate(timeout=120)
     assert proc.returncode == 3
     assert subprocess.run(cmd, env=env, capture_output=True, timeout=600).returncode == 0
+    assert_same_results(whole, out)
+
+
+def _refinements_in_order(job, path, direction):
+    """One series' refined L values in the order the master asked for them (replayed
+    from the stored gaps), each with its point id and the point it carried from."""
+    from knitsweep.service.adaptive import Refiner
+
+    with h5py.File(path) as f:
+        sweeps = [dict(g.attrs) for g in f["sweeps"].values()]
+    mine = {float(s["L_mm"]): s for s in sweeps if s["direction"] == direction}
+    refiner = Refiner(load_job(job))
+    coarse = set(refiner.coarse)
+    for L in coarse:
+        refiner.observe(mine[L])
+    order, by_L = [], {L: str(mine[L]["point_id"]) for L in mine}
+    while True:
+        ((_, state),) = [(k, s) for k, s in refiner.states()
+                         if refiner.series[k]["direction"] == direction]  # fmt: skip
+        if state.status != "refining":
+            return order, coarse
+        order.append((state.next_L, by_L[state.next_L], state.hi))
+        refiner.observe(mine[state.next_L])
+
+
+def test_a_resumed_refinement_carries_from_a_refinement_of_the_run_before(adaptive, tmp_path):
+    """Deterministic twin of the SIGTERM test above: the file of the uninterrupted run
+    with one series' last refinements removed, from the first one whose bracket's upper
+    end is itself a refinement. The resumed master must carry from that stored
+    refinement (a point it never requested), with the uninterrupted run's ids."""
+    job, whole = adaptive
+    order, coarse = _refinements_in_order(job, whole, "x")
+    cut = next(i for i, (_, _, hi) in enumerate(order) if hi not in coarse)
+    out = tmp_path / "cut.h5"
+    out.write_bytes(whole.read_bytes())
+    with h5py.File(out, "a") as f:
+        removed = {pid for _, pid, _ in order[cut:]}
+        for sid in [s for s, g in f["sweeps"].items() if g.attrs["point_id"] in removed]:
+            del f["sweeps"][sid]
+        for pid in removed:
+            del f["points"][pid]
+        for key in list(f["series"]):
+            if f["series"][key].attrs["direction"] == "x":
+                del f["series"][key]
+    summary = service.run(job, out, executor="serial", show_progress=False)
+    assert summary.total - summary.skipped == 2 * len(removed)  # each point and its x sweep
     assert_same_results(whole, out)

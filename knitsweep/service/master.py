@@ -220,7 +220,11 @@ class _Master:
         if pid not in self.zero:
             entry = self.writer.entry(POINTS, pid)
             self.zero[pid] = {**entry.record, **entry.meta}
-        return {**self.zero[pid], "params": self.points[pid].params}
+        planned = self.points.get(pid)
+        # a finished point this run never requested (a resumed refinement carries from
+        # the refinement before it): its parameters as stored, the same floats
+        params = planned.params if planned else StitchParams.from_flat(self.zero[pid])
+        return {**self.zero[pid], "params": params}
 
     def _record_sweep(self, s: SweepTask, record: dict[str, Any], meta: dict[str, Any]) -> None:
         self.writer.add(SWEEPS, s.task_id, record, meta)
