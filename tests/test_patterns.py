@@ -133,12 +133,12 @@ def test_rib_start_has_rib_crossings_and_no_overlap(model, i):
     """The stockinette yarn closed through the glide: every crossing with another row
     has the sign that the stitch pulled through it gives (``pattern_crossings``: the
     purl column's stitch flips its crossings), the cores apart; the shipped start is
-    that state, bit for bit."""
+    that state to round-off (the map's last bits differ between builds: 2.6e-15 seen)."""
     x = model.stitch.start(i)
     cp = model.control_points(x)
     rib = CellModel(P.model_copy(update={"stitch": "rib"}))
     xr = rib_start(cp, x[-2], x[-1])
-    assert np.array_equal(xr, rib.stitch.start(i))
+    np.testing.assert_allclose(xr, rib.stitch.start(i), rtol=0, atol=1e-13)
     want = pattern_crossings(crossings(cp, x[-2], x[-1]), PARITIES["rib"])
     assert want != crossings(cp, x[-2], x[-1])  # rib is not stockinette
     cr = rib.control_points(xr)
