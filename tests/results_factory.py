@@ -17,6 +17,7 @@ Regimes at k = 0.1: 20–22 jammed_xy, 23 jammed_y_only, 24 unjammed.
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 
@@ -40,9 +41,10 @@ def gap(k: float, direction: str, x: float) -> float:
     return 1e-3
 
 
-def _params(L: float, k: float) -> dict:
-    return {"L_mm": L, "k_mN_per_mm2": k, "B_mN_mm2": 90.0, "r_mm": R_MM, "r_core_mm": 0.22,
-            "p": 2.4, "regularization_mN_mm4": 2.0, "twist_bound": 0.9}  # fmt: skip
+def _params(L: float, k: float, stitch: str = "stockinette") -> dict:
+    params = {"L_mm": L, "k_mN_per_mm2": k, "B_mN_mm2": 90.0, "r_mm": R_MM, "r_core_mm": 0.22,
+              "p": 2.4, "regularization_mN_mm4": 2.0, "twist_bound": 0.9}  # fmt: skip
+    return params if stitch == "stockinette" else {**params, "stitch": stitch}  # as stored
 
 
 def _attrs(group, params: dict, status: str, message: str = "") -> None:
@@ -105,9 +107,11 @@ def write_results(
     run_status: str = "complete",
     contact_forces: bool = True,
     not_knittable_L: float | None = 9.5,
+    stitches: tuple[str, ...] = ("stockinette",),
 ) -> Path:
     """A results file with series at every k of ``ks``, both directions, plus (if
-    ``not_knittable_L``) one not-knittable point whose sweeps carry no arrays."""
+    ``not_knittable_L``) one not-knittable point whose sweeps carry no arrays; each
+    series once per stitch of ``stitches`` (the same data, another pattern's name)."""
     n_points = 0
     with h5py.File(path, "w") as f:
         f.attrs["schema_version"] = 1
@@ -115,12 +119,13 @@ def write_results(
         f.attrs["job_json"] = json.dumps({"name": "synthetic"})
         f.attrs["run_status"] = run_status
         points, sweeps = f.create_group("points"), f.create_group("sweeps")
-        for k in ks:
+        for stitch, k in itertools.product(stitches, ks):
+            tag = "" if stitch == "stockinette" else f"{stitch}_"
             for x in L_OVER_R:
                 L = x * R_MM
-                pid = f"p{k:g}_{x:g}"
+                pid = f"{tag}p{k:g}_{x:g}"
                 pg = points.create_group(pid)
-                _attrs(pg, _params(L, k), "done", "lowest of 1 starts")
+                _attrs(pg, _params(L, k, stitch), "done", "lowest of 1 starts")
                 state = shipped_state(1)[None, :].copy()  # a real stitch, for the pair forces
                 state[0, 28:] = (2.5 + 0.01 * x, 1.9 + 0.005 * x - 0.002 * (x - 22.0) ** 2)
                 pg["x"] = state
@@ -134,22 +139,22 @@ def write_results(
                     pg["contact_forces"] = _forces(x)
                 n_points += 1
                 for d in ("x", "y"):
-                    sg = sweeps.create_group(f"s{k:g}_{x:g}_{d}")
-                    _attrs(sg, _params(L, k), "done", "stress 0.3 N/mm > 0.2")
+                    sg = sweeps.create_group(f"{tag}s{k:g}_{x:g}_{d}")
+                    _attrs(sg, _params(L, k, stitch), "done", "stress 0.3 N/mm > 0.2")
                     sg.attrs["point_id"] = pid
                     sg.attrs["direction"] = d
                     sg.attrs["sweep_status"] = "done"
                     for name, value in _sweep_arrays(d, x, gap(k, d, x), contact_forces).items():
                         sg[name] = value
             if not_knittable_L is not None:
-                pg = points.create_group(f"p{k:g}_nk")
-                _attrs(pg, _params(not_knittable_L, k), "not_knittable", "cores overlap")
+                pg = points.create_group(f"{tag}p{k:g}_nk")
+                _attrs(pg, _params(not_knittable_L, k, stitch), "not_knittable", "cores overlap")
                 n_points += 1
                 for d in ("x", "y"):
-                    sg = sweeps.create_group(f"s{k:g}_nk_{d}")
-                    _attrs(sg, _params(not_knittable_L, k), "not_knittable",
+                    sg = sweeps.create_group(f"{tag}s{k:g}_nk_{d}")
+                    _attrs(sg, _params(not_knittable_L, k, stitch), "not_knittable",
                            "zero-force state: cores overlap")  # fmt: skip
-                    sg.attrs["point_id"] = f"p{k:g}_nk"
+                    sg.attrs["point_id"] = f"{tag}p{k:g}_nk"
                     sg.attrs["direction"] = d
         f.attrs["n_points"] = n_points
         f.attrs["n_sweeps"] = 2 * n_points

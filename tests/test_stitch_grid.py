@@ -169,3 +169,31 @@ def test_progress_lines_name_the_stitch_when_a_job_has_several(two):
     assert "L=12 stitch=stockinette_free" in line
     alone = JobSpec(schema_version=1, name="t", grid={"L_mm": [11.0, 12.0]})
     assert varying_parameters(alone) == ("L_mm",)
+
+
+def test_the_patterns_figure_sets_the_stitches_side_by_side(two, tiny_reference):
+    """figP_patterns: a tick per stitch with its x and y transitions (the marker at
+    (L/r)_trans, the bar down to the bracket's lower end), a Y_sec curve per stitch and
+    direction, an aspect-ratio curve per stitch; a one-stitch study skips it."""
+    from knitsweep.report.fig_patterns import figP_patterns
+    from knitsweep.report.plotting import SkipFigure, style
+
+    _, out = two
+    red = reduce_results(out)
+    with style():
+        fig = figP_patterns(red, [])
+        ax_t, ax_y, ax_a = fig.axes[:3]
+        assert [t.get_text() for t in ax_t.get_xticklabels()] == list(STITCHES)
+        drawn = sorted(round(float(c.lines[0].get_ydata()[0]), 9) for c in ax_t.containers)
+        want = sorted(round(t["L_over_r_trans"], 9) for t in red.transitions
+                      if t["status"] == "transition")  # fmt: skip
+        assert drawn == want and len(want) >= 2  # stockinette's two at least
+        beyond = [t for t in red.transitions if t["status"] != "transition"]
+        triangles = [ln for ln in ax_t.get_lines() if ln.get_marker() in ("^", "v")]
+        assert len(triangles) == len(beyond)
+        assert len(ax_y.get_lines()) == 2 * len(STITCHES)
+        for line in ax_a.get_lines():
+            assert list(line.get_xdata()) == sorted(line.get_xdata())
+        assert len(ax_a.get_lines()) == len(STITCHES)
+        with pytest.raises(SkipFigure, match="two or more stitch patterns"):
+            figP_patterns(reduce_results(tiny_reference), [])

@@ -24,6 +24,7 @@ from .fig_mechanics import (
     fig6g_thickness_strain_x,
     fig6h_contact_force_ratio,
 )
+from .fig_patterns import figP_patterns
 from .fig_volumes import figS_packing_fraction_L, figS_packing_fraction_strain
 from .plotting import FigureOptions, SkipFigure, finish, style
 from .reduce import Reduction
@@ -43,6 +44,7 @@ FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
     "fig6g_thickness_strain_x.png": fig6g_thickness_strain_x,
     "fig6g_thickness_strain_x_small.png": partial(fig6g_thickness_strain_x, upto=SMALL_STRAIN),
     "fig6h_contact_force_ratio.png": fig6h_contact_force_ratio,
+    "figP_patterns.png": figP_patterns,
     "figS_packing_fraction_L.png": figS_packing_fraction_L,
     "figS_packing_fraction_strain.png": figS_packing_fraction_strain,
     "figS11_contact_forces_strain.png": figS11_contact_forces_strain,
@@ -82,6 +84,10 @@ CAPTIONS: dict[str, str] = {
     "fig6g_thickness_strain_x_small.png": "Thickness strain of pulls in x up to 10 % strain.",
     "fig6h_contact_force_ratio.png": "Ratio of the x and y contact forces at zero strain "
     "against L/r (paper Fig. 6h).",
+    "figP_patterns.png": "Stitch patterns side by side: (a) the unjamming transition "
+    "(L/r)_trans of each pattern pulled in x and y, the bar its bracket; (b) the secant "
+    "modulus against L/r, one colour per pattern, x solid and y dashed; (c) the zero-force "
+    "aspect ratio a_y/a_x of the stitch.",
     "figS_packing_fraction_L.png": "Packing fraction of the zero-force stitch against L/r, "
     "with the paper's 0.85 that marks the end of jamming (SI, contact volumes).",
     "figS_packing_fraction_strain.png": "Packing fraction along the sweeps, pulled in x and "

@@ -1,0 +1,116 @@
+"""Stitch patterns side by side: the unjamming transition (L/r)_trans, the secant modulus
+Y_sec and the zero-force aspect ratio a_y/a_x of each pattern, pulled in x and in y.
+
+Drawn when a study holds two or more stitches (``[grid] stitch = [...]``, e.g.
+``jobs/patterns_k0.1.toml``). a_x and a_y are the per-stitch course and wale spacings
+for every pattern and the strain is the fabric's, so the patterns compare directly.
+Takes a :class:`~.reduce.Reduction` and a list for notes, returns a matplotlib Figure or
+raises :class:`~.plotting.SkipFigure`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .plotting import DIRECTION_COLOUR, L_OVER_R, SkipFigure, narrow, new_figure, panel_title, title
+from .reduce import Reduction, series_key
+
+STITCH_COLOUR = {
+    "stockinette": "#444444",
+    "stockinette_free": "#9a9a9a",
+    "garter": "#d9730d",
+    "rib": "#2e8b46",
+    "seed": "#b0306a",
+}
+"""One colour per pattern (others: matplotlib's cycle)."""
+DIRECTION_STYLE = {"x": ("-", "o"), "y": ("--", "s")}
+"""Line style and marker of a pull in x (across the course) and in y (along the wale)."""
+
+
+def _colour(stitch: str, i: int) -> str:
+    return STITCH_COLOUR.get(stitch, f"C{i % 10}")
+
+
+def _one_series_per_stitch(red: Reduction, notes: list[str]) -> dict[str, tuple[Any, ...]]:
+    """Each stitch's series key (stitch, k, B, …); with several per stitch (another
+    parameter varies too), the first, and a note saying so."""
+    keys: dict[str, list[tuple[Any, ...]]] = {}
+    for row in red.sweeps:
+        keys.setdefault(str(row["stitch"]), []).append(series_key(row))
+    chosen = {}
+    for stitch, ks in sorted(keys.items()):
+        unique = sorted(set(ks))
+        chosen[stitch] = unique[0]
+        if len(unique) > 1:
+            notes.append(f"patterns: {stitch} has {len(unique)} series; showing the first")
+    return chosen
+
+
+def figP_patterns(red: Reduction, notes: list[str]) -> Any:
+    """(a) (L/r)_trans of each pattern in x and y, the bar its bracket (a triangle at the
+    range's end: jammed throughout ▲, unjammed from the first L ▼); (b) Y_sec against
+    L/r, one colour per pattern, x solid and y dashed; (c) the zero-force aspect ratio
+    a_y0/a_x0 against L/r."""
+    chosen = _one_series_per_stitch(red, notes)
+    if len(chosen) < 2:
+        raise SkipFigure("needs sweeps of two or more stitch patterns")
+    from matplotlib.lines import Line2D
+
+    stitches = list(chosen)
+    fig = new_figure(12.0, 4.4, wide=True)  # three panels: page-wide in a journal
+    ax_t, ax_y, ax_a = fig.subplots(1, 3)
+    trans = {(series_key(t), t["direction"]): t for t in red.transitions}
+    beyond = False
+    for i, stitch in enumerate(stitches):
+        key = chosen[stitch]
+        colour = _colour(stitch, i)
+        for j, d in enumerate(("x", "y")):
+            ls, marker = DIRECTION_STYLE[d]
+            t = trans.get((key, d))
+            pos = i + (j - 0.5) * 0.3
+            style = {"color": DIRECTION_COLOUR[d], "mfc": colour, "ls": "none"}
+            if t is not None and t["status"] == "transition":
+                value, lower = t["L_over_r_trans"], t["bracket_lower"]
+                ax_t.errorbar([pos], [value], yerr=[[value - lower], [0.0]], marker=marker,
+                              ms=6, capsize=3, **style)  # fmt: skip
+            elif t is not None:  # no crossing inside the L range: an arrow out of it
+                edge = [r["L_over_r"] for r in red.sweeps
+                        if series_key(r) == key and r["direction"] == d]  # fmt: skip
+                up, beyond = t["status"] == "jammed_throughout", True
+                ax_t.plot([pos], [max(edge) if up else min(edge)], marker="^" if up else "v",
+                          ms=8, **style)  # fmt: skip
+                notes.append(f"patterns: {stitch} in {d}: {t['status'].replace('_', ' ')}")
+            rows = sorted((r for r in red.sweeps if series_key(r) == key and r["direction"] == d
+                           and r["Y_sec_N_per_mm"] is not None), key=lambda r: r["L_over_r"])  # fmt: skip
+            if rows:
+                ax_y.plot([r["L_over_r"] for r in rows], [r["Y_sec_N_per_mm"] for r in rows],
+                          color=colour, ls=ls, marker=marker, ms=4)  # fmt: skip
+        pts = sorted((r for r in red.points if series_key(r) == key
+                      and r.get("aspect_ratio") is not None), key=lambda r: r["L_over_r"])  # fmt: skip
+        if pts:
+            ax_a.plot([r["L_over_r"] for r in pts], [r["aspect_ratio"] for r in pts],
+                      color=colour, marker="o", ms=4)  # fmt: skip
+    ax_t.set_xticks(range(len(stitches)))
+    ax_t.set_xticklabels(stitches, rotation=30 if narrow() or len(stitches) > 3 else 0)
+    ax_t.set_xlim(-0.6, len(stitches) - 0.4)
+    ax_t.set_ylabel(r"$(L/r)_{\rm trans}$")
+    ax_t.set_title(
+        "(a) unjamming transition\nbar: bracket" + ("; ▲▼: beyond the L range" if beyond else "")
+    )
+    ax_y.set_xlabel(L_OVER_R)
+    ax_y.set_ylabel(r"secant modulus $Y_{\rm sec}$ (N/mm)")
+    ax_y.set_ylim(bottom=0.0)
+    panel_title(ax_y, r"(b) $Y_{\rm sec} = \sigma(0.02)/0.02$")
+    ax_a.set_xlabel(L_OVER_R)
+    ax_a.set_ylabel(r"aspect ratio $a_{y0}/a_{x0}$")
+    panel_title(ax_a, "(c) zero-force stitch shape")
+    ax_t.legend(handles=[Line2D([], [], color=DIRECTION_COLOUR[d], marker=DIRECTION_STYLE[d][1],
+                                ls="none", label=f"pulled in {d}") for d in ("x", "y")],
+                loc="best", frameon=False)  # fmt: skip
+    ax_y.legend(handles=[Line2D([], [], color="0.3", ls=DIRECTION_STYLE[d][0],
+                                marker=DIRECTION_STYLE[d][1], ms=4, label=f"pulled in {d}")
+                         for d in ("x", "y")], loc="best", frameon=False)  # fmt: skip
+    ax_a.legend(handles=[Line2D([], [], color=_colour(s, i), marker="o", ms=4, label=s)
+                         for i, s in enumerate(stitches)], loc="best", frameon=False)  # fmt: skip
+    title(fig, red, "Stitch patterns: transition, stiffness and shape")
+    return fig
