@@ -8,11 +8,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..config import NOT_CONVERGED, NOT_KNITTABLE, Fidelity, SolverSettings, StitchParams
+from ..config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, Fidelity, SolverSettings, StitchParams
 from ..model import CellModel
+from ..stitches import get_stitch
 from .chains import Chain, merge_chains
 from .relaxer import Relaxer
 from .result import Relaxation, with_status
+
+ROUGH_SLSQP_MAXITER = 10
+"""SLSQP's iteration limit in ``relax_rough``, in units of ``SolverSettings.maxiter``."""
 
 
 def continuation_path(
@@ -97,15 +101,26 @@ def walk_starts(
         step = settings.length_tol_mm
         key = params.model_copy(update={"L_mm": round(params.L_mm / step) * step})
         groups.setdefault(key.model_dump_json(), []).append(i)
+    stitch = get_stitch(target.stitch)
+    rough, path = stitch.rough, settings
+    if stitch.stage_dL_mm is not None:
+        dl = max(settings.continuation_dL_mm, stitch.stage_dL_mm)
+        path = settings.model_copy(update={"continuation_dL_mm": dl})
     for members in groups.values():
-        stages = continuation_path(starts[members[0]][1], target, settings)
+        stages = continuation_path(starts[members[0]][1], target, path)
         chains = [Chain(i, np.asarray(starts[i][0], dtype=float), Relaxer(settings), None)
                   for i in members]  # fmt: skip
         for k, params in enumerate(stages):
             last = k == len(stages) - 1
             model = CellModel(params, fidelity)
             for c in chains:
-                c.last = c.relaxer.relax(model, c.x, None, settings if last else loose)
+                stage = settings if last else loose
+                if rough and not last:
+                    c.last = Relaxer(_slsqp(stage)).relax(model, c.x, None)
+                elif rough:
+                    c.last = relax_rough(c.relaxer, model, c.x, stage)
+                else:
+                    c.last = c.relaxer.relax(model, c.x, None, stage)
                 r = c.last
                 if not np.all(np.isfinite(r.x)) or (not last and r.status == NOT_KNITTABLE):
                     where = (
@@ -127,3 +142,48 @@ def walk_starts(
         note = f"merged into start {j} at continuation stage {merged_at[i]}/{total}: same minimum"
         done[int(i)] = replace(r, message=note, iterations=0, evaluations=0, seconds=0.0), total
     return [done[i] for i in range(n)], merged_into, merged_at
+
+
+def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
+                settings: SolverSettings) -> Relaxation:  # fmt: skip
+    """The zero-force state of a ``Stitch.rough`` stitch from ``x``: the lower of two
+    minimisers' minima (docs/model.md §11).
+
+    ``relaxer`` relaxes first (Newton, SLSQP finishing where it cannot, with the chain's
+    carried curvature; if SLSQP too stops short, SLSQP goes on from there with
+    ``ROUGH_SLSQP_MAXITER`` times the iteration limit), then SLSQP alone from ``x`` with
+    that limit. The two descents take different paths through the shallow minima and
+    land in different ones, by up to ~3e-4 mJ, neither always lower. Kept: the lowest
+    converged (else knittable, else any) result, with the iterations, evaluations and
+    seconds of all; if it is not the relaxer's own, the relaxer's curvature is dropped
+    (it belongs to another point)."""
+    first = relaxer.relax(model, x, None, settings)
+    slsqp = _slsqp(settings)
+    tried = [first]
+    if first.status == NOT_CONVERGED and np.all(np.isfinite(first.x)):
+        tried.append(Relaxer(slsqp).relax(model, first.x, None))
+    tried.append(Relaxer(slsqp).relax(model, x, None))
+
+    def rank(r: Relaxation) -> tuple[int, float]:
+        e = r.total_energy
+        order = 0 if r.status == CONVERGED else 1 if r.status != NOT_KNITTABLE else 2
+        return order, e if math.isfinite(e) else math.inf
+
+    best = min(tried, key=rank)
+    if best is not first:
+        relaxer.curvature = None
+    how = ", ".join(f"{r.total_energy:.7f} mJ ({r.status})" for r in tried)
+    return replace(
+        best,
+        message=f"{best.message} [lowest of {len(tried)} descents: {how}]",
+        iterations=sum(r.iterations for r in tried),
+        evaluations=sum(r.evaluations for r in tried),
+        seconds=sum(r.seconds for r in tried),
+    )
+
+
+def _slsqp(settings: SolverSettings) -> SolverSettings:
+    """``settings`` with SLSQP as the minimiser, ``ROUGH_SLSQP_MAXITER`` times the limit."""
+    return settings.model_copy(
+        update={"method": "slsqp", "maxiter": ROUGH_SLSQP_MAXITER * settings.maxiter}
+    )

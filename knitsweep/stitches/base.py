@@ -84,6 +84,19 @@ class Stitch:
     mirror_parity: tuple[int, int] = (0, 0)
     """With ``images = "glides"``: image (m, n) is mirrored (z -> -z) when
     pm m + pn n is odd (docs/model.md §11; garter (0, 1), rib (1, 0), seed (1, 1))."""
+    rough: bool = False
+    """Whether the zero-force energy has many shallow local minima a relaxation lands in
+    by the path it takes (rib's free yarn: its contact samples sit at fixed curve
+    parameters, and re-spacing them along the yarn lowers the sampled contact energy by
+    ~1e-4 mJ in steps; garter's, docs/model.md §11). Then ``relax.walk_starts`` relaxes
+    the intermediate stages of a continuation with SLSQP and the last one with two
+    minimisers, keeping the lower minimum (``relax.continuation.relax_rough``). False
+    for every stitch of translations alone: their relaxations are unchanged."""
+    stage_dL_mm: float | None = None
+    """Largest change of L (mm) per continuation stage for this stitch, at least
+    ``SolverSettings.continuation_dL_mm`` (None: that setting). Rib's shipped starts
+    (11.28 mm) reach 9.3–13.3 mm in one stage of 2 mm; garter's rows come apart in
+    stages of 0.5 mm, so it keeps the setting."""
     _loaded: dict = field(default_factory=dict, repr=False)  # kernels, starts: loaded once
 
     def __post_init__(self) -> None:

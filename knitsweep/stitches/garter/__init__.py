@@ -35,5 +35,6 @@ STITCH = Stitch(
     path_order=tuple(range(layout.N_SEGMENTS)),
     closing_shift=(1, 0),
     mirror_parity=(0, 1),
+    rough=True,
 )
 """The garter stitch: one knit stitch, its odd rows mirrored."""

@@ -35,5 +35,7 @@ STITCH = Stitch(
     path_order=tuple(range(layout.N_SEGMENTS)),
     closing_shift=(1, 0),
     mirror_parity=(1, 0),
+    rough=True,
+    stage_dL_mm=2.0,
 )
 """The 1×1 rib stitch: one knit stitch, its odd columns mirrored."""
