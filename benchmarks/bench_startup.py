@@ -27,7 +27,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 JOB = ROOT / "tests" / "data" / "jobs" / "tiny.toml"
-STATE = ROOT / "knitsweep" / "data" / "Init_1.dat"
+STATE = ROOT / "knitsweep" / "stitches" / "stockinette" / "data" / "Init_1.dat"
 
 
 def _time(cmd: list[str], cwd: str) -> float:

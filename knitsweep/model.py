@@ -20,7 +20,7 @@ from .config import Fidelity, InternalParams, StitchParams
 from .errors import InputError
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
-from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
+from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
 from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
@@ -64,6 +64,13 @@ class Energies:
         }
 
 
+RESOLUTION_RTOL = 0.25
+"""A free yarn's contact sum holds if, with twice the samples per segment, E_c differs by
+at most this fraction (measured at relaxed states with speeds within
+``stockinette_free.layout.SPEED_BOUNDS``: 4–9 %; a yarn whose cores pass between sparse
+samples: 12-fold, docs/model.md §11)."""
+
+
 class CellModel:
     """Energy of one periodic cell of the stitch ``params.stitch`` at given parameters
     and fidelity."""
@@ -88,6 +95,7 @@ class CellModel:
         self._mode = IMAGES_CUTOFF if self.fidelity.images == "cutoff" else IMAGES_REFERENCE
         self._grad_e = np.empty(self.stitch.n_state)
         self._grad_l = np.empty(self.stitch.n_state)
+        self._finer: CellModel | None = None  # twice the samples (resolution_change)
 
     def _geometry_of(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The stitch's control points and Jacobian of state ``x``, in this model's
@@ -176,6 +184,34 @@ class CellModel:
                                   self.stitch.mirror_parity, self.fidelity.samples_per_segment)[0]  # fmt: skip
         return min_zeta(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
                         self._mode)  # fmt: skip
+
+    def resolution_change(self, x: np.ndarray, contact_energy: float | None = None) -> str:
+        """For a stitch with mirrored images (a free yarn): "" if the contact sum of state
+        ``x`` holds with twice the samples per segment (no hard-core overlap there, and
+        E_c within ``RESOLUTION_RTOL`` of this model's), else what it finds. The samples
+        sit at fixed curve parameters, so a free yarn can space them out where it
+        crosses itself and let hard cores pass between them (docs/model.md §11,
+        "Resolution"). Stitches of translations alone are not checked ("")."""
+        if self.stitch.images != "glides":
+            return ""
+        fine = self._finer
+        if fine is None:
+            twice = 2 * self.fidelity.samples_per_segment
+            fine = self._finer = CellModel(self.params, self.fidelity.model_copy(
+                update={"samples_per_segment": twice}))  # fmt: skip
+        x = self._as_state(x)
+        if contact_energy is None:
+            contact_energy = self.energies(x).contact_energy
+        zeta = fine.min_zeta(x)
+        ec = fine.energies(x).contact_energy
+        n = fine.fidelity.samples_per_segment
+        if zeta < CORE_EPS:
+            return (f"contact under-resolved: with {n} samples per segment the hard cores "
+                    f"overlap (smallest zeta {zeta:.3g})")  # fmt: skip
+        if abs(ec - contact_energy) > RESOLUTION_RTOL * contact_energy:
+            return (f"contact under-resolved: E_c = {contact_energy:.4g} mJ, with {n} samples "
+                    f"per segment {ec:.4g} mJ")  # fmt: skip
+        return ""
 
     def topology_change(self, x: np.ndarray) -> str:
         """For a stitch with mirrored images: "" if state ``x`` shows the crossings of

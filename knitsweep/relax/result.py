@@ -122,6 +122,8 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
             why = f"hard cores overlap at the minimum (smallest zeta = {zeta:.3g} < {CORE_EPS:g})"
         elif changed := model.topology_change(x):  # patterns only (docs/model.md §11)
             status, why = NOT_CONVERGED, changed
+        elif coarse := model.resolution_change(x, e.contact_energy):  # patterns only
+            status, why = NOT_CONVERGED, coarse
     else:
         status, why = NOT_CONVERGED, message
     return Relaxation(

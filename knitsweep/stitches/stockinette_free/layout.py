@@ -67,6 +67,17 @@ STARTS = tuple(f"Init_{i}.dat" for i in range(1, 8))
 """The authors' seven starting states mapped into the free yarn (``ansatz.to_free``)."""
 
 
+SPEED_BOUNDS = (0.05, 0.3)
+"""End speeds α of a segment, in units of the yarn length L (an eighth of the yarn per
+segment is 0.125 L). The contact samples sit at fixed curve parameters (docs/model.md
+§6), so a segment's samples are as far apart as its speed makes them: with speeds down to
+10⁻³ L a relaxation shortens some segments to ~0.02 mm and stretches others, and the
+sparse samples let hard cores pass between them (docs/model.md §11, "Resolution")."""
+OFFSET_BOUND = 0.125
+"""|β| <= 0.125 L: the second control point's offset along the tangent, within an eighth
+of the yarn (as far as one segment's share)."""
+
+
 def state_bounds(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
     """Generous physical bounds (lower, upper), each (87,), for yarn length L and radius
     r (mm); ±inf where free (angles). As stockinette's (§2): speeds in [1e-3 L, L/2],
@@ -83,9 +94,9 @@ def state_bounds(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
     for s in range(N_SEGMENTS):
         b = SEG0 + PER_SEGMENT * s
         for i in (b, b + 2):
-            lo[i], hi[i] = 1e-3 * L, 0.5 * L
+            lo[i], hi[i] = SPEED_BOUNDS[0] * L, SPEED_BOUNDS[1] * L
         for i in (b + 1, b + 3):
-            lo[i], hi[i] = -0.25 * L, 0.25 * L
+            lo[i], hi[i] = -OFFSET_BOUND * L, OFFSET_BOUND * L
     lo[IDX_AX] = lo[IDX_AY] = 0.5 * r
     hi[IDX_AX] = hi[IDX_AY] = L
     return lo, hi
