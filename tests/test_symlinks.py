@@ -17,6 +17,7 @@ import pytest
 from conftest import TINY
 
 ROOT = Path(__file__).resolve().parents[1]
+INIT_1 = ROOT / "knitsweep" / "stitches" / "stockinette" / "data" / "Init_1.dat"
 SITE = Path(sysconfig.get_paths()["purelib"])  # this venv's packages, for the system python
 
 
@@ -156,13 +157,7 @@ def test_outputs_are_never_written_through_a_link(shared, user, command):
         args = ("report", "t.h5", "--out", "r.html")
     elif command == "render":
         (d / "r.png").symlink_to(victim)
-        args = (
-            "render",
-            "--out",
-            "r.png",
-            "--state",
-            str(ROOT / "knitsweep/stitches/stockinette/data/Init_1.dat"),
-        )
+        args = ("render", "--out", "r.png", "--state", str(INIT_1))
     elif command == "merge":
         (d / "m.h5").symlink_to(victim)
         args = ("merge", "m.h5", "t.h5")
