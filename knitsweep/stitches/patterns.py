@@ -90,13 +90,17 @@ def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10):
     pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
     best = (1.0, None, None, None)
     d = 2 * r - 2 * r_core
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
     for m in range(-2, 3):
         for n in range(-3, 4):
             q = pts.copy()
             if (parity[0] * m + parity[1] * n) % 2:
                 q[:, 2] *= -1.0
             q += (m * a_x, n * a_y, 0.0)
-            dist = np.linalg.norm(pts[:, None] - q[None], axis=-1)
+            if np.any(q.min(axis=0) - hi >= 2 * r) or np.any(lo - q.max(axis=0) >= 2 * r):
+                continue  # every sample of the image 2r away or more: no contact counted
+            diff = pts[:, None] - q[None]  # |diff| as np.linalg.norm sums it, without its overhead
+            dist = np.sqrt(diff[..., 0] ** 2 + diff[..., 1] ** 2 + diff[..., 2] ** 2)
             if n == 0:
                 dist[np.abs(s_mid[:, None] - s_mid[None] - m * s_tot) <= EXCLUSION_FACTOR * r] = (
                     np.inf
