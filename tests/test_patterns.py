@@ -307,3 +307,20 @@ def test_relax_rough_keeps_the_lowest_converged_descent(monkeypatch):
     assert [m for m, _ in starts] == ["newton", "slsqp", "slsqp"]
     assert np.array_equal(starts[1][1], base.x)
     assert np.array_equal(starts[2][1], x)
+
+
+def test_rows_two_apart_do_not_count_in_the_interlocking(model):
+    """Garter relaxed at L = 8.5 mm (k = 0.1) crosses the rows two above and below in
+    projection as well: its word, as the patterns job found it, has 8 such crossings
+    beside the 8 with the rows beside it, in garter's order. Those alone are compared;
+    a flipped sign among them still is a change."""
+    from knitsweep.stitches.topology import adjacent_rows
+
+    found = [(-2, 1), (-2, 1), (-1, -1), (1, 1), (1, -1), (2, -1), (2, -1), (1, -1),
+             (2, -1), (2, -1), (1, 1), (-1, -1), (-1, 1), (-2, 1), (-2, 1), (-1, 1)]  # fmt: skip
+    garter = CellModel(P.model_copy(update={"stitch": "garter"}))
+    x = garter.stitch.start(1)
+    reference = garter.topology_change(x) == "" and garter.stitch._loaded["topology_word"]
+    assert tuple((n, (s,)) for n, s in adjacent_rows(found)) == reference
+    flipped = [(n, -s) if i == 3 else (n, s) for i, (n, s) in enumerate(found)]
+    assert tuple((n, (s,)) for n, s in adjacent_rows(flipped)) != reference
