@@ -60,8 +60,8 @@ MODULE_ORDER = {
     "service": ["signals", "grid", "jobs", "progress", "worker", "adaptive", "executors",
                 "slurm", "master", "runs", "recovery"],
     "report": ["force_columns", "reduce", "tidy", "results", "tables", "plotting", "fig_energy",
-               "fig_mechanics", "fig_volumes", "fig_forces", "figures", "html", "render",
-               "contact_volumes"],
+               "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns", "figures", "html",
+               "render", "contact_volumes"],
     "service.executors": ["protocol", "local", "mpi"],
     "cli": ["common", "model_commands", "run_commands", "analysis_commands", "application"],
 }  # fmt: skip

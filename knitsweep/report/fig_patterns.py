@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..stitches import STITCH_NAMES
 from .plotting import DIRECTION_COLOUR, L_OVER_R, SkipFigure, narrow, new_figure, panel_title, title
 from .reduce import Reduction, series_key
 
@@ -38,7 +39,8 @@ def _one_series_per_stitch(red: Reduction, notes: list[str]) -> dict[str, tuple[
     for row in red.sweeps:
         keys.setdefault(str(row["stitch"]), []).append(series_key(row))
     chosen = {}
-    for stitch, ks in sorted(keys.items()):
+    known = {name: i for i, name in enumerate(STITCH_NAMES)}  # stockinette, the reference, first
+    for stitch, ks in sorted(keys.items(), key=lambda kv: (known.get(kv[0], len(known)), kv[0])):
         unique = sorted(set(ks))
         chosen[stitch] = unique[0]
         if len(unique) > 1:
@@ -99,7 +101,11 @@ def figP_patterns(red: Reduction, notes: list[str]) -> Any:
     )
     ax_y.set_xlabel(L_OVER_R)
     ax_y.set_ylabel(r"secant modulus $Y_{\rm sec}$ (N/mm)")
-    ax_y.set_ylim(bottom=0.0)
+    values = [v for ln in ax_y.get_lines() for v in ln.get_ydata() if v > 0]
+    if values and max(values) > 10 * min(values):  # patterns differ by decades
+        ax_y.set_yscale("log")
+    else:
+        ax_y.set_ylim(bottom=0.0)
     panel_title(ax_y, r"(b) $Y_{\rm sec} = \sigma(0.02)/0.02$")
     ax_a.set_xlabel(L_OVER_R)
     ax_a.set_ylabel(r"aspect ratio $a_{y0}/a_{x0}$")
