@@ -91,7 +91,10 @@ def _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l):
     state's last two entries."""
     grad_e[:] = 0.0
     grad_l[:] = 0.0
-    ge += gc
+    for s in range(ge.shape[0]):  # ge += gc, element by element (numpy's in-place
+        for i in range(6):  # add compiles its broadcasting machinery: ~0.4 s)
+            for d in range(3):
+                ge[s, i, d] += gc[s, i, d]
     _jt_dot2(jac, ge, gl, grad_e, grad_l)
     n = grad_e.shape[0]
     grad_e[n - 2] += gcell[0]

@@ -72,8 +72,13 @@ def build_neighbour_list(cp, tab, ax, ay, r, mode, skin):
         k += 1
     meta = np.empty(_META)
     meta[0], meta[1], meta[2], meta[5], meta[6] = ax, ay, skin, r, mode
-    meta[3] = np.abs(ib[2, :c]).max() if c > 0 else 0.0
-    meta[4] = np.abs(ib[3, :c]).max() if c > 0 else 0.0
+    mmax = 0  # max |m|, |n| over the pairs (0 if none), in a plain loop
+    nmax = 0
+    for q in range(c):
+        mmax = max(mmax, abs(ib[2, q]))
+        nmax = max(nmax, abs(ib[3, q]))
+    meta[3] = mmax
+    meta[4] = nmax
     return rows[:k].copy(), pos, meta
 
 
@@ -119,13 +124,13 @@ def contact_energy_listed(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp
     energy = 0.0
     gax = 0.0
     gay = 0.0
-    c = 0
+    c = np.int64(0)  # not the literal 0: no extra specialisation of the callees
     for q in range(rows.shape[0]):
         i, j0, j1, m, nn = rows[q, 0], rows[q, 1], rows[q, 2], rows[q, 3], rows[q, 4]
         if c + n > ib.shape[1]:
             energy, gax, gay = accumulate_pairs(ib, fb, c, speed, dt2, r, rc, k, p, with_grad,
                                                 work, g, energy, gax, gay)  # fmt: skip
-            c = 0
+            c = np.int64(0)
         c = search_row(pos, s_mid, i, j0, j1, m, nn, m * ax, nn * ay, m * s_tot, cut2, s_excl,
                        ib, fb, c)  # fmt: skip
     energy = finish_pairs(ib, fb, c, speed, r1, tab, dt2, r, rc, k, p, with_grad, work, g, energy,
