@@ -19,13 +19,13 @@ import numpy as np
 from .config import Fidelity, InternalParams, StitchParams
 from .errors import InputError
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
-from .kernels.cell import cell_energy, cell_energy_listed
-from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
+from .kernels.cell import cell_energy_listed
+from .kernels.contact import IMAGES_CUTOFF, IMAGES_REFERENCE, find_contacts, min_zeta
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
 from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
 from .kernels.mirrored import mirrored_forces_by_class
-from .kernels.neighbours import build_neighbour_list
+from .kernels.neighbours import NO_LIST, build_neighbour_list
 from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
 from .stitches.patterns import min_zeta_where
@@ -105,7 +105,8 @@ class CellModel:
                 ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.stitch.mirror_parity, with_grad,
                 self._grad_e, self._grad_l,
             )  # fmt: skip
-        return cell_energy(*self._energy_args(cp, jac, x, with_grad))
+        # cell.cell_energy, without its Python layer: the kernel with no list
+        return cell_energy_listed(*self._energy_args(cp, jac, x, with_grad), *NO_LIST)[:3]
 
     def _energy_args(self, cp, jac, x, with_grad) -> tuple:
         """The arguments of ``cell_energy`` (and the first ones of ``cell_energy_listed``)."""
@@ -369,15 +370,12 @@ def _compile_contact(model: CellModel, what: str) -> None:
                                                   energies)))  # fmt: skip
     # the translations' kernels as well: ``kernels.cached`` looks for them, so a cache
     # filled by a job of patterns alone must hold them too
-    energy_args = model._energy_args(cp, jac, x, True)
-    cell_energy.compile(sig(energy_args))
+    # with or without a neighbour list (cell_energy is this kernel with NO_LIST)
+    cell_energy_listed.compile(sig(model._energy_args(cp, jac, x, True) + NO_LIST))
     if what == "energy":
         return
-    n_samples = model.stitch.n_segments * tab.shape[1]
-    listed = (np.empty((0, 5), dtype=np.int64), np.empty((3, n_samples)), np.empty(7))
-    cell_energy_listed.compile(sig(energy_args + listed))
     build_neighbour_list.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode, 0.1)))
-    min_zeta.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, mode)))
+    find_contacts.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode)))  # under min_zeta
     dcp = np.ascontiguousarray(jac[..., -2:])
     forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
     _forces_by_class.compile(sig((cp, dcp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,

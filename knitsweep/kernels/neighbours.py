@@ -40,6 +40,11 @@ from .partition import search_row
 # meta layout: a_x, a_y, skin, max |m|, max |n|, r, image mode at the build
 _META = 7
 
+NO_LIST = (np.empty((0, 5), dtype=np.int64), np.empty((3, 0)), np.empty(0))
+"""The three arrays of an empty neighbour list: ``contact_energy_listed`` (and
+``cell.cell_energy_listed``) then sum over the full search, as ``contact_energy``.(Writable, as the arrays of a built list: a read-only array is another type to numba,
+so another specialisation.)"""
+
 
 @njit(cache=True)
 def build_neighbour_list(cp, tab, ax, ay, r, mode, skin):
@@ -112,6 +117,9 @@ def contact_energy_listed(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp
     False), the energy comes from the full search instead: the result is always
     the exact one, and the caller should build a new list.
     """
+    if meta.shape[0] != _META:  # no list (``NO_LIST``): the search, at once
+        e = contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_cell)
+        return e, False
     n = tab.shape[1]
     dt2 = 1.0 / (n * n)
     _, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
