@@ -298,8 +298,10 @@ def compile_kernels(
     group (``KERNEL_GROUPS``). ``notice`` is told first when the kernels are not
     cached yet, so that a user knows why the first run waits.
 
-    ``what``: ``"run"`` (every kernel of a task) or ``"energy"`` (the geometry and
-    ``cell_energy`` only: what ``knitsweep energy`` calls). ``jobs``: processes that
+    ``what``: ``"run"`` (every kernel of a task), ``"all"`` (those and the ones only the
+    post-processing calls: the pair forces by class of ``report``; what ``knitsweep
+    compile`` warms) or ``"energy"`` (the geometry and ``cell_energy`` only: what
+    ``knitsweep energy`` calls). ``jobs``: processes that
     compile groups side by side when the cache is cold (None: as many as there are
     idle cores, at most one a group; 1: all here). Each fills the shared on-disk
     cache; this process then loads the kernels from it.
@@ -313,7 +315,7 @@ def compile_kernels(
     groups = ("geometry", "contact") if what == "energy" else tuple(KERNEL_GROUPS)
     seconds: dict[str, float] = {}
     if cold:
-        seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs))
+        seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs, what))
     for group in groups:
         t0 = time.perf_counter()
         compile_group(group, fidelity, stitches, what)
@@ -362,7 +364,7 @@ def _compile_contact(model: CellModel, what: str) -> None:
                                          model._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
                                          *model.stitch.mirror_parity, True, model._grad_e,
                                          model._grad_l)))  # fmt: skip
-        if what == "run":
+        if what != "energy":
             forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
             mirrored_forces_by_class.compile(sig((cp, np.ascontiguousarray(jac[..., -2:]), tab,
                                                   x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
@@ -380,8 +382,9 @@ def _compile_contact(model: CellModel, what: str) -> None:
     forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
     _forces_by_class.compile(sig((cp, dcp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
                                   forces, energies)))  # fmt: skip
-    _pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
-                                       False, forces)))  # fmt: skip
+    if what == "all":  # the post-processing's pair forces: no task calls them
+        _pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
+                                           False, forces)))  # fmt: skip
 
 
 def idle_cores() -> int:
@@ -392,7 +395,7 @@ def idle_cores() -> int:
     return max(1, round((cores or 1) - os.getloadavg()[0]))
 
 
-def _compile_in_processes(groups, fidelity, stitches, jobs) -> dict[str, float]:
+def _compile_in_processes(groups, fidelity, stitches, jobs, what="run") -> dict[str, float]:
     """Compile ``groups`` in ``jobs`` child processes (largest first, each to the least
     loaded process); {} when one process would do (then the caller compiles here)."""
     import json
@@ -406,7 +409,7 @@ def _compile_in_processes(groups, fidelity, stitches, jobs) -> dict[str, float]:
     for g in sorted(groups, key=lambda g: -_GROUP_WEIGHT[g]):
         min(bins, key=lambda b: sum(_GROUP_WEIGHT[x] for x in b)).append(g)
     spec = json.dumps({"fidelity": (fidelity or Fidelity()).model_dump(mode="json"),
-                       "stitches": list(stitches)})  # fmt: skip
+                       "stitches": list(stitches), "what": what})  # fmt: skip
     code = "import sys; from knitsweep.model import _compile_child; _compile_child(sys.argv[1:])"
     procs = [subprocess.Popen([sys.executable, "-c", code, spec, *b], stdout=subprocess.PIPE,
                               text=True) for b in bins]  # fmt: skip
@@ -434,7 +437,7 @@ def _compile_child(argv: list[str]) -> None:
     seconds = {}
     for group in argv[1:]:
         t0 = time.perf_counter()
-        compile_group(group, fidelity, tuple(spec["stitches"]))
+        compile_group(group, fidelity, tuple(spec["stitches"]), spec.get("what", "run"))
         seconds[group] = time.perf_counter() - t0
     print(json.dumps(seconds), flush=True)
 
