@@ -19,13 +19,13 @@ import numpy as np
 from .config import Fidelity, InternalParams, StitchParams
 from .errors import InputError
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
-from .kernels.cell import cell_energy, cell_energy_listed
-from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
+from .kernels.cell import cell_energy_listed
+from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE, find_contacts, min_zeta
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
 from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
 from .kernels.mirrored import mirrored_forces_by_class
-from .kernels.neighbours import build_neighbour_list
+from .kernels.neighbours import NO_LIST, build_neighbour_list
 from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
 from .stitches.patterns import min_zeta_where
@@ -113,7 +113,8 @@ class CellModel:
                 ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.stitch.mirror_parity, with_grad,
                 self._grad_e, self._grad_l,
             )  # fmt: skip
-        return cell_energy(*self._energy_args(cp, jac, x, with_grad))
+        # cell.cell_energy, without its Python layer: the kernel with no list
+        return cell_energy_listed(*self._energy_args(cp, jac, x, with_grad), *NO_LIST)[:3]
 
     def _energy_args(self, cp, jac, x, with_grad) -> tuple:
         """The arguments of ``cell_energy`` (and the first ones of ``cell_energy_listed``)."""
@@ -333,8 +334,10 @@ def compile_kernels(
     group (``KERNEL_GROUPS``). ``notice`` is told first when the kernels are not
     cached yet, so that a user knows why the first run waits.
 
-    ``what``: ``"run"`` (every kernel of a task) or ``"energy"`` (the geometry and
-    ``cell_energy`` only: what ``knitsweep energy`` calls). ``jobs``: processes that
+    ``what``: ``"run"`` (every kernel of a task), ``"all"`` (those and the ones only the
+    post-processing calls: the pair forces by class of ``report``; what ``knitsweep
+    compile`` warms) or ``"energy"`` (the geometry and ``cell_energy`` only: what
+    ``knitsweep energy`` calls). ``jobs``: processes that
     compile groups side by side when the cache is cold (None: as many as there are
     idle cores, at most one a group; 1: all here). Each fills the shared on-disk
     cache; this process then loads the kernels from it.
@@ -348,7 +351,7 @@ def compile_kernels(
     groups = ("geometry", "contact") if what == "energy" else tuple(KERNEL_GROUPS)
     seconds: dict[str, float] = {}
     if cold:
-        seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs))
+        seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs, what))
     for group in groups:
         t0 = time.perf_counter()
         compile_group(group, fidelity, stitches, what)
@@ -397,7 +400,7 @@ def _compile_contact(model: CellModel, what: str) -> None:
                                          model._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
                                          *model.stitch.mirror_parity, True, model._grad_e,
                                          model._grad_l)))  # fmt: skip
-        if what == "run":
+        if what != "energy":
             forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
             mirrored_forces_by_class.compile(sig((cp, np.ascontiguousarray(jac[..., -2:]), tab,
                                                   x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
@@ -405,21 +408,19 @@ def _compile_contact(model: CellModel, what: str) -> None:
                                                   energies)))  # fmt: skip
     # the translations' kernels as well: ``kernels.cached`` looks for them, so a cache
     # filled by a job of patterns alone must hold them too
-    energy_args = model._energy_args(cp, jac, x, True)
-    cell_energy.compile(sig(energy_args))
+    # with or without a neighbour list (cell_energy is this kernel with NO_LIST)
+    cell_energy_listed.compile(sig(model._energy_args(cp, jac, x, True) + NO_LIST))
     if what == "energy":
         return
-    n_samples = model.stitch.n_segments * tab.shape[1]
-    listed = (np.empty((0, 5), dtype=np.int64), np.empty((3, n_samples)), np.empty(7))
-    cell_energy_listed.compile(sig(energy_args + listed))
     build_neighbour_list.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode, 0.1)))
-    min_zeta.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, mode)))
+    find_contacts.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode)))  # under min_zeta
     dcp = np.ascontiguousarray(jac[..., -2:])
     forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
     _forces_by_class.compile(sig((cp, dcp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
                                   forces, energies)))  # fmt: skip
-    _pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
-                                       False, forces)))  # fmt: skip
+    if what == "all":  # the post-processing's pair forces: no task calls them
+        _pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
+                                           False, forces)))  # fmt: skip
 
 
 def idle_cores() -> int:
@@ -430,7 +431,7 @@ def idle_cores() -> int:
     return max(1, round((cores or 1) - os.getloadavg()[0]))
 
 
-def _compile_in_processes(groups, fidelity, stitches, jobs) -> dict[str, float]:
+def _compile_in_processes(groups, fidelity, stitches, jobs, what="run") -> dict[str, float]:
     """Compile ``groups`` in ``jobs`` child processes (largest first, each to the least
     loaded process); {} when one process would do (then the caller compiles here)."""
     import json
@@ -444,7 +445,7 @@ def _compile_in_processes(groups, fidelity, stitches, jobs) -> dict[str, float]:
     for g in sorted(groups, key=lambda g: -_GROUP_WEIGHT[g]):
         min(bins, key=lambda b: sum(_GROUP_WEIGHT[x] for x in b)).append(g)
     spec = json.dumps({"fidelity": (fidelity or Fidelity()).model_dump(mode="json"),
-                       "stitches": list(stitches)})  # fmt: skip
+                       "stitches": list(stitches), "what": what})  # fmt: skip
     code = "import sys; from knitsweep.model import _compile_child; _compile_child(sys.argv[1:])"
     procs = [subprocess.Popen([sys.executable, "-c", code, spec, *b], stdout=subprocess.PIPE,
                               text=True) for b in bins]  # fmt: skip
@@ -472,7 +473,7 @@ def _compile_child(argv: list[str]) -> None:
     seconds = {}
     for group in argv[1:]:
         t0 = time.perf_counter()
-        compile_group(group, fidelity, tuple(spec["stitches"]))
+        compile_group(group, fidelity, tuple(spec["stitches"]), spec.get("what", "run"))
         seconds[group] = time.perf_counter() - t0
     print(json.dumps(seconds), flush=True)
 

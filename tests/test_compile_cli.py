@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from conftest import SHIPPED
 
-ENTRY_POINTS = ("cell.cell_energy-", "cell.cell_energy_listed-", "contact.min_zeta-",
+ENTRY_POINTS = ("cell.cell_energy_listed-", "contact.find_contacts-",
                 "forces.contact_forces_by_class-", "kkt.kkt_step-",
                 "geometry.state_to_control_points-")  # fmt: skip
 

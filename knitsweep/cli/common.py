@@ -115,7 +115,9 @@ def compile_notice(energy_only: bool = False) -> None:
     from .. import kernels
 
     message = (
-        kernels.compile_notice(("cell.cell_energy-",)) if energy_only else kernels.compile_notice()
+        kernels.compile_notice(("cell.cell_energy_listed-",))
+        if energy_only
+        else kernels.compile_notice()
     )
     if message:
         typer.echo(message, err=True)

@@ -231,8 +231,9 @@ def compile_(
                       "knitsweep.stitches.STITCH_NAMES)", default="stockinette")] = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
-    """Compile every kernel a `run` uses into numba's on-disk cache (warm a node-local
-    cache before a batch job), and say what was compiled and how long it took."""
+    """Compile every kernel a `run` uses (and the pair forces `report` computes) into
+    numba's on-disk cache (warm a node-local cache before a batch job), and say what was
+    compiled and how long it took."""
     import os
     import sys
     import time
@@ -258,7 +259,7 @@ def compile_(
 
         was_cached = kernels.cached()
         t0 = time.perf_counter()
-        seconds = compile_kernels(stitches=stitches, jobs=jobs)
+        seconds = compile_kernels(stitches=stitches, jobs=jobs, what="all")
         wall = time.perf_counter() - t0
     result = {"cache_dir": kernels.numba.config.CACHE_DIR, "was_cached": was_cached,
               "cached": kernels.cached(), "seconds": round(wall, 2),

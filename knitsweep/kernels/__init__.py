@@ -46,13 +46,13 @@ COMPILE_SECONDS = 60
 """About how long compiling every kernel takes once, in one process (measured 58 s wall,
 39 CPU s, on the loaded 2-core project VM: benchmarks/bench_compile.py); with idle
 cores ``model.compile_kernels`` compiles its groups side by side."""
-_ENTRY_POINTS = ("cell.cell_energy-", "cell.cell_energy_listed-", "contact.min_zeta-",
+_ENTRY_POINTS = ("cell.cell_energy_listed-", "contact.find_contacts-",
                  "forces.contact_forces_by_class-", "kkt.kkt_step-")  # fmt: skip
 
 
 def cached(entry_points: tuple[str, ...] = _ENTRY_POINTS) -> bool:
     """Whether numba's on-disk cache holds this version's kernels (by default the
-    ones every task uses; ``("cell.cell_energy-",)`` for one energy) already; if not,
+    ones every task uses; ``("cell.cell_energy_listed-",)`` for one energy) already; if not,
     the first call compiles them: up to ``COMPILE_SECONDS``."""
     indexes = [p.name for p in Path(numba.config.CACHE_DIR).glob("**/*.nbi")]
     return all(any(n.startswith(entry) for n in indexes) for entry in entry_points)

@@ -14,8 +14,7 @@ import numpy as np
 from numba import njit
 
 from .bending import bending_and_length
-from .contact import contact_energy
-from .neighbours import contact_energy_listed
+from .neighbours import NO_LIST, contact_energy_listed
 
 
 @njit(cache=True)
@@ -40,7 +39,6 @@ def _jt_dot2(jac, g1, g2, out1, out2):
                         out2[k] += row[k] * b
 
 
-@njit(cache=True)
 def cell_energy(cp, jac, ax, ay, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, mode,
                 with_grad, grad_e, grad_l):  # fmt: skip
     """Bending energy, contact energy (N mm) and yarn length (mm) of the cell whose
@@ -51,13 +49,14 @@ def cell_energy(cp, jac, ax, ay, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, 
     gradients of E = E_b + E_c and of the length with respect to the state are
     written to ``grad_e`` and ``grad_l`` (n,), through ``jac`` (S, 6, 3, n).
     Returns (E_b, E_c, length).
+
+    Not a kernel of its own: ``cell_energy_listed`` with no list (``neighbours.NO_LIST``),
+    which sums over the full search (``contact.contact_energy``) at once, the same
+    numbers. A separate kernel would compile the bending, contact and gradient kernels
+    into one more entry point (~1.2 s of compile time).
     """
-    ge, gl, gc, gcell = _scratch(cp)
-    eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
-    ec = contact_energy(cp, ctab, ax, ay, r, rc, k, p, mode, with_grad, gc, gcell)
-    if with_grad:
-        _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
-    return eb, ec, length
+    return cell_energy_listed(cp, jac, ax, ay, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p,
+                              mode, with_grad, grad_e, grad_l, *NO_LIST)[:3]  # fmt: skip
 
 
 @njit(cache=True)
@@ -91,7 +90,10 @@ def _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l):
     state's last two entries."""
     grad_e[:] = 0.0
     grad_l[:] = 0.0
-    ge += gc
+    for s in range(ge.shape[0]):  # ge += gc, element by element (numpy's in-place
+        for i in range(6):  # add compiles its broadcasting machinery: ~0.4 s)
+            for d in range(3):
+                ge[s, i, d] += gc[s, i, d]
     _jt_dot2(jac, ge, gl, grad_e, grad_l)
     n = grad_e.shape[0]
     grad_e[n - 2] += gcell[0]

@@ -94,8 +94,18 @@ def image_list(pts, ax, ay, r, mode):
     if mode == IMAGES_REFERENCE:
         mmax, nmax = 1, 3
     else:
-        ext_x = pts[:, 0].max() - pts[:, 0].min() + 2.0 * r
-        ext_y = pts[:, 1].max() - pts[:, 1].min() + 2.0 * r
+        # max - min of the x and y columns as numpy's max() and min() give them (a
+        # NaN propagates), in one loop that compiles to far less than the reductions
+        lo_x = hi_x = pts[0, 0]
+        lo_y = hi_y = pts[0, 1]
+        for i in range(1, pts.shape[0]):
+            vx, vy = pts[i, 0], pts[i, 1]
+            lo_x = vx if vx < lo_x or vx != vx else lo_x
+            hi_x = vx if vx > hi_x or vx != vx else hi_x
+            lo_y = vy if vy < lo_y or vy != vy else lo_y
+            hi_y = vy if vy > hi_y or vy != vy else hi_y
+        ext_x = hi_x - lo_x + 2.0 * r
+        ext_y = hi_y - lo_y + 2.0 * r
         mmax = int(np.ceil(ext_x / ax)) - 1 if ax > 0.0 else 0
         nmax = int(np.ceil(ext_y / ay)) - 1 if ay > 0.0 else 0
         mmax = max(mmax, 0)
@@ -137,9 +147,13 @@ def sample_cell(cp, tab):
 
 @njit(cache=True)
 def _grow(a, size):
-    """Copy of a (k, cap) buffer with ``size`` columns."""
+    """Copy of a (k, cap) buffer with ``size`` columns. Element by element: an array
+    slice assignment would compile numba's shape-mismatch error path (string
+    formatting, ~2 s of compile time)."""
     out = np.empty((a.shape[0], size), dtype=a.dtype)
-    out[:, : a.shape[1]] = a
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            out[i, j] = a[i, j]
     return out
 
 
@@ -194,7 +208,7 @@ def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
     cap = 4 * nseg * n * n
     ib = np.empty((4, cap), dtype=np.int64)
     fb = np.empty((4, cap))
-    c = 0
+    c = np.int64(0)  # not the literal 0: no extra specialisation of the callees
     for q in range(blocks.shape[0]):
         im, sa, sb = blocks[q, 0], blocks[q, 1], blocks[q, 2]
         m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
@@ -347,14 +361,14 @@ def contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_
     energy = 0.0
     gax = 0.0
     gay = 0.0
-    c = 0
+    c = np.int64(0)  # not the literal 0: no extra specialisation of the callees
     for q in range(blocks.shape[0]):
         im, sa, sb = blocks[q, 0], blocks[q, 1], blocks[q, 2]
         m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
         if c + n * n > ib.shape[1]:
             energy, gax, gay = accumulate_pairs(ib, fb, c, speed, dt2, r, rc, k, p, with_grad,
                                                 work, g, energy, gax, gay)  # fmt: skip
-            c = 0
+            c = np.int64(0)
         c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, m * ax, nn * ay, m * s_tot,
                          cut * cut, s_excl, ib, fb, c)  # fmt: skip
     return finish_pairs(ib, fb, c, speed, r1, tab, dt2, r, rc, k, p, with_grad, work, g, energy,
@@ -406,14 +420,14 @@ def project_gradient(g, speed, r1, tab, grad_cp):
                     grad_cp[s, cc, d] += tab[0, jj, cc] * gd + tab[1, jj, cc] * gv
 
 
-@njit(cache=True)
 def min_zeta(cp, tab, ax, ay, r, rc, mode):
     """Smallest zeta = (R - 2 r_core)/(2r - 2 r_core) over the counted contacts;
-    1.0 when nothing touches."""
-    _, _, _, idx, sep = find_contacts(cp, tab, ax, ay, r, mode)
-    zmin = 1.0
-    for c in range(idx.shape[0]):
-        z = (sep[c, 3] - 2.0 * rc) / (2.0 * r - 2.0 * rc)
-        if z < zmin:
-            zmin = z
-    return zmin
+    1.0 when nothing touches.
+
+    Plain numpy on ``find_contacts``'s separations (the same operations as a compiled
+    loop, and the same minimum): a kernel of its own would compile the whole contact
+    search once more (~0.8 s) for a call made once per relaxation."""
+    sep = find_contacts(cp, tab, ax, ay, r, mode)[4]
+    z = (sep[:, 3] - 2.0 * rc) / (2.0 * r - 2.0 * rc)
+    z = z[z < 1.0]
+    return float(z.min()) if z.size else 1.0

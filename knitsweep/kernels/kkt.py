@@ -105,8 +105,18 @@ def tangential_step(hz, rz, radius, flat_mode, u, negative):
                 return decrement, False
     w, v = np.linalg.eigh(hz)
     b = v.T @ rz
-    flat = flat_mode * max(np.max(np.abs(w)), 1e-300)
-    decrement = 0.5 * np.sum(b * b / np.maximum(w, flat))
+    # np.max(np.abs(w)) and np.sum(b * b / np.maximum(w, flat)) as plain loops (the
+    # same operations in the same order; numpy's reductions compile to far more)
+    wmax = abs(w[0])
+    for i in range(1, m):
+        wi = abs(w[i])
+        wmax = wi if wi > wmax or wi != wi else wmax
+    flat = flat_mode * max(wmax, 1e-300)
+    total = 0.0
+    for i in range(m):
+        wi = w[i]
+        total += b[i] * b[i] / (wi if wi > flat or wi != wi else flat)
+    decrement = 0.5 * total
     lo = max(0.0, -w[0]) + flat
     y = -b / (w + lo)
     norm = math.sqrt(np.dot(y, y))
@@ -123,10 +133,13 @@ def tangential_step(hz, rz, radius, flat_mode, u, negative):
             if norm <= 1.01 * radius:
                 break
             nu += (norm / radius - 1.0) * norm * norm / np.sum(b * b / d**3)
-    u[:] = v @ y
+    vy = v @ y
+    for i in range(m):  # element by element: no slice assignment of an array (its
+        u[i] = vy[i]  # shape-mismatch error path costs ~1.5 s of compile time)
     is_negative = w[0] < -flat
     if is_negative:
-        negative[:] = v[:, 0]
+        for i in range(m):
+            negative[i] = v[i, 0]
     return decrement, is_negative
 
 

@@ -40,6 +40,11 @@ from .partition import search_row
 # meta layout: a_x, a_y, skin, max |m|, max |n|, r, image mode at the build
 _META = 7
 
+NO_LIST = (np.empty((0, 5), dtype=np.int64), np.empty((3, 0)), np.empty(0))
+"""The three arrays of an empty neighbour list: ``contact_energy_listed`` (and
+``cell.cell_energy_listed``) then sum over the full search, as ``contact_energy``.(Writable, as the arrays of a built list: a read-only array is another type to numba,
+so another specialisation.)"""
+
 
 @njit(cache=True)
 def build_neighbour_list(cp, tab, ax, ay, r, mode, skin):
@@ -72,8 +77,13 @@ def build_neighbour_list(cp, tab, ax, ay, r, mode, skin):
         k += 1
     meta = np.empty(_META)
     meta[0], meta[1], meta[2], meta[5], meta[6] = ax, ay, skin, r, mode
-    meta[3] = np.abs(ib[2, :c]).max() if c > 0 else 0.0
-    meta[4] = np.abs(ib[3, :c]).max() if c > 0 else 0.0
+    mmax = 0  # max |m|, |n| over the pairs (0 if none), in a plain loop
+    nmax = 0
+    for q in range(c):
+        mmax = max(mmax, abs(ib[2, q]))
+        nmax = max(nmax, abs(ib[3, q]))
+    meta[3] = mmax
+    meta[4] = nmax
     return rows[:k].copy(), pos, meta
 
 
@@ -107,6 +117,9 @@ def contact_energy_listed(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp
     False), the energy comes from the full search instead: the result is always
     the exact one, and the caller should build a new list.
     """
+    if meta.shape[0] != _META:  # no list (``NO_LIST``): the search, at once
+        e = contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_cell)
+        return e, False
     n = tab.shape[1]
     dt2 = 1.0 / (n * n)
     _, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
@@ -119,13 +132,13 @@ def contact_energy_listed(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp
     energy = 0.0
     gax = 0.0
     gay = 0.0
-    c = 0
+    c = np.int64(0)  # not the literal 0: no extra specialisation of the callees
     for q in range(rows.shape[0]):
         i, j0, j1, m, nn = rows[q, 0], rows[q, 1], rows[q, 2], rows[q, 3], rows[q, 4]
         if c + n > ib.shape[1]:
             energy, gax, gay = accumulate_pairs(ib, fb, c, speed, dt2, r, rc, k, p, with_grad,
                                                 work, g, energy, gax, gay)  # fmt: skip
-            c = 0
+            c = np.int64(0)
         c = search_row(pos, s_mid, i, j0, j1, m, nn, m * ax, nn * ay, m * s_tot, cut2, s_excl,
                        ib, fb, c)  # fmt: skip
     energy = finish_pairs(ib, fb, c, speed, r1, tab, dt2, r, rc, k, p, with_grad, work, g, energy,

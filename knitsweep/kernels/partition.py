@@ -51,8 +51,13 @@ def image_reaches(box, ox, oy, cut):
     their copy shifted by (ox, oy, 0)."""
     g = 0.0
     for d in range(3):
-        lo = box[d].min()
-        hi = box[3 + d].max()
+        # box[d].min() and box[3 + d].max(), in a loop that compiles to far less
+        lo = box[d, 0]
+        hi = box[3 + d, 0]
+        for s in range(1, box.shape[1]):
+            v, w = box[d, s], box[3 + d, s]
+            lo = v if v < lo or v != v else lo
+            hi = w if w > hi or w != w else hi
         off = ox if d == 0 else (oy if d == 1 else 0.0)
         gap = max(lo + off - hi, lo - hi - off, 0.0)
         g += gap * gap

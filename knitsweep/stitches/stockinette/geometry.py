@@ -144,14 +144,18 @@ def _connector(qa, dqa, qb, dqb, shift_a, shift_b, ia, ib, x, p, dp, vec, blk):
                                                 blk[6], blk[7])  # fmt: skip
     _end_frame(qa, dqa, _TRUE, t0, dt0, cv0, dcv0, dr1, dr2)
     _end_frame(qb, dqb, _FALSE, t1, dt1, cv1, dcv1, dr1, dr2)
-    q0[:] = qa[5]
-    dq0[:] = dqa[5]
-    q1[:] = qb[0]
-    dq1[:] = dqb[0]
+    # element by element: an array slice assignment would compile numba's
+    # shape-mismatch error path (string formatting, ~1.5 s of compile time)
+    nl = dp.shape[2]
+    for i in range(3):
+        q0[i] = qa[5, i]
+        q1[i] = qb[0, i]
+        for k in range(nl):
+            dq0[i, k] = dqa[5, i, k]
+            dq1[i, k] = dqb[0, i, k]
     _apply_shift(q0, dq0, shift_a, x)
     _apply_shift(q1, dq1, shift_b, x)
     a, b = x[ia], x[ib]
-    nl = dp.shape[2]
     dp[:] = 0.0
     z = _i(0)
     control_points_half(q0, dq0, t0, dt0, cv0, dcv0, a, ia, b, ib, _TRUE, z, nl, z, z, p, dp)
@@ -201,7 +205,9 @@ def state_to_control_points(x, cp, jac):
                 seg = _SEG_C2A if is_a else _SEG_C2B
             crossover_curve_into(pos_x, z, phi, parity, is_a, x[c0 : c0 + 6], x[c1 : c1 + 6],
                                  frame, dframe, p_loc, dp_loc, vec, blk19)  # fmt: skip
-            cp[seg] = p_loc
+            for i in range(6):  # element by element, as in _connector
+                for d in range(3):
+                    cp[seg, i, d] = p_loc[i, d]
             _scatter(dp_loc, -parity, flip, c0, c1, jac[seg])
     # one call site, its integers from a table: one specialisation of _connector
     for j in range(4):
