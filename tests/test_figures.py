@@ -364,6 +364,27 @@ def test_render_tile_mirrors_garter_rows():
     assert unit_cell(stitch, 3) == (0, 1) and unit_cell(stitch, 4) == (2, 2)
 
 
+def test_render_tile_of_seed_is_a_checkerboard():
+    """Seed's tile: the copy at (row, column) is mirrored when row + column is odd, and
+    each row's yarn runs on through the mirrored copies without a gap (the course closes
+    through the glide, joint 0 on the mirror plane)."""
+    from knitsweep.report.render import cell_path, copy_mirrored, row_path, stitch_from_state
+    from knitsweep.stitches import get_stitch
+
+    stitch = stitch_from_state(get_stitch("seed").start(1), StitchParams(stitch="seed"))
+    assert stitch.mirror_parity == (1, 1) and stitch.mirrors
+    for row in range(-1, 3):
+        for column in range(-1, 3):
+            assert copy_mirrored(stitch, row, column) is ((row + column) % 2 == 1)
+    one = cell_path(stitch.control_points, 12)
+    for row in (0, 1):
+        for c in (-1, 0, 1):  # each copy ends where the next one (mirrored or not) starts
+            end = row_path(stitch, one, row, range(c, c + 1))[-1]
+            start = row_path(stitch, one, row, range(c + 1, c + 2))[0]
+            np.testing.assert_allclose(end, start, rtol=0, atol=1e-12)
+        assert np.abs(row_path(stitch, one, row, range(-1, 3))[:, 2]).max() > 1.0
+
+
 def test_render_stockinette_tile_is_translations_alone():
     """Stockinette mirrors nothing: every row is the old sum, bit for bit (its pictures
     are unchanged), and its colours are the rows' cycle."""

@@ -255,7 +255,7 @@ def test_one_stitch_is_the_same_job_wherever_it_is_written(tmp_path):
     assert plain.job_hash == stockinette.job_hash and plan(plain)[0] == plan(stockinette)[0]
 
 
-KNOWN = "must be one of stockinette, stockinette_free, garter, rib"
+KNOWN = "must be one of stockinette, stockinette_free, garter, rib, seed"
 
 
 @pytest.mark.parametrize(

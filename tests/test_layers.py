@@ -45,7 +45,8 @@ LAYERS = [
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
                 "forces", "cell", "kkt", "mirrored", "pattern_cell"],
-    "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free", "garter", "rib"],
+    "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free", "garter", "rib",
+                 "seed"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
     "stitches.stockinette_free": ["layout", "geometry", "ansatz", "data"],
     "stitches.garter": ["layout", "geometry", "data"],

@@ -10,7 +10,7 @@ images (``Stitch.images``, docs/model.md §11): the copy at lattice offset (m, n
 g p = M^μ p + m t_c + n t_w with M = diag(1, 1, −1) (the mirror z → −z through the
 fabric plane) and μ = (pm m + pn n) mod 2, (pm, pn) the stitch's ``mirror_parity``
 ((0, 0) for a pattern of translations: stockinette; (0, 1) garter, whose odd rows are
-purl rows). Each row is drawn as a tube of radius r around
+purl rows; (1, 0) rib; (1, 1) seed). Each row is drawn as a tube of radius r around
 its centre-line, seen along a tilted direction in orthographic projection, shaded
 (Lambert + specular) and depth-sorted face by face (painter's algorithm), so that
 interlocking loops hide each other correctly. Lengths in mm.
@@ -38,8 +38,8 @@ ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
 PATTERN_COLOURS = {False: ("#c8553d", "#d9a21b"), True: ("#3a7ca5", "#6a994e")}
 """With mirrored images (a knit/purl pattern): warm colours (red, gold) for the cell's
 unmirrored copies, cool ones (blue, green) for the mirrored copies, alternating every
-second row within each, so that the knit and the purl rows (garter) or columns (rib)
-tell apart at a glance."""
+second row within each, so that the knit and the purl rows (garter), columns (rib) or
+checkerboard squares (seed) tell apart at a glance."""
 
 OUT_SUFFIXES = (".png", ".pdf", ".svg")
 

@@ -13,7 +13,7 @@ import importlib
 from ..errors import InputError
 from .base import TRANSLATION_CLASSES, Stitch
 
-STITCH_NAMES = ("stockinette", "stockinette_free", "garter", "rib")
+STITCH_NAMES = ("stockinette", "stockinette_free", "garter", "rib", "seed")
 """Every stitch knitsweep knows, by name (each a subpackage with a ``STITCH``)."""
 DEFAULT_STITCH = "stockinette"
 

@@ -13,7 +13,6 @@ def rib_start(cp: np.ndarray, a_x: float, a_y: float) -> np.ndarray:
     the mirror plane), which the rib geometry closes through the glide
     (``rib.geometry``: the last segment bends into the mirrored frame of joint 0). No
     further map is needed: on the seven Init files at L = 11 mm this has rib's crossing
-    signs (``pattern_crossings``) with the cores apart (min ζ 0.083). (For seed, maps
-    of the same yarn (stretches, shears, bumps) gave seed's crossing signs only as
-    strongly tilted tangles whose relaxation unravels: seed has no start yet.)"""
+    signs (``pattern_crossings``) with the cores apart (min ζ 0.083). (Seed, whose
+    stitch must also tilt out of the plane, cuts the yarn elsewhere: ``seed.start``.)"""
     return to_free(cp, a_x, a_y)
