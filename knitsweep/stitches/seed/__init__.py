@@ -36,5 +36,7 @@ STITCH = Stitch(
     path_order=tuple(range(layout.N_SEGMENTS)),
     closing_shift=(1, 0),
     mirror_parity=(1, 1),
+    rough=True,
+    stage_dL_mm=1.0,
 )
 """The seed stitch: one knit stitch, its images with m + n odd mirrored."""
