@@ -64,6 +64,8 @@ class Energies:
         }
 
 
+CORES_OVERLAP = "hard cores overlap"
+"""How every verdict of overlapping hard cores begins (a state that cannot be knitted)."""
 RESOLUTION_RTOL = 0.25
 """A free yarn's contact sum holds if, with twice the samples per segment, E_c differs by
 at most this fraction (measured at relaxed states with speeds within
@@ -192,7 +194,9 @@ class CellModel:
         E_c within ``RESOLUTION_RTOL`` of this model's), else what it finds. The samples
         sit at fixed curve parameters, so a free yarn can space them out where it
         crosses itself and let hard cores pass between them (docs/model.md §11,
-        "Resolution"). Stitches of translations alone are not checked ("")."""
+        "Resolution"). Where the cores overlap with twice the samples the answer starts
+        with ``CORES_OVERLAP`` (a state too tight to knit, as one whose cores overlap
+        at the model's samples). Stitches of translations alone are not checked ("")."""
         if self.stitch.images != "glides":
             return ""
         fine = self._finer
@@ -207,8 +211,8 @@ class CellModel:
         ec = fine.energies(x).contact_energy
         n = fine.fidelity.samples_per_segment
         if zeta < CORE_EPS:
-            return (f"contact under-resolved: with {n} samples per segment the hard cores "
-                    f"overlap (smallest zeta {zeta:.3g})")  # fmt: skip
+            return (f"{CORES_OVERLAP} with {n} samples per segment (smallest zeta {zeta:.3g}), "
+                    f"apart only between the {n // 2} of the model")  # fmt: skip
         if abs(ec - contact_energy) > RESOLUTION_RTOL * contact_energy:
             return (f"contact under-resolved: E_c = {contact_energy:.4g} mJ, with {n} samples "
                     f"per segment {ec:.4g} mJ")  # fmt: skip

@@ -87,8 +87,15 @@ def test_edge_cases():
     loose = {L: 0.0 for L in COARSE}
     st = series_state(COARSE, loose, T, TOL)
     assert st.status == "unjammed_at_start" and st.hi == 10.5
-    broken = {**{L: 0.0 for L in COARSE}, 11.3: None}
+    # a point without a gap before the first unjammed L could move it: the series fails;
+    # one beyond it cannot (the transition is the first L below the threshold)
+    broken = {10.5: 1e-3, 11.3: None, 12.1: 0.0, 12.9: 0.0}
     assert series_state(COARSE, broken, T, TOL).status == "failed"
+    beyond = {10.5: 1e-3, 11.3: 2e-4, 12.1: 0.0, 12.9: None}
+    st = series_state(COARSE, beyond, T, TOL)
+    assert st.status == "refining" and (st.lo, st.hi) == (11.3, 12.1)
+    assert series_state(COARSE, {**beyond, 10.5: None}, T, TOL).status == "failed"
+    assert series_state(COARSE, {L: None for L in COARSE}, T, TOL).status == "failed"
     unknittable = {10.5: JAMMED_GAP, 11.3: 2e-4, 12.1: 0.0, 12.9: 0.0}
     st = series_state(COARSE, unknittable, T, TOL)
     assert st.status == "refining" and st.lo == 11.3 and st.hi == 12.1

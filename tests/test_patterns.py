@@ -473,3 +473,23 @@ def test_seed_relaxes_with_its_topology():
     assert 2.5 < best.x[-2] < 2.9 and 1.5 < best.x[-1] < 1.8
     assert best.min_zeta > 0.0
     assert CellModel(p).topology_change(best.x) == ""
+
+
+def test_cores_overlapping_with_twice_the_samples_cannot_be_knitted(data_dir, monkeypatch):
+    """assess: where the cores overlap with twice the samples the state is too tight to
+    knit (not_knittable, as an overlap at the model's samples: an adaptive series counts
+    it as jammed); where only the contact energy moves, it is not converged."""
+    from knitsweep.config import SolverSettings
+    from knitsweep.model import CORES_OVERLAP
+    from knitsweep.relax.result import assess
+
+    rib = CellModel(StitchParams(stitch="rib", L_mm=11.6, k_mN_per_mm2=0.1))
+    x = np.loadtxt(data_dir / "rib_relaxed_L11.6_k0.1.dat")
+    free = np.arange(x.size)
+    settings = SolverSettings(length_tol_mm=1e-5)
+    assert assess(rib, x, x, free, True, "ok", 0, 0, settings, 0.0).status == "converged"
+    for verdict, status in ((f"{CORES_OVERLAP} with 20 samples per segment", "not_knittable"),
+                            ("contact under-resolved: E_c = …", "not_converged")):  # fmt: skip
+        monkeypatch.setattr(CellModel, "resolution_change", lambda self, x, ec=None, v=verdict: v)
+        r = assess(rib, x, x, free, True, "ok", 0, 0, settings, 0.0)
+        assert (r.status, r.message) == (status, verdict)

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, SolverSettings
 from ..kernels.contact import CORE_EPS
-from ..model import CellModel
+from ..model import CORES_OVERLAP, CellModel
 from .problem import twist_gradient, twist_margin
 
 TWIST_ACTIVE_TOL = 1e-8
@@ -119,11 +119,12 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
         status, why = CONVERGED, message
         if zeta < CORE_EPS:
             status = NOT_KNITTABLE
-            why = f"hard cores overlap at the minimum (smallest zeta = {zeta:.3g} < {CORE_EPS:g})"
+            why = f"{CORES_OVERLAP} at the minimum (smallest zeta = {zeta:.3g} < {CORE_EPS:g})"
         elif changed := model.topology_change(x):  # patterns only (docs/model.md §11)
             status, why = NOT_CONVERGED, changed
         elif coarse := model.resolution_change(x, e.contact_energy):  # patterns only
-            status, why = NOT_CONVERGED, coarse
+            status = NOT_KNITTABLE if coarse.startswith(CORES_OVERLAP) else NOT_CONVERGED
+            why = coarse
     else:
         status, why = NOT_CONVERGED, message
     return Relaxation(

@@ -84,10 +84,15 @@ def series_state(
     if any(L not in gaps for L in coarse):
         return SeriesState("coarse", None, None, None, n, "waiting for the coarse grid")
     failed = sorted(L for L, g in gaps.items() if g is None)
-    if failed:
+    Ls = sorted(L for L, g in gaps.items() if g is not None)
+    if not Ls:
         return SeriesState("failed", None, None, None, n, f"no energy gap at L = {failed} mm")
-    Ls = sorted(gaps)
     t = transition(Ls, [max(gaps[L], 0.0) for L in Ls], threshold)  # noise can dip below 0
+    # (L/r)_trans is the first L whose gap is below the threshold: a point without a gap
+    # beyond it cannot move it; one at or before it could
+    first_unjammed = t.L_over_r_trans if t.status != "jammed_throughout" else math.inf
+    if any(L < first_unjammed for L in failed):
+        return SeriesState("failed", None, None, None, n, f"no energy gap at L = {failed} mm")
     if t.status == "jammed_throughout":
         return SeriesState("jammed_throughout", Ls[-1], None, None, n,
                            f"jammed at every L up to {Ls[-1]} mm")  # fmt: skip
