@@ -23,7 +23,7 @@ from ..config import StitchParams
 from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from ..store.format import SWEEPS
 from .fig_mechanics import CLASS_COLOUR, CLASS_LABEL
-from .force_columns import job_fidelity
+from .force_columns import contact_classes, job_fidelity
 from .plotting import STRAIN, SkipFigure, new_figure, title
 from .reduce import Reduction
 
@@ -36,9 +36,12 @@ PAPER_L_MM = 10.5
 
 
 def sweeps_with_states(red: Reduction) -> list[Any]:
-    """Done sweeps of the reduction that store every step's state."""
+    """Done sweeps of the reduction that store every step's state, of stitches whose
+    pair forces by class are implemented (translated images only: not yet garter, rib
+    or another pattern with mirrored images)."""
     return [e for e in red.entries if e.kind == SWEEPS and e.meta.get("status") == "done"
-            and "states" in e.record]  # fmt: skip
+            and "states" in e.record
+            and contact_classes(e.meta) == tuple(CONTACT_CLASSES)]  # fmt: skip
 
 
 def pair_forces_along(red: Reduction, entry: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -65,7 +68,8 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
     forces grow by two orders of magnitude towards the end of a sweep)."""
     entries = sweeps_with_states(red)
     if not entries:
-        raise SkipFigure("needs sweeps that store their states ([store] states = true)")
+        raise SkipFigure("needs sweeps that store their states ([store] states = true), "
+                         "of a stitch without mirrored images (stockinette)")
     picked = {d: _nearest_L(entries, d, PAPER_L_MM) for d in "xy"}
     picked = {d: e for d, e in picked.items() if e is not None}
     fig = new_figure(13.0, 3.4 * len(picked) + 1.0, wide=True)
