@@ -69,7 +69,7 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
     entries = sweeps_with_states(red)
     if not entries:
         raise SkipFigure("needs sweeps that store their states ([store] states = true), "
-                         "of a stitch without mirrored images (stockinette)")
+                         "of a stitch without mirrored images (stockinette)")  # fmt: skip
     picked = {d: _nearest_L(entries, d, PAPER_L_MM) for d in "xy"}
     picked = {d: e for d, e in picked.items() if e is not None}
     fig = new_figure(13.0, 3.4 * len(picked) + 1.0, wide=True)
