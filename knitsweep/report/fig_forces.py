@@ -24,8 +24,8 @@ from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from ..store.format import SWEEPS
 from .fig_mechanics import CLASS_COLOUR, CLASS_LABEL
 from .force_columns import contact_classes, job_fidelity
-from .plotting import STRAIN, SkipFigure, new_figure, title
-from .reduce import Reduction
+from .plotting import STRAIN, SkipFigure, label_of, new_figure, title
+from .reduce import Reduction, series_key
 
 LINEAR_ELASTIC_SIGN = {"x": np.array([1.0, -1.0, 1.0]), "y": np.array([-1.0, 1.0, -1.0])}
 """Sign that turns 'extends the fabric along x, y, z' into the paper's 'assists linear
@@ -73,6 +73,7 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
     picked = {d: _nearest_L(entries, d, PAPER_L_MM) for d in "xy"}
     picked = {d: e for d, e in picked.items() if e is not None}
     fig = new_figure(13.0, 3.4 * len(picked) + 1.0, wide=True)
+    sweep_rows = {r["task_id"]: r for r in red.sweeps}
     axes = np.atleast_2d(fig.subplots(len(picked), 3, squeeze=False))
     for row, (d, e) in enumerate(sorted(picked.items())):
         strain, f = pair_forces_along(red, e)
@@ -87,8 +88,11 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
                         label=CLASS_LABEL[cls])  # fmt: skip
             ax.axhline(0.0, color="0.6", lw=0.8)
             ax.set_xlabel(STRAIN[d])
-            if col == 0:
-                ax.set_ylabel(f"pulled in {d}, L = {float(e.meta['L_mm']):g} mm\nforce (N)")
+            if col == 0:  # which sweep: its L, and its series when several are stored
+                sweep = sweep_rows.get(e.task_id)
+                lab = label_of(red, series_key(sweep), chars=28) if sweep else ""
+                ax.set_ylabel("\n".join(filter(None, (
+                    f"pulled in {d}, L = {float(e.meta['L_mm']):g} mm", lab, "force (N)"))))  # fmt: skip
             if row == 0:
                 ax.set_title(f"{a} component")
     axes[0, 0].legend(frameon=True, framealpha=0.9)
