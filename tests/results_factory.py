@@ -56,7 +56,15 @@ def _attrs(group, params: dict, status: str, message: str = "") -> None:
     group.attrs["L_over_r"] = params["L_mm"] / params["r_mm"]
 
 
-def _sweep_arrays(direction: str, x: float, g: float, contact_forces: bool) -> dict:
+def _period_scale(stitch: str) -> float:
+    """a_y of ``stitch``'s first start over stockinette's (garter's cell spans two rows):
+    its states' a_y are the stockinette ones times this."""
+    return float(shipped_state(1, stitch)[-1] / shipped_state(1)[-1])
+
+
+def _sweep_arrays(
+    direction: str, x: float, g: float, contact_forces: bool, stitch: str = "stockinette"
+) -> dict:
     n = 31
     strain = np.linspace(0.0, 0.3, n)
     profile = np.r_[1.0, np.linspace(0.6, 0.0, 10), np.linspace(0.05, 0.5, n - 11)]
@@ -83,8 +91,8 @@ def _sweep_arrays(direction: str, x: float, g: float, contact_forces: bool) -> d
     out["stress_envelope"] = out["stress"].copy()
     out["packing_fraction"] = 0.9 - 0.004 * (x - 20.0) - 0.1 * strain  # [store] packing_fraction
     out["packing_fraction_error"] = np.full(n, 1e-3)
-    states = np.tile(shipped_state(1), (n, 1))  # [store] states: a real stitch, for the forces
-    states[:, 28], states[:, 29] = a_x, a_y
+    states = np.tile(shipped_state(1, stitch), (n, 1))  # [store] states: a real stitch's
+    states[:, -2], states[:, -1] = a_x, a_y * _period_scale(stitch)  # (for the forces)
     out["states"] = states
     if contact_forces:
         out["contact_forces"] = np.tile(_forces(x), (n, 1, 1))
@@ -126,8 +134,9 @@ def write_results(
                 pid = f"{tag}p{k:g}_{x:g}"
                 pg = points.create_group(pid)
                 _attrs(pg, _params(L, k, stitch), "done", "lowest of 1 starts")
-                state = shipped_state(1)[None, :].copy()  # a real stitch, for the pair forces
-                state[0, 28:] = (2.5 + 0.01 * x, 1.9 + 0.005 * x - 0.002 * (x - 22.0) ** 2)
+                state = shipped_state(1, stitch)[None, :].copy()  # real, for the pair forces
+                a_y = (1.9 + 0.005 * x - 0.002 * (x - 22.0) ** 2) * _period_scale(stitch)
+                state[0, -2:] = (2.5 + 0.01 * x, a_y)
                 pg["x"] = state
                 pg["bending_energy"] = np.array([0.3])
                 pg["contact_energy"] = np.array([0.01])
@@ -144,7 +153,8 @@ def write_results(
                     sg.attrs["point_id"] = pid
                     sg.attrs["direction"] = d
                     sg.attrs["sweep_status"] = "done"
-                    for name, value in _sweep_arrays(d, x, gap(k, d, x), contact_forces).items():
+                    arrays = _sweep_arrays(d, x, gap(k, d, x), contact_forces, stitch)
+                    for name, value in arrays.items():
                         sg[name] = value
             if not_knittable_L is not None:
                 pg = points.create_group(f"{tag}p{k:g}_nk")

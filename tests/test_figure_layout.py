@@ -23,7 +23,12 @@ OVERLAP_PX2 = 4.0  # two boxes may share a sliver of two by two pixels
 
 @pytest.fixture(scope="module")
 def reduction(tmp_path_factory):
-    return load(write_results(tmp_path_factory.mktemp("lay") / "synthetic.h5")).reduction
+    """The synthetic series written for two stitches, so that every series label carries
+    the stitch and the patterns figure has something to compare."""
+    path = write_results(
+        tmp_path_factory.mktemp("lay") / "synthetic.h5", stitches=("stockinette", "garter")
+    )
+    return load(path).reduction
 
 
 def drawn_texts(fig):
@@ -73,7 +78,7 @@ def layout_problems(fig) -> list[str]:
 
 
 @pytest.mark.parametrize("width", WIDTHS)
-@pytest.mark.parametrize("name", [n for n in FIGURES if n != "figP_patterns.png"])  # one stitch
+@pytest.mark.parametrize("name", list(FIGURES))
 def test_figures_fit_their_width(reduction, name, width):
     with style(FigureOptions(width=width, style="knitsweep")):
         try:
@@ -119,15 +124,3 @@ def test_pdf_fonts_are_truetype_and_svg_text_is_text(reduction, tmp_path):
     assert "Type 3" not in listing.stdout
     text = svg.getvalue().decode()
     assert "<text" in text and "energy gap" in text
-
-
-@pytest.mark.parametrize("width", WIDTHS)
-def test_the_patterns_figure_fits_its_width(tmp_path, width):
-    """figP_patterns needs two stitches (the synthetic series once as stockinette, once
-    as garter); page-wide at either width, like the other side-by-side figures."""
-    path = write_results(tmp_path / "two.h5", stitches=("stockinette", "garter"))
-    with style(FigureOptions(width=width, style="knitsweep")):
-        fig = finish(FIGURES["figP_patterns.png"](load(path).reduction, []))
-        assert fig.get_figwidth() == 7.0
-        problems = layout_problems(fig)
-    assert not problems, "\n".join(problems)

@@ -29,6 +29,7 @@ from .plotting import (
     THRESHOLD_COLOUR,
     TRANSITION_LINE,
     SkipFigure,
+    caption,
     current_options,
     grid_of_panels,
     label_of,
@@ -39,6 +40,7 @@ from .plotting import (
     parameter_axis,
     sci,
     series_keys,
+    series_legend,
     series_rows,
     title,
 )
@@ -258,13 +260,9 @@ def fig4b_deltaL_vs_k(red: Reduction, notes: list[str]) -> Any:
         "ΔL/r = (L/r)$_{\\rm trans}$ − zero of the line through the linear jammed run; "
         "error bars: +0, −one step of $L/r$; series offset slightly in $k$"
     )
-    ax.legend(frameon=False)
-    # the note below the axes, as a caption line (inside it would cover the data)
-    fig.supxlabel(
-        note.replace("; ", ";\n") if narrow() else note.replace("; e", ";\ne"),
-        fontsize=max(7.0, 0.85 * float(ax.xaxis.label.get_fontsize())),
-        color="0.35",
-    )
+    series_legend(fig, ax, ax.get_legend_handles_labels()[0], frameon=False)
+    caption(fig, ax, note.replace("; ", ";\n") if narrow() else note.replace("; e", ";\ne"),
+            color="0.35")  # fmt: skip
     title(fig, red, r"Width of the jamming transition $\Delta L/r$ against $k$")
     return fig
 

@@ -23,9 +23,9 @@ from ..config import StitchParams
 from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from ..store.format import SWEEPS
 from .fig_mechanics import CLASS_COLOUR, CLASS_LABEL
-from .force_columns import job_fidelity
-from .plotting import STRAIN, SkipFigure, new_figure, title
-from .reduce import Reduction
+from .force_columns import contact_classes, job_fidelity
+from .plotting import STRAIN, SkipFigure, label_of, new_figure, title
+from .reduce import Reduction, series_key
 
 LINEAR_ELASTIC_SIGN = {"x": np.array([1.0, -1.0, 1.0]), "y": np.array([-1.0, 1.0, -1.0])}
 """Sign that turns 'extends the fabric along x, y, z' into the paper's 'assists linear
@@ -36,9 +36,12 @@ PAPER_L_MM = 10.5
 
 
 def sweeps_with_states(red: Reduction) -> list[Any]:
-    """Done sweeps of the reduction that store every step's state."""
+    """Done sweeps of the reduction that store every step's state, of stitches whose
+    pair forces by class are implemented (translated images only: not yet garter, rib
+    or another pattern with mirrored images)."""
     return [e for e in red.entries if e.kind == SWEEPS and e.meta.get("status") == "done"
-            and "states" in e.record]  # fmt: skip
+            and "states" in e.record
+            and contact_classes(e.meta) == tuple(CONTACT_CLASSES)]  # fmt: skip
 
 
 def pair_forces_along(red: Reduction, entry: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -65,10 +68,12 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
     forces grow by two orders of magnitude towards the end of a sweep)."""
     entries = sweeps_with_states(red)
     if not entries:
-        raise SkipFigure("needs sweeps that store their states ([store] states = true)")
+        raise SkipFigure("needs sweeps that store their states ([store] states = true), "
+                         "of a stitch without mirrored images (stockinette)")  # fmt: skip
     picked = {d: _nearest_L(entries, d, PAPER_L_MM) for d in "xy"}
     picked = {d: e for d, e in picked.items() if e is not None}
     fig = new_figure(13.0, 3.4 * len(picked) + 1.0, wide=True)
+    sweep_rows = {r["task_id"]: r for r in red.sweeps}
     axes = np.atleast_2d(fig.subplots(len(picked), 3, squeeze=False))
     for row, (d, e) in enumerate(sorted(picked.items())):
         strain, f = pair_forces_along(red, e)
@@ -83,8 +88,11 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
                         label=CLASS_LABEL[cls])  # fmt: skip
             ax.axhline(0.0, color="0.6", lw=0.8)
             ax.set_xlabel(STRAIN[d])
-            if col == 0:
-                ax.set_ylabel(f"pulled in {d}, L = {float(e.meta['L_mm']):g} mm\nforce (N)")
+            if col == 0:  # which sweep: its L, and its series when several are stored
+                sweep = sweep_rows.get(e.task_id)
+                lab = label_of(red, series_key(sweep), chars=28) if sweep else ""
+                ax.set_ylabel("\n".join(filter(None, (
+                    f"pulled in {d}, L = {float(e.meta['L_mm']):g} mm", lab, "force (N)"))))  # fmt: skip
             if row == 0:
                 ax.set_title(f"{a} component")
     axes[0, 0].legend(frameon=True, framealpha=0.9)

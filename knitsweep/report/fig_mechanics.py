@@ -31,17 +31,21 @@ from .plotting import (
     L_colourbar,
     L_colours,
     SkipFigure,
+    caption,
     grid_of_panels,
     jammed_legend,
     label_of,
+    legend_below,
     legend_columns,
     limit_panels,
     narrow,
     new_figure,
     panel_title,
     series_keys,
+    series_legend,
     series_rows,
     title,
+    title_overhangs,
 )
 from .reduce import Reduction, SweepCurves, series_key
 
@@ -115,7 +119,7 @@ def _curve_panels(red: Reduction, notes: list[str], directions: tuple[str, ...],
         ax.set_xlabel(STRAIN[d])
         ax.set_ylabel(ylabel)
     jammed_legend(fig, present, list(extra.values()))
-    L_colourbar(fig, axes, cmap, norm)
+    L_colourbar(fig, axes, cmap, norm, below=ncols > 1 and any(map(title_overhangs, axes)))
     title(fig, red, heading)
     return fig
 
@@ -185,17 +189,16 @@ def fig6g_thickness_strain_x(red: Reduction, notes: list[str], upto: float | Non
                          upto)  # fmt: skip
 
 
-def _series_legend(ax: Any, red: Reduction, keys: list, loc: str = "best") -> None:
+def _series_legend(fig: Any, ax: Any, red: Reduction, keys: list, loc: str = "best") -> None:
+    """The markers and line styles of the series: on ``ax`` at ``loc``, or below the
+    axes when they would cover it (``plotting.legend_below``)."""
     from matplotlib.lines import Line2D
 
     handles = [Line2D([], [], color="0.35", marker=MARKERS[i % len(MARKERS)],
                       ls=LINESTYLES[i % len(LINESTYLES)], label=label_of(red, k))
                for i, k in enumerate(keys)]  # fmt: skip
-    if len(keys) > 1:  # an artist of its own: the axes' legend stays free for another
-        from matplotlib.legend import Legend
-
-        ax.add_artist(Legend(ax, handles, [h.get_label() for h in handles], loc=loc,
-                             frameon=False))  # fmt: skip
+    if len(keys) > 1:
+        series_legend(fig, ax, handles, loc=loc, frameon=False)
 
 
 def fig2ef_secant_offset(red: Reduction, notes: list[str]) -> Any:
@@ -251,7 +254,7 @@ def fig2ef_secant_offset(red: Reduction, notes: list[str]) -> Any:
         handles.append(Line2D([], [], color="0.3", marker="x", ls="none", ms=7, mew=1.6,
                               label=r"no linear regime ($\sigma_0$ undefined)"))  # fmt: skip
     ax_s.legend(handles=handles, loc="upper right", frameon=False)
-    _series_legend(ax_y, red, keys, "upper right")
+    _series_legend(fig, ax_y, red, keys, "upper right")
     title(fig, red, "Stress–strain jamming metrics against $L/r$")
     return fig
 
@@ -266,8 +269,7 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
     from matplotlib.patches import Patch
 
     keys = sorted({series_key(r) for r in rows})
-    below = len(keys) > 4  # many series: the legend below the axes, not over the curves
-    fig = new_figure(8.0, 5.2 + (0.13 * len(keys) if below else 0.0))
+    fig = new_figure(8.0, 5.2)
     ax = fig.subplots()
     if len(keys) == 1:  # one series: shade the regimes along (L/r)², as the paper does
         pts = sorted(rows, key=lambda r: r["L_over_r"])
@@ -301,11 +303,9 @@ def fig5a_aspect_ratio(red: Reduction, notes: list[str]) -> Any:
                     for i, k in enumerate(keys)]  # fmt: skip
     if not regimes:
         notes.append("fig5a: regimes need sweeps in both x and y; symbols left white")
-    if below:
-        fig.legend(handles=handles, loc="outside lower center", ncols=legend_columns(2),
-                   frameon=False)  # fmt: skip
-    else:
-        ax.legend(handles=handles, loc="best", frameon=True, framealpha=0.9)
+    # many series: the legend below the axes (the figure grows), not over the curves
+    below = len(keys) > 4 or legend_below(ax, [h.get_label() for h in handles])
+    series_legend(fig, ax, handles, below, loc="best", frameon=True, framealpha=0.9)
     title(fig, red, "Zero-force stitch aspect ratio against $(L/r)^2$")
     return fig
 
@@ -439,16 +439,13 @@ def fig6h_contact_force_ratio(red: Reduction, notes: list[str]) -> Any:
                            label=r"Table S3 $|F_y|$")]  # fmt: skip
         text = _vs_table_s3(pts)
         if text:  # a caption line below the panels: inside, it would cover the curves
-            fig.supxlabel(text.replace(": ", ":\n", 1) if narrow() else text,
-                          fontsize=max(7.0, 0.85 * float(ax_c.xaxis.label.get_fontsize())),
-                          color="0.25")  # fmt: skip
+            caption(fig, ax_c, text.replace(": ", ":\n", 1) if narrow() else text, color="0.25")
     # beside the panel, not over the curves that start high at small L/r
     ax_c.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False,
                 ncols=1)  # fmt: skip
     ax_c.set_xlabel(L_OVER_R)
     ax_c.set_ylabel("pair force between sampled points (N), + extends")
-    lab = label_of(red, keys[0])
-    ax_c.set_title("by contact class" + (f" ({lab})" if lab else ""))
+    panel_title(ax_c, "by contact class", label_of(red, keys[0]))
     ax_c.axhline(0.0, color="0.6", lw=0.8)
     title(fig, red, "Contact forces at zero strain, x against y")
     return fig

@@ -21,6 +21,7 @@ from .plotting import (
     SkipFigure,
     label_of,
     new_figure,
+    series_legend,
     title,
 )
 from .reduce import Reduction, series_key
@@ -69,7 +70,7 @@ def figS_packing_fraction_L(red: Reduction, notes: list[str]) -> Any:
                label=rf"paper: end of jamming, $\phi \approx {PHI_END_OF_JAMMING:g}$")  # fmt: skip
     ax.set_xlabel(L_OVER_R)
     ax.set_ylabel(PHI_LABEL)
-    ax.legend(frameon=True, framealpha=0.9)
+    series_legend(fig, ax, ax.get_legend_handles_labels()[0], frameon=True, framealpha=0.9)
     title(fig, red, "Packing fraction at zero force")
     return fig
 

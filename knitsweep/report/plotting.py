@@ -204,7 +204,7 @@ def title(fig: Any, red: Reduction, text: str) -> None:
     lines = [
         w
         for i, line in enumerate(lines)
-        for w in _wrap(line, chars, i > 0 and fixed and line == fixed)
+        for w in _balanced(line, chars, i > 0 and fixed and line == fixed)
     ]
     if lines:
         fig.suptitle("\n".join(lines), fontsize=size * 1.2,
@@ -212,11 +212,39 @@ def title(fig: Any, red: Reduction, text: str) -> None:
 
 
 def panel_title(ax: Any, head: str, *details: str, **kw: Any) -> None:
-    """A panel's title: ``head`` and its details joined by '; ', or one per line at
-    column width, so that no quantity breaks and neighbouring titles do not meet."""
+    """A panel's title: ``head`` and its details joined by '; ' when that fits over the
+    panel, else one per line (always at column width); a detail too long for the panel
+    (a series label, 'stitch = garter, k = 0.1 mN/mm²') breaks between its parameters,
+    never inside one 'symbol = value unit', so that neighbouring titles do not meet
+    and none runs past the figure's edge."""
+    import matplotlib
+    from matplotlib.font_manager import FontProperties
+
     parts = [head, *(d for d in details if d)]
-    sep = "\n" if current_options().width == "column" else "; "
-    ax.set_title(sep.join(parts), **kw)
+    size = FontProperties(size=kw.get("fontsize", matplotlib.rcParams["axes.titlesize"]))
+    chars = panel_chars(ax, size.get_size_in_points())
+    line = "; ".join(parts)
+    if not narrow() and _visible(line) <= chars:
+        ax.set_title(line, **kw)
+        return
+    lines = [w for i, p in enumerate(parts) for w in _wrap(p, chars, parameters=i > 0)]
+    ax.set_title("\n".join(lines), **kw)
+
+
+def title_overhangs(ax: Any) -> bool:
+    """Whether a line of the title of ``ax`` is likely wider than the axes (the
+    constrained layout makes no room for that overhang at the sides)."""
+    size = ax.title.get_fontsize()
+    lines = ax.get_title().split("\n")
+    return max(map(_visible, lines)) > panel_chars(ax, size) / 1.1
+
+
+def panel_chars(ax: Any, size: float) -> int:
+    """About how many characters of ``size`` points fit in a line over ``ax``: its
+    width as placed before the layout, a little overhang allowed (a character of
+    DejaVu Sans is ~0.58 of its size wide on average)."""
+    width_pt = ax.get_position().width * ax.get_figure().get_figwidth() * 72.0
+    return max(12, int(1.1 * width_pt / (0.58 * size)))
 
 
 def narrow() -> bool:
@@ -246,26 +274,45 @@ def finish(fig: Any) -> Any:
     return fig
 
 
+def _visible(text: str) -> int:
+    """Characters of ``text`` as drawn: inside a $math$ span a command counts one and
+    braces, sub- and superscript marks none; outside, every character counts."""
+    import re
+
+    def math(span: str) -> str:
+        return re.sub(r"[{}_^$]", "", re.sub(r"\\[A-Za-z]+", "x", span))
+
+    pieces = re.split(r"(\$[^$]*\$)", text)
+    return sum(len(math(p)) if p.startswith("$") else len(p) for p in pieces)
+
+
 def _wrap(text: str, chars: int, parameters: bool = False) -> list[str]:
     """``text`` in lines of about ``chars`` visible characters, broken only between
     words, never inside a $math$ span nor (``parameters``: a 'k = 0.1 mN/mm², B = …'
-    list) inside one 'symbol = value unit'."""
+    list) inside one 'symbol = value unit'; existing line breaks are kept."""
     import re
 
+    if "\n" in text:
+        return [w for line in text.split("\n") for w in _wrap(line, chars, parameters)]
     atoms = ([a + "," for a in text.split(", ")[:-1]] + [text.split(", ")[-1]] if parameters
              else re.findall(r"\S*\$[^$]*\$\S*|\S+", text))  # fmt: skip
-
-    def visible(a: str) -> int:
-        return len(re.sub(r"\\[a-z]+|[{}_^$]", "", a))
-
     lines, line = [], ""
     for a in atoms:
-        if line and visible(line) + 1 + visible(a) > chars:
+        if line and _visible(line) + 1 + _visible(a) > chars:
             lines.append(line)
             line = a
         else:
             line = f"{line} {a}" if line else a
     return [*lines, line] if line else lines
+
+
+def _balanced(text: str, chars: int, parameters: bool = False) -> list[str]:
+    """:func:`_wrap` into as few lines as at ``chars``, but of even lengths (no last
+    line of a lone word)."""
+    lines = _wrap(text, chars, parameters)
+    while chars > 10 and len(_wrap(text, chars - 1, parameters)) == len(lines):
+        chars -= 1
+    return _wrap(text, chars, parameters)
 
 
 def series_keys(red: Reduction, direction: str | None = None) -> list[tuple[Any, ...]]:
@@ -280,9 +327,63 @@ def series_rows(red: Reduction, key: Sequence[Any], direction: str) -> list[dict
     return sorted(rows, key=lambda r: r["L_over_r"])
 
 
-def label_of(red: Reduction, key: Sequence[Any]) -> str:
-    """Label of a series by the parameters that vary in the file ('' if none vary)."""
-    return series_label(dict(zip(SERIES_PARAMS, key, strict=True)), red.varying)
+def label_of(red: Reduction, key: Sequence[Any], chars: int | None = None) -> str:
+    """Label of a series by the parameters that vary in the file ('' if none vary);
+    with ``chars``, in lines of about that many characters, broken only between
+    parameters ('stitch = garter,' over 'k = 0.1 mN/mm²')."""
+    text = series_label(dict(zip(SERIES_PARAMS, key, strict=True)), red.varying)
+    return text if chars is None else "\n".join(_wrap(text, chars, parameters=True))
+
+
+def legend_below(ax: Any, labels: Sequence[str]) -> bool:
+    """Whether a legend of ``labels`` on ``ax`` goes below the axes (a figure legend)
+    rather than over the data: more than 5 entries at column width, 8 at the page's,
+    or entries longer than 0.6 of the panel's width (it would cover half of it)."""
+    import matplotlib
+    from matplotlib.font_manager import FontProperties
+
+    size = FontProperties(size=matplotlib.rcParams["legend.fontsize"]).get_size_in_points()
+    longest = max((_visible(line) for t in labels for line in t.split("\n")), default=0)
+    return len(labels) > (5 if narrow() else 8) or longest > 0.6 * panel_chars(ax, size)
+
+
+def series_legend(fig: Any, ax: Any, handles: Sequence[Any], below: bool | None = None,
+                  **kw: Any) -> Any:  # fmt: skip
+    """A legend of ``handles`` (series, and the lines that go with them): on ``ax``
+    (``kw``: its place and frame), or below the axes when ``below`` (default
+    :func:`legend_below`), in one column at column width, its entries broken between
+    parameters when longer than the column."""
+    if below is None:
+        below = legend_below(ax, [h.get_label() for h in handles])
+    if not below:
+        return ax.legend(handles=handles, **kw)
+    import matplotlib
+    from matplotlib.font_manager import FontProperties
+
+    size = FontProperties(size=matplotlib.rcParams["legend.fontsize"]).get_size_in_points()
+    chars = int(fig.get_figwidth() * 72.0 / (0.58 * size))  # the figure's width
+    for h in handles:  # a handle and its gap take ~6 characters
+        label = h.get_label()
+        h.set_label("\n".join(_wrap(label, chars - 8, parameters=" = " in label)))
+    lines = [h.get_label().count("\n") + 1 for h in handles]
+    longest = max(_visible(line) for h in handles for line in h.get_label().split("\n"))
+    ncols = legend_columns(max(1, min(len(handles), 3, chars // (longest + 8))))
+    # the axes keep their height: the figure grows by the legend's rows
+    rows = [max(lines[i : i + ncols]) for i in range(0, len(lines), ncols)]
+    fig.set_figheight(fig.get_figheight() + (sum(rows) * 1.25 + 0.8) * size / 72.0)
+    return fig.legend(handles=handles, loc="outside lower center", frameon=False, ncols=ncols)
+
+
+def caption(fig: Any, ax: Any, text: str, **kw: Any) -> Any:
+    """A caption below the axes (inside, it would cover the data), smaller and grey:
+    the figure's bottom line, or, when a legend already sits below the axes, right
+    under the x label of ``ax`` (above that legend, which would cover it)."""
+    kw = {"fontsize": max(7.0, 0.85 * float(ax.xaxis.label.get_fontsize())), "color": "0.3",
+          **kw}  # fmt: skip
+    if not any(getattr(leg, "_outside_loc", None) for leg in fig.legends):
+        return fig.supxlabel(text, **kw)
+    return ax.annotate(text, (0.5, 0.0), xycoords=ax.xaxis.label, xytext=(0.0, -3.0),
+                       textcoords="offset points", ha="center", va="top", **kw)  # fmt: skip
 
 
 def limit_panels(keys: list, what: str, notes: list[str]) -> list:
@@ -307,11 +408,15 @@ def L_colours(red: Reduction) -> tuple[Any, Any]:
     return cmap, Normalize(lo, hi)
 
 
-def L_colourbar(fig: Any, axes: Any, cmap: Any, norm: Any) -> None:
-    """A colourbar labelled L (mm), shared by ``axes``."""
+def L_colourbar(fig: Any, axes: Any, cmap: Any, norm: Any, below: bool = False) -> None:
+    """A colourbar labelled L (mm), shared by ``axes``: on their right, or ``below``
+    them, horizontal (beside panels whose titles are wider than they are: the
+    layout leaves no room for a title's overhang, the colourbar would cover it)."""
     from matplotlib.cm import ScalarMappable
 
-    cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.6, aspect=25)
+    where = {"location": "bottom", "shrink": 0.7, "aspect": 30} if below else {"shrink": 0.6,
+                                                                            "aspect": 25}  # fmt: skip
+    cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=axes, **where)
     cb.set_label("$L$ (mm)" if current_options().width != "auto" else
                  "yarn length per stitch $L$ (mm)")  # fmt: skip
 
