@@ -63,6 +63,7 @@ def figP_patterns(red: Reduction, notes: list[str]) -> Any:
     ax_t, ax_y, ax_a = fig.subplots(1, 3)
     trans = {(series_key(t), t["direction"]): t for t in red.transitions}
     beyond = False
+    curves: list[tuple[list, list, dict]] = []  # Y_sec against L/r, drawn once the scale is known
     for i, stitch in enumerate(stitches):
         key = chosen[stitch]
         colour = _colour(stitch, i)
@@ -85,8 +86,8 @@ def figP_patterns(red: Reduction, notes: list[str]) -> Any:
             rows = sorted((r for r in red.sweeps if series_key(r) == key and r["direction"] == d
                            and r["Y_sec_N_per_mm"] is not None), key=lambda r: r["L_over_r"])  # fmt: skip
             if rows:
-                ax_y.plot([r["L_over_r"] for r in rows], [r["Y_sec_N_per_mm"] for r in rows],
-                          color=colour, ls=ls, marker=marker, ms=4)  # fmt: skip
+                curves.append(([r["L_over_r"] for r in rows], [r["Y_sec_N_per_mm"] for r in rows],
+                               {"color": colour, "ls": ls, "marker": marker, "ms": 4}))  # fmt: skip
         pts = sorted((r for r in red.points if series_key(r) == key
                       and r.get("aspect_ratio") is not None), key=lambda r: r["L_over_r"])  # fmt: skip
         if pts:
@@ -101,11 +102,23 @@ def figP_patterns(red: Reduction, notes: list[str]) -> Any:
     )
     ax_y.set_xlabel(L_OVER_R)
     ax_y.set_ylabel(r"secant modulus $Y_{\rm sec}$ (N/mm)")
-    values = [v for ln in ax_y.get_lines() for v in ln.get_ydata() if v > 0]
-    if values and max(values) > 10 * min(values):  # patterns differ by decades
+    positive = [v for _, ys, _ in curves for v in ys if v > 0]
+    log = bool(positive) and max(positive) > 10 * min(positive)  # patterns differ by decades
+    hidden = 0
+    for xs, ys, st in curves:
+        if log:  # a secant modulus <= 0 (the stress at 2 % strain below zero) has no place
+            keep = [i for i, v in enumerate(ys) if v > 0]
+            hidden += len(ys) - len(keep)
+            xs, ys = [xs[i] for i in keep], [ys[i] for i in keep]
+        ax_y.plot(xs, ys, **st)
+    if log:
         ax_y.set_yscale("log")
-    else:
+        if hidden:
+            notes.append(f"patterns: {hidden} sweep(s) with Y_sec <= 0 left off the log axis")
+    elif min((v for _, ys, _ in curves for v in ys), default=0.0) >= 0.0:
         ax_y.set_ylim(bottom=0.0)
+    else:
+        ax_y.axhline(0.0, color="0.55", lw=0.8, zorder=0)
     panel_title(ax_y, r"(b) $Y_{\rm sec} = \sigma(0.02)/0.02$")
     ax_a.set_xlabel(L_OVER_R)
     ax_a.set_ylabel(r"aspect ratio $a_{y0}/a_{x0}$")
