@@ -85,13 +85,13 @@ class Stitch:
     """With ``images = "glides"``: image (m, n) is mirrored (z -> -z) when
     pm m + pn n is odd (docs/model.md §11; garter (0, 1), rib (1, 0), seed (1, 1))."""
     rough: bool = False
-    """Whether the zero-force energy has many shallow local minima a relaxation lands in
-    by the path it takes (rib's free yarn: its contact samples sit at fixed curve
-    parameters, and re-spacing them along the yarn lowers the sampled contact energy by
-    ~1e-4 mJ in steps; garter's, docs/model.md §11). Then ``relax.walk_starts`` relaxes
-    the intermediate stages of a continuation with SLSQP and the last one with two
-    minimisers, keeping the lower minimum (``relax.continuation.relax_rough``). False
-    for every stitch of translations alone: their relaxations are unchanged."""
+    """Whether the zero-force energy has shallow local minima that a relaxation lands in
+    by the path it takes (the patterns' free yarns, docs/model.md §11: Newton crawls on
+    their indefinite 87 × 87 Hessians, and Newton and SLSQP end in different minima). Then
+    ``relax.walk_starts`` relaxes the intermediate stages of a continuation with SLSQP
+    and the last one with two minimisers, keeping the lower minimum
+    (``relax.continuation.relax_rough``). False for every stitch of translations alone:
+    their relaxations are unchanged."""
     stage_dL_mm: float | None = None
     """Largest change of L (mm) per continuation stage for this stitch, at least
     ``SolverSettings.continuation_dL_mm`` (None: that setting). Rib's shipped starts
