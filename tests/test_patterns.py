@@ -493,3 +493,25 @@ def test_cores_overlapping_with_twice_the_samples_cannot_be_knitted(data_dir, mo
         monkeypatch.setattr(CellModel, "resolution_change", lambda self, x, ec=None, v=verdict: v)
         r = assess(rib, x, x, free, True, "ok", 0, 0, settings, 0.0)
         assert (r.status, r.message) == (status, verdict)
+
+
+def test_only_stockinette_carries_a_bending_moment_in_the_plane(model):
+    """net_bending_moment, B ∫ t × dt over the fabric's repeat per stitch: stockinette's
+    stitch carries one about the wale axis y (its left and right halves mirror each
+    other, which cancels the x component; the z one is 1e-4 of it), a moment that
+    rolls the fabric across the course, as stockinette's side edges curl; a pattern's
+    purl neighbour reverses the cell's in-plane moment, so garter, rib and seed carry
+    none in the plane although their cells do."""
+    from knitsweep.stitches.patterns import _turning, net_bending_moment
+
+    B = P.B_mN_mm2 * 1e-3
+    x = model.stitch.start(1)
+    m = net_bending_moment(model.control_points(x), PARITIES["stockinette"], B)
+    assert m[1] > 0.3 and abs(m[0]) < 1e-9 * m[1] and abs(m[2]) < 1e-3 * m[1]
+    for name in ("garter", "rib", "seed"):
+        pattern = CellModel(P.model_copy(update={"stitch": name}))
+        cp = pattern.control_points(pattern.stitch.start(1))
+        fabric = net_bending_moment(cp, PARITIES[name], B)
+        assert np.all(np.abs(fabric[:2]) < 1e-12), (name, fabric)
+        if name != "garter":  # the cells of rib and seed carry one; their neighbours cancel it
+            assert np.max(np.abs(_turning(cp, 32)[:2])) > 1.0, name

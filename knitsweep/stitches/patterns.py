@@ -120,3 +120,36 @@ def check_start(cp, a_x, a_y, r, r_core, parity=(0, 0), label="start") -> float:
                          f"segment {sa} of the cell and segment {sb} of its image {image}: "
                          f"a start must keep the hard cores apart")  # fmt: skip
     return z
+
+
+def _turning(cp: np.ndarray, nodes: int) -> np.ndarray:
+    """∫ t × dt along the quintic segments ``cp`` (S, 6, 3): Σ_s ∫₀¹ (r′ × r″)/|r′|² du,
+    Gauss–Legendre with ``nodes`` nodes per segment (radians, a vector)."""
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    u, w = 0.5 * (x + 1.0), 0.5 * w
+    d1 = np.stack([5 * comb(4, i) * u**i * (1 - u) ** (4 - i) for i in range(5)], axis=1)
+    d2 = np.stack([20 * comb(3, i) * u**i * (1 - u) ** (3 - i) for i in range(4)], axis=1)
+    total = np.zeros(3)
+    for seg in np.asarray(cp, dtype=float):
+        v = d1 @ np.diff(seg, axis=0)  # r′(u), (nodes, 3)
+        a = d2 @ np.diff(seg, n=2, axis=0)  # r″(u)
+        total += (w[:, None] * np.cross(v, a) / np.sum(v * v, axis=1)[:, None]).sum(axis=0)
+    return total
+
+
+def net_bending_moment(cp: np.ndarray, parity: tuple[int, int], B: float,
+                       nodes: int = 32) -> np.ndarray:  # fmt: skip
+    """The yarn's bending moment summed over one repeat of the fabric, per stitch:
+    B ∫ t × dt (an elastica's moment is B t × dt/ds), N·mm² with B in N·mm², shape (3,).
+
+    Its in-plane components are a moment that the fabric carries at every cut and that a
+    free edge releases by curling (docs/model.md §11, "Curl"). Over a pattern with
+    mirrored images the repeat holds the stitch and its mirror image (z -> -z), whose
+    moment is the cell's with its x and y components reversed (a moment is an axial
+    vector): a pattern with purl stitches carries none in the plane, whatever its shape;
+    stockinette, which mirrors nothing, can."""
+    m = B * _turning(cp, nodes)
+    if not any(parity):
+        return m
+    mirrored = B * _turning(np.asarray(cp, dtype=float) * np.array([1.0, 1.0, -1.0]), nodes)
+    return 0.5 * (m + mirrored)
