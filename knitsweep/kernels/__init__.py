@@ -42,10 +42,10 @@ def _cache_dir() -> str:
 
 numba.config.CACHE_DIR = _cache_dir()
 
-COMPILE_SECONDS = 60
-"""About how long compiling every kernel takes once, in one process (measured 58 s wall,
-39 CPU s, on the loaded 2-core project VM: benchmarks/bench_compile.py); with idle
-cores ``model.compile_kernels`` compiles its groups side by side."""
+COMPILE_SECONDS = 30
+"""About how long compiling every kernel takes once (benchmarks/bench_compile.py on the
+idle 2-core project VM: 21 s in one process, 14 s with the groups side by side, which
+``model.compile_kernels`` does when cores are idle; a loaded machine takes longer)."""
 _ENTRY_POINTS = ("cell.cell_energy_listed-", "contact.find_contacts-",
                  "forces.contact_forces_by_class-", "kkt.kkt_step-")  # fmt: skip
 
