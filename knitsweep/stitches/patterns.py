@@ -88,9 +88,9 @@ def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10):
     ``parity``; same-row neighbours along the yarn excluded as in §6) and where:
     (ζ, (m, n), segment of the cell, segment of the image); ζ = 1 if nothing touches."""
     pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
-    best = (1.0, None, None, None)
     d = 2 * r - 2 * r_core
     lo, hi = pts.min(axis=0), pts.max(axis=0)
+    images, copies = [], []
     for m in range(-2, 3):
         for n in range(-3, 4):
             q = pts.copy()
@@ -99,16 +99,24 @@ def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10):
             q += (m * a_x, n * a_y, 0.0)
             if np.any(q.min(axis=0) - hi >= 2 * r) or np.any(lo - q.max(axis=0) >= 2 * r):
                 continue  # every sample of the image 2r away or more: no contact counted
-            diff = pts[:, None] - q[None]  # |diff| as np.linalg.norm sums it, without its overhead
-            dist = np.sqrt(diff[..., 0] ** 2 + diff[..., 1] ** 2 + diff[..., 2] ** 2)
-            if n == 0:
-                dist[np.abs(s_mid[:, None] - s_mid[None] - m * s_tot) <= EXCLUSION_FACTOR * r] = (
-                    np.inf
-                )
-            i, j = np.unravel_index(np.argmin(dist), dist.shape)
-            z = (dist[i, j] - 2 * r_core) / d
-            if dist[i, j] < 2 * r and z < best[0]:
-                best = (float(z), (m, n), int(i // samples), int(j // samples))
+            images.append((m, n))
+            copies.append(q)
+    if not images:
+        return (1.0, None, None, None)
+    diff = pts[None, :, None] - np.stack(copies)[:, None]  # (images, cell sample, image sample)
+    dist = np.sqrt(diff[..., 0] ** 2 + diff[..., 1] ** 2 + diff[..., 2] ** 2)  # as norm sums
+    for k, (m, n) in enumerate(images):
+        if n == 0:  # the same row: neighbours along the yarn are no contact (§6)
+            near = np.abs(s_mid[:, None] - s_mid[None] - m * s_tot) <= EXCLUSION_FACTOR * r
+            dist[k][near] = np.inf
+    flat = dist.reshape(len(images), -1)
+    where = np.argmin(flat, axis=1)  # each image's first smallest distance, row by row
+    best = (1.0, None, None, None)
+    for k, image in enumerate(images):  # in the images' order: the first of equal ζ wins
+        i, j = divmod(int(where[k]), dist.shape[2])
+        z = (flat[k, where[k]] - 2 * r_core) / d
+        if flat[k, where[k]] < 2 * r and z < best[0]:
+            best = (float(z), image, int(i // samples), int(j // samples))
     return best
 
 
