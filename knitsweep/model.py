@@ -207,16 +207,18 @@ class CellModel:
         x = self._as_state(x)
         if contact_energy is None:
             contact_energy = self.energies(x).contact_energy
-        zeta = fine.min_zeta(x)
         ec = fine.energies(x).contact_energy
+        if abs(ec - contact_energy) <= RESOLUTION_RTOL * contact_energy:
+            # resolved; overlapping cores would have raised E_c by far more (a pair with
+            # zeta below CORE_EPS alone adds V(CORE_EPS) ~ 10^2 mJ, §6)
+            return ""
+        zeta = fine.min_zeta(x)
         n = fine.fidelity.samples_per_segment
         if zeta < CORE_EPS:
             return (f"{CORES_OVERLAP} with {n} samples per segment (smallest zeta {zeta:.3g}), "
                     f"apart only between the {n // 2} of the model")  # fmt: skip
-        if abs(ec - contact_energy) > RESOLUTION_RTOL * contact_energy:
-            return (f"contact under-resolved: E_c = {contact_energy:.4g} mJ, with {n} samples "
-                    f"per segment {ec:.4g} mJ")  # fmt: skip
-        return ""
+        return (f"contact under-resolved: E_c = {contact_energy:.4g} mJ, with {n} samples "
+                f"per segment {ec:.4g} mJ")  # fmt: skip
 
     def topology_change(self, x: np.ndarray) -> str:
         """For a stitch with mirrored images: "" if state ``x`` shows the crossings of
