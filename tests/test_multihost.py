@@ -495,9 +495,12 @@ def test_template_on_two_nodes(head_cache, shared_dir, jobs, tiny_reference, lau
 
 @pytest.fixture(scope="module")
 def bigger(tmp_path_factory):
-    """A 10-point job (30 tasks) and its serial results."""
+    """A 10-point job (30 tasks) at fine steps (seconds of work under MPI, long enough for
+    a signal to stop it mid-way: at the tiny job's steps it was done within a second) and
+    its serial results."""
     tmp = tmp_path_factory.mktemp("bigger_mh")
     job = bigger_job(tmp, 10)
+    job.write_text(job.read_text().replace("step_mm = 0.02", "step_mm = 0.001"))
     out = tmp / "reference.h5"
     assert service.run(job, out, executor="serial", show_progress=False).counts["done"] == 30
     return job, out
