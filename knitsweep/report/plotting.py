@@ -196,10 +196,7 @@ def title(fig: Any, red: Reduction, text: str) -> None:
     if red.partial:
         lines.insert(0, f"PARTIAL RESULTS ({red.partial_reason})")
     # a character of the title's type is ~0.55 of its size wide: wrap to the figure
-    import matplotlib
-    from matplotlib.font_manager import FontProperties
-
-    size = FontProperties(size=matplotlib.rcParams["figure.titlesize"]).get_size_in_points()
+    size = font_points("figure.titlesize")
     chars = max(20, int(fig.get_figwidth() * 72.0 / (0.55 * size * 1.2)))
     lines = [
         w
@@ -217,12 +214,8 @@ def panel_title(ax: Any, head: str, *details: str, **kw: Any) -> None:
     (a series label, 'stitch = garter, k = 0.1 mN/mm²') breaks between its parameters,
     never inside one 'symbol = value unit', so that neighbouring titles do not meet
     and none runs past the figure's edge."""
-    import matplotlib
-    from matplotlib.font_manager import FontProperties
-
     parts = [head, *(d for d in details if d)]
-    size = FontProperties(size=kw.get("fontsize", matplotlib.rcParams["axes.titlesize"]))
-    chars = panel_chars(ax, size.get_size_in_points())
+    chars = panel_chars(ax, font_points("axes.titlesize", kw.get("fontsize")))
     line = "; ".join(parts)
     if not narrow() and _visible(line) <= chars:
         ax.set_title(line, **kw)
@@ -237,6 +230,16 @@ def title_overhangs(ax: Any) -> bool:
     size = ax.title.get_fontsize()
     lines = ax.get_title().split("\n")
     return max(map(_visible, lines)) > panel_chars(ax, size) / 1.1
+
+
+def font_points(rc_key: str, size: Any = None) -> float:
+    """A font size in points: ``size`` (points or a name such as 'large'), else the
+    matplotlib setting ``rc_key`` (e.g. 'legend.fontsize')."""
+    import matplotlib
+    from matplotlib.font_manager import FontProperties
+
+    return FontProperties(size=matplotlib.rcParams[rc_key] if size is None else size
+                          ).get_size_in_points()  # fmt: skip
 
 
 def panel_chars(ax: Any, size: float) -> int:
@@ -339,10 +342,7 @@ def legend_below(ax: Any, labels: Sequence[str]) -> bool:
     """Whether a legend of ``labels`` on ``ax`` goes below the axes (a figure legend)
     rather than over the data: more than 5 entries at column width, 8 at the page's,
     or entries longer than 0.6 of the panel's width (it would cover half of it)."""
-    import matplotlib
-    from matplotlib.font_manager import FontProperties
-
-    size = FontProperties(size=matplotlib.rcParams["legend.fontsize"]).get_size_in_points()
+    size = font_points("legend.fontsize")
     longest = max((_visible(line) for t in labels for line in t.split("\n")), default=0)
     return len(labels) > (5 if narrow() else 8) or longest > 0.6 * panel_chars(ax, size)
 
@@ -357,10 +357,7 @@ def series_legend(fig: Any, ax: Any, handles: Sequence[Any], below: bool | None 
         below = legend_below(ax, [h.get_label() for h in handles])
     if not below:
         return ax.legend(handles=handles, **kw)
-    import matplotlib
-    from matplotlib.font_manager import FontProperties
-
-    size = FontProperties(size=matplotlib.rcParams["legend.fontsize"]).get_size_in_points()
+    size = font_points("legend.fontsize")
     chars = int(fig.get_figwidth() * 72.0 / (0.58 * size))  # the figure's width
     for h in handles:  # a handle and its gap take ~6 characters
         label = h.get_label()
