@@ -13,7 +13,16 @@ from __future__ import annotations
 from typing import Any
 
 from ..stitches import STITCH_NAMES
-from .plotting import DIRECTION_COLOUR, L_OVER_R, SkipFigure, narrow, new_figure, panel_title, title
+from .plotting import (
+    DIRECTION_COLOUR,
+    L_OVER_R,
+    SkipFigure,
+    narrow,
+    new_figure,
+    panel_title,
+    series_rows,
+    title,
+)
 from .reduce import Reduction, series_key
 
 STITCH_COLOUR = {
@@ -72,19 +81,17 @@ def figP_patterns(red: Reduction, notes: list[str]) -> Any:
             t = trans.get((key, d))
             pos = i + (j - 0.5) * 0.3
             style = {"color": DIRECTION_COLOUR[d], "mfc": colour, "ls": "none"}
+            rows = series_rows(red, key, d)  # by L/r
             if t is not None and t["status"] == "transition":
                 value, lower = t["L_over_r_trans"], t["bracket_lower"]
                 ax_t.errorbar([pos], [value], yerr=[[value - lower], [0.0]], marker=marker,
                               ms=6, capsize=3, **style)  # fmt: skip
-            elif t is not None:  # no crossing inside the L range: an arrow out of it
-                edge = [r["L_over_r"] for r in red.sweeps
-                        if series_key(r) == key and r["direction"] == d]  # fmt: skip
+            elif t is not None and rows:  # no crossing inside the L range: an arrow out of it
                 up, beyond = t["status"] == "jammed_throughout", True
-                ax_t.plot([pos], [max(edge) if up else min(edge)], marker="^" if up else "v",
-                          ms=8, **style)  # fmt: skip
+                edge = rows[-1 if up else 0]["L_over_r"]  # the largest L/r, or the smallest
+                ax_t.plot([pos], [edge], marker="^" if up else "v", ms=8, **style)
                 notes.append(f"patterns: {stitch} in {d}: {t['status'].replace('_', ' ')}")
-            rows = sorted((r for r in red.sweeps if series_key(r) == key and r["direction"] == d
-                           and r["Y_sec_N_per_mm"] is not None), key=lambda r: r["L_over_r"])  # fmt: skip
+            rows = [r for r in rows if r["Y_sec_N_per_mm"] is not None]
             if rows:
                 curves.append(([r["L_over_r"] for r in rows], [r["Y_sec_N_per_mm"] for r in rows],
                                {"color": colour, "ls": ls, "marker": marker, "ms": 4}))  # fmt: skip
