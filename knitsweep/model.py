@@ -19,7 +19,7 @@ import numpy as np
 from .config import Fidelity, InternalParams, StitchParams
 from .errors import InputError
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
-from .kernels.cell import cell_energy_listed
+from .kernels.cell import cell_energy, cell_energy_listed
 from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE, find_contacts, min_zeta
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
@@ -115,8 +115,7 @@ class CellModel:
                 ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.stitch.mirror_parity, with_grad,
                 self._grad_e, self._grad_l,
             )  # fmt: skip
-        # cell.cell_energy, without its Python layer: the kernel with no list
-        return cell_energy_listed(*self._energy_args(cp, jac, x, with_grad), *NO_LIST)[:3]
+        return cell_energy(*self._energy_args(cp, jac, x, with_grad))
 
     def _energy_args(self, cp, jac, x, with_grad) -> tuple:
         """The arguments of ``cell_energy`` (and the first ones of ``cell_energy_listed``)."""

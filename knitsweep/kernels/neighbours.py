@@ -42,7 +42,8 @@ _META = 7
 
 NO_LIST = (np.empty((0, 5), dtype=np.int64), np.empty((3, 0)), np.empty(0))
 """The three arrays of an empty neighbour list: ``contact_energy_listed`` (and
-``cell.cell_energy_listed``) then sum over the full search, as ``contact_energy``.(Writable, as the arrays of a built list: a read-only array is another type to numba,
+``cell.cell_energy_listed``) then sum over the full search, as ``contact_energy``.
+(Writable, as the arrays of a built list: a read-only array is another type to numba,
 so another specialisation.)"""
 
 
