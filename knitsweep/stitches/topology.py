@@ -87,13 +87,14 @@ def _near_pieces(p0, p1, q0, q1) -> tuple[np.ndarray, np.ndarray]:
     cell of a square grid, as wide as the widest piece, that holds its box's lower
     corner; two boxes that overlap are then filed at most one cell apart."""
     pmin, qmin = np.minimum(p0, p1)[:, :2], np.minimum(q0, q1)[:, :2]
-    extent = max(float(np.max(np.abs(p1 - p0)[:, :2])), float(np.max(np.abs(q1 - q0)[:, :2])))
-    h = extent * (1.0 + 1e-9) + 1e-12
+    # an image's pieces are the cell's, shifted (and mirrored in z): as wide in x and y
+    h = float(np.max(np.abs(p1 - p0)[:, :2])) * (1.0 + 1e-9) + 1e-12
     origin = np.minimum(pmin.min(axis=0), qmin.min(axis=0)) - h
-    cp_, cq = (
-        np.floor((pmin - origin) / h).astype(np.int64),
-        np.floor((qmin - origin) / h).astype(np.int64),
-    )
+
+    def cell(corner: np.ndarray) -> np.ndarray:
+        return np.floor((corner - origin) / h).astype(np.int64)
+
+    cp_, cq = cell(pmin), cell(qmin)
     width = int(max(cp_[:, 1].max(), cq[:, 1].max())) + 3
     key_q = cq[:, 0] * width + cq[:, 1]
     order = np.argsort(key_q, kind="stable")
