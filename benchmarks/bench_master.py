@@ -114,7 +114,8 @@ if summary is not None:
         stored = len({(e.kind, e.task_id) for e in scan(journal_dir(__import__("pathlib").Path(out)))[0]})
     else:
         with h5py.File(out) as f:
-            stored = len(f["points"]) + len(f["sweeps"])
+            stored = sum(len(f[k]["task"]) if f[k].attrs.get("layout") == "table" else len(f[k])
+                         for k in ("points", "sweeps"))  # tables (schema 3) or groups
     assert stored == summary.total == summary.counts["done"], (stored, summary.total)
     print(json.dumps({"results": stored, "seconds": seconds, "whole_s": end - t0}))
 """

@@ -34,17 +34,45 @@ def init1() -> np.ndarray:
     return read_state(SHIPPED / "Init_1.dat")
 
 
-def physics(path):
-    """Every task's stored arrays and status, minus timings and placement."""
+def stored(path, kind, with_data=False):
+    """Task id -> entry of one kind in a results file (its HDF5 part, without the
+    journal), read and verified as knitsweep reads it."""
+    from knitsweep.store.format import journal_dir
+    from knitsweep.store.read import iter_entries
+
+    assert not journal_dir(path).exists() or not any(journal_dir(path).iterdir()), path
+    return {e.task_id: e for e in iter_entries(path, with_data=with_data) if e.kind == kind}
+
+
+def stored_meta(path, kind):
+    """Task id -> scalars (what schema 2 kept as a task group's attributes)."""
+    return {tid: e.meta for tid, e in stored(path, kind).items()}
+
+
+def drop_tasks(path, drop):
+    """Remove the tasks ``drop`` ((kind, task id) pairs) from a results file in place,
+    as if they had never finished (the other tasks rewritten as they were)."""
     import h5py
 
+    from knitsweep.store.format import KINDS
+    from knitsweep.store.table import create_table, put_rows
+
+    kept = {kind: [e for e in stored(path, kind, with_data=True).values()
+                   if (kind, e.task_id) not in drop] for kind in KINDS}  # fmt: skip
+    with h5py.File(path, "a") as f:
+        for kind in KINDS:
+            del f[kind]
+            put_rows(create_table(f, kind), kind, kept[kind])
+
+
+def physics(path):
+    """Every task's stored arrays and status, minus timings and placement."""
     out = {}
-    with h5py.File(path, "r") as f:
-        for kind in ("points", "sweeps"):
-            for tid, g in f[kind].items():
-                rec = {k: g[k][()] for k in g if k not in VOLATILE}
-                rec["status"] = g.attrs["status"]
-                out[(kind, tid)] = rec
+    for kind in ("points", "sweeps"):
+        for tid, e in stored(path, kind, with_data=True).items():
+            rec = {k: v for k, v in e.record.items() if k not in VOLATILE}
+            rec["status"] = e.meta["status"]
+            out[(kind, tid)] = rec
     return out
 
 

@@ -7,9 +7,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-import h5py
 import numpy as np
 import pytest
+from conftest import stored_meta
 
 from knitsweep import service
 from knitsweep.config import InputError
@@ -119,21 +119,19 @@ def adaptive_run(tmp_path_factory):
 
 
 def _series(path):
-    with h5py.File(path) as f:
-        return {k: dict(g.attrs) for k, g in f["series"].items()}
+    return stored_meta(path, "series")
 
 
 def test_adaptive_job_writes_brackets(adaptive_run):
     series = _series(adaptive_run)
     assert sorted(s["direction"] for s in series.values()) == ["x", "y"]
-    with h5py.File(adaptive_run) as f:
-        for s in series.values():
-            assert s["status"] == "done" and s["hi_mm"] - s["lo_mm"] <= 0.02 + 1e-9
-            gaps = {g.attrs["L_mm"]: g.attrs["jamming_gap"] for g in f["sweeps"].values()
-                    if g.attrs["direction"] == s["direction"]}  # fmt: skip
-            assert gaps[s["lo_mm"]] >= 5e-5 > gaps[s["hi_mm"]]
-            assert all(g < 5e-5 for L, g in gaps.items() if L > s["hi_mm"])
-            assert s["L_over_r_trans"] == pytest.approx(s["hi_mm"] / 0.74)
+    sweeps = stored_meta(adaptive_run, "sweeps").values()
+    for s in series.values():
+        assert s["status"] == "done" and s["hi_mm"] - s["lo_mm"] <= 0.02 + 1e-9
+        gaps = {g["L_mm"]: g["jamming_gap"] for g in sweeps if g["direction"] == s["direction"]}
+        assert gaps[s["lo_mm"]] >= 5e-5 > gaps[s["hi_mm"]]
+        assert all(g < 5e-5 for L, g in gaps.items() if L > s["hi_mm"])
+        assert s["L_over_r_trans"] == pytest.approx(s["hi_mm"] / 0.74)
     status = service.status(adaptive_run)
     assert status["series"] == {"done": 2, "total": 2} and status["pending"] == 0
 

@@ -10,10 +10,9 @@ import subprocess
 import sys
 import time
 
-import h5py
 import numpy as np
 import pytest
-from conftest import DATA, TINY, assert_same_results
+from conftest import DATA, TINY, assert_same_results, drop_tasks, stored, stored_meta
 
 from knitsweep import service
 from knitsweep.service.jobs import load_job, plan
@@ -29,13 +28,12 @@ def _carrying(tmp_path, source, name, extra=""):
 
 
 def _zero(path):
-    with h5py.File(path) as f:
-        out = {}
-        for g in f["points"].values():
-            labels = [s.decode() if isinstance(s, bytes) else str(s) for s in g["labels"][()]]
-            energy = g["bending_energy"][()] + g["contact_energy"][()]
-            out[g.attrs["L_mm"]] = (labels, float(energy[int(g.attrs["winner"])]))
-        return out
+    out = {}
+    for e in stored(path, "points", with_data=True).values():
+        labels = [str(s) for s in e.record["labels"]]
+        energy = e.record["bending_energy"] + e.record["contact_energy"]
+        out[e.meta["L_mm"]] = (labels, float(energy[int(e.meta["winner"])]))
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -99,8 +97,7 @@ def test_an_adaptive_job_carries_into_its_refinements(adaptive):
     zero = _zero(out)
     carried = [L for L, (labels, _) in zero.items() if labels[0].startswith("carried from")]
     assert len(carried) == len(zero) - 1 > 4  # all but the largest L, refinements too
-    with h5py.File(out) as f:
-        series = [dict(g.attrs) for g in f["series"].values()]
+    series = list(stored_meta(out, "series").values())
     assert [s["status"] for s in series] == ["done", "done"]
     assert all(s["hi_mm"] - s["lo_mm"] <= 0.01 + 1e-9 for s in series)
     again = service.run(job, out, executor="serial", show_progress=False)  # nothing new
@@ -138,8 +135,7 @@ def _refinements_in_order(job, path, direction):
     from the stored gaps), each with its point id and the point it carried from."""
     from knitsweep.service.adaptive import Refiner
 
-    with h5py.File(path) as f:
-        sweeps = [dict(g.attrs) for g in f["sweeps"].values()]
+    sweeps = list(stored_meta(path, "sweeps").values())
     mine = {float(s["L_mm"]): s for s in sweeps if s["direction"] == direction}
     refiner = Refiner(load_job(job))
     coarse = set(refiner.coarse)
@@ -165,15 +161,12 @@ def test_a_resumed_refinement_carries_from_a_refinement_of_the_run_before(adapti
     cut = next(i for i, (_, _, hi) in enumerate(order) if hi not in coarse)
     out = tmp_path / "cut.h5"
     out.write_bytes(whole.read_bytes())
-    with h5py.File(out, "a") as f:
-        removed = {pid for _, pid, _ in order[cut:]}
-        for sid in [s for s, g in f["sweeps"].items() if g.attrs["point_id"] in removed]:
-            del f["sweeps"][sid]
-        for pid in removed:
-            del f["points"][pid]
-        for key in list(f["series"]):
-            if f["series"][key].attrs["direction"] == "x":
-                del f["series"][key]
+    removed = {pid for _, pid, _ in order[cut:]}
+    drop_tasks(out, {("sweeps", s) for s, m in stored_meta(out, "sweeps").items()
+                     if m["point_id"] in removed}
+               | {("points", pid) for pid in removed}
+               | {("series", k) for k, m in stored_meta(out, "series").items()
+                  if m["direction"] == "x"})  # fmt: skip
     summary = service.run(job, out, executor="serial", show_progress=False)
     assert summary.total - summary.skipped == 2 * len(removed)  # each point and its x sweep
     assert_same_results(whole, out)

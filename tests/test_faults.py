@@ -15,12 +15,12 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import SHIPPED, TINY, assert_same_results
+from conftest import SHIPPED, TINY, assert_same_results, drop_tasks, stored, stored_meta
 
 from knitsweep import service
 from knitsweep.config import InputError
 from knitsweep.store.checksum import seal_root
-from knitsweep.store.format import journal_dir
+from knitsweep.store.format import RESULTS_SCHEMA_VERSION, journal_dir
 from knitsweep.store.journal import (
     Entry,
     Malformed,
@@ -153,9 +153,8 @@ def test_group_commit_writes_one_batch_per_commit_and_later_entries_win(tmp_path
     assert {e.task_id: e.meta["status"] for e in iter_entries(out)}["p0"] == "done"
     writer.close("interrupted")
     assert not journal_dir(out).exists()
-    with h5py.File(out) as f:
-        assert sorted(f["points"]) == ["p0", "p1", "p2"]
-        assert f["points/p0"].attrs["status"] == "done"
+    points = stored_meta(out, "points")
+    assert sorted(points) == ["p0", "p1", "p2"] and points["p0"]["status"] == "done"
     journal = journal_dir(out)
     journal.mkdir()
     path = write_batch(journal, 1, [Entry("points", "p9", {}, {"status": "done"})])
@@ -184,9 +183,9 @@ def test_a_pickle_in_the_journal_is_never_unpickled(tmp_path):
 def test_malformed_entries_are_reported_and_recomputed(tiny_reference, tmp_path):
     out = tmp_path / "m.h5"
     shutil.copy(tiny_reference, out)
-    with h5py.File(out, "a") as f:  # one sweep not yet checkpointed, and damaged
-        tid = sorted(f["sweeps"])[0]
-        del f[f"sweeps/{tid}"]
+    tid = sorted(stored(out, "sweeps"))[0]
+    drop_tasks(out, {("sweeps", tid)})  # one sweep not yet checkpointed, and damaged
+    with h5py.File(out, "a") as f:
         f.attrs["run_status"] = "interrupted"
         seal_root(f)  # as the writer does at a checkpoint
     journal = journal_dir(out)
@@ -292,7 +291,7 @@ def test_full_disk_mid_run_stops_cleanly_and_resumes(tmpfs, tmp_path, six_stored
     assert "Traceback" not in proc.stderr
     assert leftovers(full) == [], "temporary files left on a full disk"
     with h5py.File(out) as f:
-        written = len(f["points"]) + len(f["sweeps"])
+        written = len(f["points/task"]) + len(f["sweeps/task"])
     kept = written + len(list(journal_dir(out).glob("*.entry")))
     print(f"full disk ({size}) landed mid-run: {int(0 < kept < 18)} of 1 ({kept} of 18 tasks kept)")
     assert kept < 18
@@ -380,14 +379,14 @@ def test_checkpoints_append_in_place_and_never_touch_a_file_a_reader_holds(tmp_p
     assert os.stat(out).st_ino != inode
     add(5, 2)
     assert writer.checkpoint() == 2  # the reader still holds version 1: copied, not reused
-    assert sorted(reader["sweeps"]) == ["s0", "s1", "s2"]  # the reader's file never changed
+    assert list(reader["sweeps/task"].asstr()) == ["s0", "s1", "s2"]  # the reader's never changed
     reader.close()
     add(7, 1)
     writer.checkpoint()
     writer.close("complete")
-    with h5py.File(out, "r") as f:
-        assert sorted(f["sweeps"], key=lambda t: int(t[1:])) == [f"s{i}" for i in range(8)]
-        assert [int(f["sweeps"][f"s{i}"].attrs["i"]) for i in range(8)] == list(range(8))
+    sweeps = stored_meta(out, "sweeps")
+    assert list(sweeps) == [f"s{i}" for i in range(8)]
+    assert [sweeps[f"s{i}"]["i"] for i in range(8)] == list(range(8))
     assert leftovers(tmp_path) == [] and not journal_dir(out).exists()
 
 
@@ -449,7 +448,7 @@ def test_directory_made_read_only_mid_run(tmpfs, six_stored):
     assert "permission denied" in errors[0] and "make the directory writable" in errors[0], err
     assert "make room" not in errors[0] and "Traceback" not in err, err
     with h5py.File(out) as f:
-        assert f.attrs["schema_version"] == 2
+        assert f.attrs["schema_version"] == RESULTS_SCHEMA_VERSION
 
 
 @pytest.mark.parametrize("command", ["run", "merge", "phase-diagram", "report", "render",

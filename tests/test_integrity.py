@@ -15,7 +15,7 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
-from conftest import TINY, assert_same_results
+from conftest import DATA, TINY, VOLATILE, assert_same_results, stored_meta
 
 import knitsweep
 from knitsweep import service
@@ -44,16 +44,58 @@ def data_offset(ds) -> int:
     return ds.id.get_offset() if ds.chunks is None else ds.id.get_chunk_info(0).byte_offset
 
 
+def row_offset(f, kind: str, tid: str, column: str) -> int:
+    """Where in the file the row of task ``tid`` starts in ``column`` (uncompressed)."""
+    row = list(f[f"{kind}/task"].asstr()).index(tid)
+    ds = f[f"{kind}/{column}"]
+    assert ds.compression is None
+    start = row - row % ds.chunks[0]
+    info = ds.id.get_chunk_info_by_coord((start,) + (0,) * (ds.ndim - 1))
+    return info.byte_offset + (row - start) * int(np.prod(ds.chunks[1:])) * ds.dtype.itemsize
+
+
 @pytest.fixture
 def damaged(tiny_reference, tmp_path):
     """A copy of the tiny reference with 64 bytes of one sweep's total_energy flipped."""
     out = tmp_path / "d.h5"
     shutil.copy(tiny_reference, out)
     with h5py.File(out, "r") as f:
-        tid = sorted(f["sweeps"])[0]
-        offset = data_offset(f[f"sweeps/{tid}/total_energy"])
+        tid = sorted(f["sweeps/task"].asstr())[0]
+        offset = row_offset(f, "sweeps", tid, "total_energy")
     flip(out, offset)
     return out, tid
+
+
+@pytest.fixture
+def schema2(tmp_path):
+    """A copy of the tiny job's results as the previous version wrote them (results
+    schema 2: one group per task)."""
+    out = tmp_path / "v2.h5"
+    shutil.copy(DATA / "schema2_tiny.h5", out)
+    return out
+
+
+def test_a_file_of_schema_2_reads_as_the_same_results(schema2, tiny_reference):
+    assert read_root(schema2)["schema_version"] == 2
+    assert_same_results(tiny_reference, schema2)
+    for kind in ("points", "sweeps"):
+        old, new = stored_meta(schema2, kind), stored_meta(tiny_reference, kind)
+        for tid, meta in new.items():
+            same = {k: v for k, v in meta.items() if k not in VOLATILE | {"started_at"}}
+            assert {k: old[tid][k] for k in same} == same, (kind, tid)
+
+
+def test_a_flipped_byte_in_a_table_spoils_its_row_only(tiny_reference, tmp_path):
+    out = tmp_path / "one.h5"
+    shutil.copy(tiny_reference, out)
+    with h5py.File(out, "r") as f:
+        tids = sorted(f["sweeps/task"].asstr())
+        offset = row_offset(f, "sweeps", tids[1], "stress") + 8  # its second value
+    flip(out, offset, n=1)
+    check = FileCheck()
+    assert sorted(e.task_id for e in iter_entries(out, check=check) if e.kind == "sweeps") == [
+        t for t in tids if t != tids[1]]  # fmt: skip
+    assert [(k, t) for k, t, _ in check.damaged] == [("sweeps", tids[1])]
 
 
 def test_flipped_bytes_are_found_by_every_reader_and_recomputed(damaged, tiny_reference, tmp_path):
@@ -81,12 +123,16 @@ def test_flipped_bytes_are_found_by_every_reader_and_recomputed(damaged, tiny_re
     assert service.status(out)["damaged"] == []
 
 
-def test_helpers_read_a_file_as_this_process_does(damaged, monkeypatch):
-    """A large file is read by forked helpers (here: every file): the same entries in
-    the same order, the same damage found, the same counts."""
+def test_helpers_read_a_file_as_this_process_does(schema2, monkeypatch):
+    """A large file of task groups (schema 2) is read by forked helpers (here: every
+    file): the same entries in the same order, the same damage found, the same counts."""
     from knitsweep.store import read
 
-    out, tid = damaged
+    out = schema2
+    with h5py.File(out, "r") as f:
+        tid = sorted(f["sweeps"])[0]
+        offset = data_offset(f[f"sweeps/{tid}/total_energy"])
+    flip(out, offset)
 
     def entries_and_check():
         check = FileCheck()
@@ -95,6 +141,7 @@ def test_helpers_read_a_file_as_this_process_does(damaged, monkeypatch):
         return got, (check.damaged, check.verified, check.unverified, check.structure)
 
     serial = entries_and_check()
+    assert [d[1] for d in serial[1][0]] == [tid] and serial[1][1] == 5
     monkeypatch.setattr(read, "PARALLEL_FROM", 1)
     forked = []
     import knitsweep.processes as processes
@@ -110,18 +157,21 @@ def test_helpers_read_a_file_as_this_process_does(damaged, monkeypatch):
     parallel = entries_and_check()
     assert forked == [2], "the helpers did not read"
     assert parallel == serial
-    assert [d[1] for d in serial[1][0]] == [tid] and serial[1][1] == 5
 
 
 def test_a_changed_attribute_or_root_is_damage(tiny_reference, tmp_path):
     out = tmp_path / "a.h5"
     shutil.copy(tiny_reference, out)
     with h5py.File(out, "a") as f:
-        tid = sorted(f["points"])[0]
-        f[f"points/{tid}"].attrs["L_mm"] = 99.0
+        tids = list(f["points/task"].asstr())
+        f["points/L_mm"][0] = 99.0  # the column other readers see
+        entry = json.loads(f["points/entry"][1])
+        entry["attrs"]["L_mm"] = 99.0
+        f["points/entry"][1] = json.dumps(entry, sort_keys=True, separators=(",", ":"))
     check = FileCheck()
-    assert tid not in {e.task_id for e in iter_entries(out, check=check)}
-    assert check.damaged[0][:2] == ("points", tid) and "checksum" in check.damaged[0][2]
+    assert not set(tids) & {e.task_id for e in iter_entries(out, check=check)}
+    assert [d[:2] for d in check.damaged] == [("points", tids[0]), ("points", tids[1])]
+    assert "L_mm column disagrees" in check.damaged[0][2] and "checksum" in check.damaged[1][2]
     with h5py.File(out, "a") as f:
         f.attrs["job_name"] = "other"
     for args in (("status", out), ("phase-diagram", out, "--out", tmp_path / "pd"),
@@ -133,9 +183,8 @@ def test_a_changed_attribute_or_root_is_damage(tiny_reference, tmp_path):
         assert "knitsweep recover" in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_files_without_checksums_read_unverified(tiny_reference, tmp_path):
-    out = tmp_path / "old.h5"
-    shutil.copy(tiny_reference, out)
+def test_files_without_checksums_read_unverified(schema2):
+    out = schema2
     with h5py.File(out, "a") as f:
         del f.attrs[ROOT_DIGEST]
         for kind in ("points", "sweeps"):
@@ -159,13 +208,12 @@ def test_digests_cover_scalars_empty_arrays_strings_and_attributes(tmp_path):
         writer.add("sweeps", f"s{i}", record, {"status": "done", "where": {"rank": 1}})
     writer.close("complete")
 
-    def tamper(name, fn):
-        with h5py.File(out, "a") as f:
-            fn(f[f"sweeps/{name}"])
-
-    tamper("s0", lambda g: g["labels"].__setitem__(1, "bx"))
-    tamper("s1", lambda g: g.attrs.__setitem__("text", "y"))
-    tamper("s2", lambda g: g["empty"].attrs.__setitem__("units", "mm"))
+    with h5py.File(out, "a") as f:
+        g = f["sweeps"]
+        assert list(g["task"].asstr()) == ["s0", "s1", "s2", "s3"]
+        g["labels"][0, 1] = "bx"  # a string array
+        g["text"][1] = "y"  # a string scalar's column
+        g["flag"][2] = 0.0  # a boolean scalar's column
     check = FileCheck()
     assert [e.task_id for e in iter_entries(out, check=check)] == ["s3"]
     assert sorted(t for _, t, _ in check.damaged) == ["s0", "s1", "s2"]

@@ -53,7 +53,7 @@ MODULE_ORDER = {
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper",
                  "volumes"],
     "analysis.volumes": ["_nearest", "geometry", "estimators"],
-    "store": ["checksum", "format", "journal", "provenance", "read", "writer", "salvage",
+    "store": ["checksum", "format", "journal", "provenance", "table", "read", "writer", "salvage",
               "sweep_file"],
     "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],
     "strain_sweep": ["result", "schedule", "sweep"],

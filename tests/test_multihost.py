@@ -26,7 +26,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import TINY, assert_same_results
+from conftest import TINY, assert_same_results, stored_meta
 
 import knitsweep
 from knitsweep import service
@@ -294,9 +294,8 @@ class RankWatcher(threading.Thread):
 
 def placements(path):
     """{(kind, task id): (rank, host)} as the results file records them."""
-    with h5py.File(path, "r") as f:
-        return {(kind, tid): (int(g.attrs["rank"]), str(g.attrs["host"]))
-                for kind in ("points", "sweeps") for tid, g in f[kind].items()}  # fmt: skip
+    return {(kind, tid): (int(m["rank"]), str(m["host"]))
+            for kind in ("points", "sweeps") for tid, m in stored_meta(path, kind).items()}  # fmt: skip
 
 
 def assert_placed_where_computed(out, watcher, nodes_used=NODES):

@@ -5,6 +5,7 @@ columns in the points and curves tables, and the job hash of jobs without it unc
 import h5py
 import numpy as np
 import pytest
+from conftest import stored
 
 JOB = """schema_version = 1
 name = "phi"
@@ -47,16 +48,17 @@ def phi_file(tmp_path_factory):
 
 def test_stored_in_the_file(phi_file):
     with h5py.File(phi_file, "r") as f:
-        (sweep,) = f["sweeps"].values()
-        (point,) = f["points"].values()
-        phi = sweep["packing_fraction"][()]
-        assert phi.shape == sweep["strain"].shape
-        assert sweep["packing_fraction"].attrs["units"] == "1"
-        assert np.all((phi > 0.5) & (phi < 1.0))
-        assert np.all(sweep["packing_fraction_error"][()] < 5e-3)
-        assert point["packing_fraction"].shape == (1,)
-        # step 0 is the zero-force state: the point's value
-        assert phi[0] == pytest.approx(point["packing_fraction"][0], abs=1e-12)
+        assert f["sweeps/packing_fraction"].attrs["units"] == "1"
+    ((sweep,), (point,)) = (
+        stored(phi_file, k, with_data=True).values() for k in ("sweeps", "points")
+    )
+    phi = sweep.record["packing_fraction"]
+    assert phi.shape == sweep.record["strain"].shape
+    assert np.all((phi > 0.5) & (phi < 1.0))
+    assert np.all(sweep.record["packing_fraction_error"] < 5e-3)
+    assert point.record["packing_fraction"].shape == (1,)
+    # step 0 is the zero-force state: the point's value
+    assert phi[0] == pytest.approx(point.record["packing_fraction"][0], abs=1e-12)
 
 
 def test_columns_in_the_tables(phi_file):
@@ -71,9 +73,8 @@ def test_columns_in_the_tables(phi_file):
     c = res.curves
     assert c.packing_fraction.notna().all()
     # recomputed from the stored zero-force state: the same number
-    with h5py.File(phi_file, "r") as f:
-        (point,) = f["points"].values()
-        x = point["x"][0]
+    (point,) = stored(phi_file, "points", with_data=True).values()
+    x = point.record["x"][0]
     cp = CellModel(StitchParams(L_mm=11.4, k_mN_per_mm2=0.1)).control_points(x)
     phi, _ = packing_fraction(cp, x[-2], x[-1], 0.74)
     assert res.points.packing_fraction.iloc[0] == pytest.approx(phi, abs=1e-12)

@@ -9,7 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import TINY
+from conftest import TINY, stored
 from results_factory import write_results
 
 import knitsweep
@@ -125,22 +125,32 @@ def test_select_and_tables_sorted_by_direction_parameters_step(tiny_reference):
 
 
 def test_every_dataset_of_a_run_is_self_describing(tiny_reference):
-    """units, long_name and a named dimension on every dataset; no phony dimensions."""
+    """units, long_name and a named dimension on every dataset; no phony dimensions;
+    each kind opens in xarray as one dataset over its tasks, equal to what knitsweep
+    reads (padding aside)."""
     import xarray as xr
 
     with h5py.File(tiny_reference) as f:
         for kind in (POINTS, SWEEPS):
-            for tid, group in f[kind].items():
-                for name, ds in group.items():
-                    assert "units" in ds.attrs and "long_name" in ds.attrs, (kind, name)
-                    if not ds.is_scale:
-                        assert dataset_quantity(kind, name), f"{kind}/{name}: not in quantities"
-                        assert all(len(d) for d in ds.dims), (kind, name)
-                assert "seconds" in group.attrs  # the task's wall time: an attribute
-                opened = xr.open_dataset(tiny_reference, engine="h5netcdf",
-                                         group=f"{kind}/{tid}")  # fmt: skip
-                assert not [d for d in opened.dims if d.startswith("phony")], opened.dims
-                assert ("step" if kind == SWEEPS else "start") in opened.dims
+            for name, ds in f[kind].items():
+                assert "units" in ds.attrs and "long_name" in ds.attrs, (kind, name)
+                if ds.is_scale:
+                    continue
+                assert all(len(d) for d in ds.dims), (kind, name)
+                if ds.ndim > 1:
+                    assert dataset_quantity(kind, name), f"{kind}/{name}: not in quantities"
+    for kind in (POINTS, SWEEPS):
+        opened = xr.open_dataset(tiny_reference, engine="h5netcdf", group=kind)
+        assert not [d for d in opened.dims if d.startswith("phony")], opened.dims
+        assert ("step" if kind == SWEEPS else "start") in opened.dims
+        assert opened["seconds"].attrs["units"] == "s"  # the task's wall time
+        for tid, e in stored(tiny_reference, kind, with_data=True).items():
+            row = opened.sel(task=tid)
+            assert float(row["L_mm"]) == e.meta["L_mm"] and str(row["status"].values) == "done"
+            for name, value in e.record.items():
+                if value.dtype.kind == "f":
+                    got = row[name].values[tuple(slice(0, n) for n in value.shape)]
+                    assert np.array_equal(got, value, equal_nan=True), (kind, name)
 
 
 def test_checkpoints_keep_the_dimension_scales(tiny_reference, tmp_path):
@@ -151,16 +161,15 @@ def test_checkpoints_keep_the_dimension_scales(tiny_reference, tmp_path):
     job = load_job(TINY)
     out = tmp_path / "two.h5"
     writer = ResultWriter(out, job, {"n_points": 2, "n_sweeps": 4})
-    with h5py.File(tiny_reference) as f:
-        sids = list(f["sweeps"])[:3]
+    sids = sorted(stored(tiny_reference, SWEEPS))[:3]
     for sid in sids:
         entry = read_entry(tiny_reference, SWEEPS, sid)
         writer.add(SWEEPS, sid, entry.record, entry.meta)
         writer.checkpoint()
     writer.close("partial")
-    for sid in sids:
-        ds = xr.open_dataset(out, engine="h5netcdf", group=f"sweeps/{sid}")
-        assert ds["stress"].dims == ("step",) and ds.sizes["step"] > 2
+    ds = xr.open_dataset(out, engine="h5netcdf", group="sweeps")
+    assert ds["stress"].dims == ("task", "step") and ds.sizes["step"] > 2
+    assert sorted(ds["task"].values) == sids
 
 
 def test_several_files_combine_and_old_schema_reads(tmp_path):
@@ -188,8 +197,7 @@ def test_load_reads_a_file_being_written(tiny_reference, tmp_path):
     try:
         res = knitsweep.load(out)
         assert len(res.points) == 0
-        with h5py.File(tiny_reference) as f:
-            pid = next(iter(f["points"]))
+        pid = next(iter(stored(tiny_reference, POINTS)))
         entry = read_entry(tiny_reference, POINTS, pid)
         writer.add(POINTS, pid, entry.record, entry.meta)
         assert len(knitsweep.load(out).points) == 0  # queued, not yet durable

@@ -13,7 +13,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import TINY, assert_same_results, physics
+from conftest import TINY, assert_same_results, physics, stored, stored_meta
 
 from knitsweep import service
 from knitsweep.config import InputError
@@ -32,19 +32,6 @@ def knitsweep(*args, mpi=0, **kw):
         cmd = [MPIRUN, "-n", str(mpi), *cmd]
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     return subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env, **kw)
-
-
-@pytest.fixture(scope="module")
-def six(tmp_path_factory):
-    """An 18-task job (6 points, fine steps): seconds of work left to interrupt, with
-    its serial uninterrupted reference."""
-    d = tmp_path_factory.mktemp("six")
-    job = d / "six.toml"
-    text = TINY.read_text().replace("[11.4, 12.0]", "[11.2, 11.4, 11.6, 11.8, 12.0, 12.2]")
-    job.write_text(text.replace("step_mm = 0.02", "step_mm = 0.001"))  # long enough to stop
-    reference = d / "reference.h5"
-    service.run(job, reference, executor="serial", show_progress=False)
-    return job, reference
 
 
 @pytest.fixture(scope="module")
@@ -70,15 +57,16 @@ def test_file_schema(tiny_reference):
             assert key in f.attrs, key
         assert f.attrs["schema_version"] == RESULTS_SCHEMA_VERSION
         assert f.attrs["run_status"] == "complete"
-        assert len(f["points"]) == 2 and len(f["sweeps"]) == 4
-        for g in f["sweeps"].values():
-            assert g.attrs["status"] == "done"
-            assert g["stress"][0] == 0.0 and g["strain"][0] == 0.0
-            assert g["stress"][-1] > 0.0 and np.all(np.isfinite(g["stress"][()]))
-            assert "states" not in g  # not asked for
-            assert {"seed", "rank", "host", "seconds"} <= set(
-                f["points"][g.attrs["point_id"]].attrs
-            )
+        assert f["points"].attrs["layout"] == f["sweeps"].attrs["layout"] == "table"
+        assert len(f["points/task"]) == 2 and len(f["sweeps/task"]) == 4
+    points, sweeps = stored(tiny_reference, "points"), stored(tiny_reference, "sweeps", True)
+    assert len(points) == 2 and len(sweeps) == 4
+    for e in sweeps.values():
+        assert e.meta["status"] == "done"
+        assert e.record["stress"][0] == 0.0 and e.record["strain"][0] == 0.0
+        assert e.record["stress"][-1] > 0.0 and np.all(np.isfinite(e.record["stress"]))
+        assert "states" not in e.record  # not asked for
+        assert {"seed", "rank", "host", "seconds"} <= set(points[e.meta["point_id"]].meta)
     assert not journal_dir(tiny_reference).exists() and not lock_path(tiny_reference).exists()
 
 
@@ -117,7 +105,7 @@ def test_grown_grid_adds_only_the_new_tasks(tiny_reference, tmp_path):
     with h5py.File(out) as f:
         assert f.attrs["grown_from"] == original
         assert json.loads(f.attrs["job_json"])["grid"]["L_mm"] == [11.4, 12.0, 12.3]
-        assert set(f["points"]) > set(h5py.File(tiny_reference)["points"])
+    assert set(stored(out, "points")) > set(stored(tiny_reference, "points"))
     s = service.status(out)
     assert (s["done"], s["total"], s["pending"]) == (9, 9, 0)
     ref = physics(tiny_reference)
@@ -141,18 +129,17 @@ def test_failing_task_is_isolated(tmp_path, monkeypatch):
     job = load_job(TINY)
     summary = run_job(job, tmp_path / "f.h5", SerialExecutor(job), show_progress=False)
     assert summary.counts == {"done": 3, "failed": 3, "not_knittable": 0}
-    with h5py.File(tmp_path / "f.h5") as f:
-        failed = [g for g in f["points"].values() if g.attrs["status"] == "failed"]
-        assert len(failed) == 1
-        g = failed[0]
-        assert g.attrs["error_kind"] == "RuntimeError"
-        assert "injected failure" in g.attrs["traceback"]
-        assert g.attrs["rank"] == 0 and g.attrs["host"]
-        inherited = [
-            s for s in f["sweeps"].values() if s.attrs["point_id"] == failed[0].name.split("/")[-1]
-        ]
-        assert len(inherited) == 2
-        assert all(s.attrs["status"] == "failed" for s in inherited)
+    points = stored_meta(tmp_path / "f.h5", "points")
+    failed = [(tid, m) for tid, m in points.items() if m["status"] == "failed"]
+    assert len(failed) == 1
+    tid, m = failed[0]
+    assert m["error_kind"] == "RuntimeError"
+    assert "injected failure" in m["traceback"]
+    assert m["rank"] == 0 and m["host"]
+    inherited = [s for s in stored_meta(tmp_path / "f.h5", "sweeps").values()
+                 if s["point_id"] == tid]  # fmt: skip
+    assert len(inherited) == 2
+    assert all(s["status"] == "failed" for s in inherited)
 
 
 def test_every_executor_implements_the_protocol():
@@ -174,11 +161,13 @@ def test_task_wall_time_budget(tmp_path):
     job = tiny.model_copy(update={"run": tiny.run.model_copy(update={"task_timeout_s": 0.001})})
     summary = run_job(job, tmp_path / "t.h5", SerialExecutor(job), show_progress=False)
     assert summary.counts["failed"] == 6
-    with h5py.File(tmp_path / "t.h5") as f:
-        assert {g.attrs.get("error_kind") for g in f["points"].values()} == {"timeout"}
-        assert all("failed: timeout" in g.attrs["message"] for g in f["points"].values())
-        assert all("zero-force state: failed: timeout" in g.attrs["message"]
-                   for g in f["sweeps"].values())  # fmt: skip
+    points, sweeps = (
+        stored_meta(tmp_path / "t.h5", "points"),
+        stored_meta(tmp_path / "t.h5", "sweeps"),
+    )
+    assert {m.get("error_kind") for m in points.values()} == {"timeout"}
+    assert all("failed: timeout" in m["message"] for m in points.values())
+    assert all("zero-force state: failed: timeout" in m["message"] for m in sweeps.values())
 
 
 def test_a_timeout_that_interrupted_code_replaced_is_still_a_timeout(monkeypatch):
@@ -300,10 +289,12 @@ def _wait_for_fresh_progress(out, proc, since, finished=0, timeout=120):
 
 
 @pytest.mark.parametrize("ranks", [0, 3])
-def test_sigterm_writes_what_arrived_and_resumes(six, tmp_path, ranks):
+def test_sigterm_writes_what_arrived_and_resumes(twelve, tmp_path, ranks):
+    """(The 36-task job: 18 tasks could all finish under ``mpirun -n 3`` before the
+    signal arrived.)"""
     if ranks and MPIRUN is None:
         pytest.fail("mpirun not found: install the mpich wheel")
-    job, reference = six
+    job, reference = twelve
     out = tmp_path / "term.h5"
     cmd = [sys.executable, "-m", "knitsweep", "run", str(job), "--out", str(out), "--quiet"]
     if ranks:
@@ -319,7 +310,7 @@ def test_sigterm_writes_what_arrived_and_resumes(six, tmp_path, ranks):
     assert "to resume, run the same command again" in err
     with h5py.File(out) as f:  # closed cleanly: opens, and says it was interrupted
         assert f.attrs["run_status"] == "interrupted"
-    assert 1 <= service.status(out)["done"] < 18
+    assert 1 <= service.status(out)["done"] < 36
     assert knitsweep("run", str(job), "--out", str(out), "--quiet", mpi=ranks).returncode == 0
     assert_same_results(reference, out)
 
@@ -450,8 +441,8 @@ def test_kill_9_campaign_loses_and_duplicates_nothing(twelve, tmp_path):
     )
     final = knitsweep("run", str(job), "--out", str(out), "--quiet", mpi=3)
     assert final.returncode == 0, final.stderr
-    with h5py.File(out) as f:
-        assert len(f["points"]) == 12 and len(f["sweeps"]) == 24  # each task exactly once
+    with h5py.File(out) as f:  # each task exactly once
+        assert len(f["points/task"]) == 12 and len(f["sweeps/task"]) == 24
     assert not journal_dir(out).exists()
     assert not list(tmp_path.glob(".k9.h5*")), "shadow or temporary files left"
     assert_same_results(reference, out)

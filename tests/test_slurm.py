@@ -18,7 +18,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import TINY, assert_same_results
+from conftest import TINY, assert_same_results, stored_meta
 
 import knitsweep
 from knitsweep import service
@@ -34,8 +34,9 @@ START_SLURM = "start it with: sudo bash .ci/slurm-up.sh"
 
 # ---- helpers -------------------------------------------------------------------
 def ranks_used(path):
-    with h5py.File(path, "r") as f:
-        return {int(g.attrs["rank"]) for kind in ("points", "sweeps") for g in f[kind].values()}
+    return {
+        int(m["rank"]) for kind in ("points", "sweeps") for m in stored_meta(path, kind).values()
+    }
 
 
 def job_env(**extra):

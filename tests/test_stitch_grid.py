@@ -4,7 +4,7 @@ adaptive search, figure panels) that never mix two stitches."""
 
 import h5py
 import pytest
-from conftest import TINY
+from conftest import TINY, stored_meta
 
 from knitsweep import service
 from knitsweep.analysis.transitions import transition
@@ -48,9 +48,7 @@ def test_every_point_is_computed_and_recorded_per_stitch(two):
     job_path, out = two
     job = load_job(job_path)
     points, sweeps = plan(job)
-    with h5py.File(out) as f:
-        stored = {k: dict(g.attrs) for k, g in f["points"].items()}
-        stored_sweeps = {k: dict(g.attrs) for k, g in f["sweeps"].items()}
+    stored, stored_sweeps = stored_meta(out, "points"), stored_meta(out, "sweeps")
     assert set(stored) == {p.task_id for p in points}
     assert set(stored_sweeps) == {s.task_id for s in sweeps}
     for p in points:  # the default stitch is left out of the attributes, as it always was

@@ -19,9 +19,10 @@ import numpy as np
 from ..stitches import DEFAULT_STITCH
 from .checksum import DIGEST_ATTRS, Damaged, FileCheck, read_verified, seal_group
 
-RESULTS_SCHEMA_VERSION = 2
-"""The results-file format this knitsweep writes."""
-READABLE_SCHEMAS = (1, 2)
+RESULTS_SCHEMA_VERSION = 3
+"""The results-file format this knitsweep writes (3: a table per kind, ``store.table``;
+2: a group per task)."""
+READABLE_SCHEMAS = (1, 2, 3)
 """Results-file formats this knitsweep reads."""
 POINTS, SWEEPS, SERIES = "points", "sweeps", "series"
 KINDS = (POINTS, SWEEPS, SERIES)

@@ -27,6 +27,7 @@ from .format import (
     read_task,
 )
 from .journal import Entry, entry_path, read_entry_file, scan
+from .table import TASK, find_row, is_table, table_entries
 
 
 @contextlib.contextmanager
@@ -102,12 +103,44 @@ PARALLEL_FROM = 256
 
 def file_entries(f, with_data: bool, check: FileCheck | None = None,
                  skip: set | frozenset = frozenset()) -> Iterator[Entry]:  # fmt: skip
-    """The verified task groups of an open file (damaged ones recorded in ``check``
-    and left out), but those in ``skip`` ((kind, task id) pairs)."""
+    """The verified tasks of an open file (damaged ones recorded in ``check`` and left
+    out), but those in ``skip`` ((kind, task id) pairs): a table's rows (schema 3) or
+    task groups (schemas 1 and 2)."""
+    groups = []
+    for kind in KINDS:
+        table = _table(f, kind, check)
+        if table is None:
+            groups += [(kind, tid) for tid in _names(f, kind, check) if (kind, tid) not in skip]
+            continue
+        if table is False:  # its index is damaged: recorded in check
+            continue
+        for e in table_entries(table, kind, check, skip):
+            if not with_data:
+                e.record = {}
+            yield e
+    yield from _group_entries(f, groups, with_data, check)
+
+
+def _table(f, kind: str, check: FileCheck | None):
+    """The table of ``kind`` in an open file; None where the file has task groups (or
+    nothing, or a damaged index, which ``check`` then records)."""
+    try:
+        group = f.get(kind)
+        if group is None or not is_table(group):
+            return None
+        group[TASK].shape  # noqa: B018  (the index must open)
+        return group
+    except Exception as e:
+        if check is not None:
+            check.structure.append(f"the index of /{kind} is unreadable ({type(e).__name__})")
+        return False
+
+
+def _group_entries(f, names, with_data: bool, check: FileCheck | None) -> Iterator[Entry]:
+    """The verified task groups ``names`` of a file of schema 1 or 2; files of at least
+    ``PARALLEL_FROM`` groups are read by forked helpers."""
     from ..processes import fork_workers, forked_map
 
-    names = [(kind, tid) for kind in KINDS for tid in _names(f, kind, check)
-             if (kind, tid) not in skip]  # fmt: skip
     workers = fork_workers() if with_data and len(names) >= PARALLEL_FROM else 1
     if workers <= 1:
         yield from _read_named(f, names, with_data, check)
@@ -237,6 +270,9 @@ def read_entry(path: str | Path, kind: str, task_id: str) -> Entry | None:
     if path.exists():
         with _open(path) as f:
             try:
+                table = f.get(kind)
+                if table is not None and is_table(table):
+                    return find_row(table, kind, task_id)
                 group = f.get(f"{kind}/{task_id}")
             except Exception:  # a damaged index
                 return None

@@ -68,7 +68,6 @@ from .format import (
     KINDS,
     RESULTS_SCHEMA_VERSION,
     _h5,
-    _write_group,
     journal_dir,
     lock_path,
     now,
@@ -87,6 +86,7 @@ from .journal import (
 )
 from .provenance import environment_metadata
 from .read import _open, file_entries, read_root
+from .table import create_table, put_rows
 
 __all__ = ["ResultWriter", "StorageError", "atomic_write_bytes", "check_compatible",
            "writer_alive"]  # fmt: skip
@@ -113,13 +113,12 @@ def _hidden(path: Path, what: str) -> Path:
 # ---- writing ---------------------------------------------------------------------
 
 
-def _put(f, entry: Entry) -> None:
-    """Write one entry's group into an open file, replacing an earlier version (a
-    failure being replaced by a rerun, or a duplicate after a crash)."""
-    group_path = f"{entry.kind}/{entry.task_id}"
-    if group_path in f:
-        del f[group_path]
-    _write_group(f.create_group(group_path), entry.record, entry.meta)
+def _put(f, entries: list[Entry], prepared: dict | None = None) -> None:
+    """Write entries into their kinds' tables of an open file, each replacing an
+    earlier version of its task (a failure being replaced by a rerun, or a duplicate
+    after a crash); ``prepared``: ``table.put_rows``'s."""
+    for kind in KINDS:
+        put_rows(f[kind], kind, [e for e in entries if e.kind == kind], prepared)
 
 
 def check_no_links(path: Path) -> None:
@@ -176,6 +175,7 @@ class ResultWriter:
         self._files: list[Path] = []  # the journal files holding the pending entries
         self._lag: list[Entry] = []  # in the file, not yet in the shadow
         self._lag_attrs: dict[str, Any] = {}
+        self._prepared: dict[int, tuple] = {}  # the lag's rows, made when first written
         self._shadow_ready = False
         self.malformed: list[tuple[Path, str]] = []
         self.check = FileCheck()  # damaged and unverified tasks found in the file
@@ -294,7 +294,7 @@ class ResultWriter:
                 for k, v in {**environment_metadata(), **extra_meta}.items():
                     f.attrs[k] = v
                 for kind in KINDS:
-                    f.create_group(kind)
+                    create_table(f, kind)
                 seal_root(f)
             _fsync_file(tmp)
             os.replace(tmp, self.path)
@@ -402,6 +402,8 @@ class ResultWriter:
                 self._shadow_ready = True
                 self._lag = entries
                 self._lag_attrs = dict(attrs or {})
+        self._prepared = {id(e): self._prepared[id(e)] for e in self._lag
+                          if id(e) in self._prepared}  # fmt: skip
         return len(entries)
 
     def _check_space(self, entries: list[Entry]) -> None:
@@ -434,10 +436,7 @@ class ResultWriter:
             # last checkpoint's results, written again: a group copied from the other
             # file (H5Ocopy) would keep references into that file, and its dimension
             # scales would point at nothing
-            for e in self._lag:
-                _put(f, e)
-            for e in entries:
-                _put(f, e)
+            _put(f, self._lag + entries, self._prepared)
             for k, v in {**self._lag_attrs, **(attrs or {})}.items():
                 f.attrs[k] = v
             seal_root(f)
