@@ -311,3 +311,14 @@ def test_recover_needs_the_job_when_no_root_is_intact(tiny_reference, tmp_path):
     with h5py.File(out, "a") as f:
         seal_root(f)  # (the test's own edit, resealed: still a valid file)
     assert service.status(out)["done"] == 6
+
+
+def test_a_file_of_schema_2_merges_into_one_this_version_resumes(schema2, tiny_reference, tmp_path):
+    with pytest.raises(InputError, match=r"knitsweep merge NEW.h5 .*v2.h5"):
+        service.run(TINY, schema2, executor="serial", show_progress=False)
+    new = tmp_path / "v3.h5"
+    merged = knitsweep_cli("merge", new, schema2)
+    assert merged.returncode == 0, merged.stderr
+    assert read_root(new)["schema_version"] == 3
+    assert service.run(TINY, new, executor="serial", show_progress=False).skipped == 6
+    assert_same_results(tiny_reference, new)

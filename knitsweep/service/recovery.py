@@ -15,7 +15,15 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
-from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, SWEEPS, journal_dir, lock_path
+from ..store.format import (
+    POINTS,
+    RESULTS_SCHEMA_VERSION,
+    REWRITABLE_SCHEMAS,
+    SERIES,
+    SWEEPS,
+    journal_dir,
+    lock_path,
+)
 from ..store.journal import scan
 from ..store.read import choose_entries
 from ..store.salvage import salvage, set_aside
@@ -52,7 +60,7 @@ def recover(path: str | Path, job_path: str | Path | None = None) -> dict[str, A
         return {"file": str(path), "intact": True, "verified": main.check.verified,
                 "unverified": main.check.unverified, "journal": len(journalled)}  # fmt: skip
     root = _root(path, sources, job_path)
-    if root.get("schema_version", RESULTS_SCHEMA_VERSION) != RESULTS_SCHEMA_VERSION:
+    if root.get("schema_version", RESULTS_SCHEMA_VERSION) not in REWRITABLE_SCHEMAS:
         raise InputError(f"{path}: results schema_version {root.get('schema_version')}: "
                          "recover it with the knitsweep version that wrote it")  # fmt: skip
     job = JobSpec.model_validate_json(str(root["job_json"]))

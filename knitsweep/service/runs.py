@@ -19,7 +19,7 @@ from ..errors import InputError
 from ..plain import plain_value
 from ..stitches import DEFAULT_STITCH
 from ..store.checksum import FileCheck
-from ..store.format import POINTS, RESULTS_SCHEMA_VERSION, SERIES, SWEEPS, journal_dir, lock_path
+from ..store.format import POINTS, REWRITABLE_SCHEMAS, SERIES, SWEEPS, journal_dir, lock_path
 from ..store.journal import scan
 from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root
 from ..store.writer import writer_alive
@@ -260,9 +260,9 @@ def merge(out: str | Path, inputs: list[str | Path]) -> dict[str, Any]:
     check_output(out)
     roots = [read_root(p) for p in inputs]
     old = [str(p) for p, r in zip(inputs, roots, strict=True)
-           if r.get("schema_version") != RESULTS_SCHEMA_VERSION]  # fmt: skip
+           if r.get("schema_version") not in REWRITABLE_SCHEMAS]  # fmt: skip
     if old:
-        raise InputError(f"{', '.join(old)}: results schema older than {RESULTS_SCHEMA_VERSION}; "
+        raise InputError(f"{', '.join(old)}: results schema older than {REWRITABLE_SCHEMAS[0]}; "
                          "merge them with the knitsweep version that wrote them")  # fmt: skip
     hashes = {r["job_hash"] for r in roots}
     if len(hashes) != 1:

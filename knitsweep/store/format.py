@@ -24,6 +24,9 @@ RESULTS_SCHEMA_VERSION = 3
 2: a group per task)."""
 READABLE_SCHEMAS = (1, 2, 3)
 """Results-file formats this knitsweep reads."""
+REWRITABLE_SCHEMAS = (2, 3)
+"""… and can rewrite whole into a new file (``merge``, ``recover``): those whose records
+read back exactly (schema 1 kept fewer fields)."""
 POINTS, SWEEPS, SERIES = "points", "sweeps", "series"
 KINDS = (POINTS, SWEEPS, SERIES)
 _STR = None  # h5py string dtype, created lazily

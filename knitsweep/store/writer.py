@@ -67,6 +67,7 @@ from .checksum import FileCheck, seal_root
 from .format import (
     KINDS,
     RESULTS_SCHEMA_VERSION,
+    REWRITABLE_SCHEMAS,
     _h5,
     journal_dir,
     lock_path,
@@ -523,6 +524,12 @@ def check_compatible(path: Path, job, root: dict[str, Any] | None = None) -> str
             f"{path} has results schema_version {version} (it still reads: status, "
             f"phase-diagram), this knitsweep writes {RESULTS_SCHEMA_VERSION}: write to a new "
             "file (--out), or resume it with the knitsweep version that made it"
+            + (
+                f"; `knitsweep merge NEW.h5 {path}` copies its results into a new file that "
+                "this version resumes"
+                if version in REWRITABLE_SCHEMAS
+                else ""
+            )
         )
     if str(root["job_hash"]) == job.job_hash:
         return None
