@@ -179,14 +179,15 @@ def test_a_cycling_active_set_ends_as_the_iteration_limit_would(rest, monkeypatc
     free = np.arange(30)
     lo, hi = np.full(30, -np.inf), np.full(30, np.inf)
     hi[0] = rest.x[0]
-    ends = []
-    for cycle in (newton.BLOCKED_CYCLE, 10**9):
+    ends, limit_of_cycles = [], newton.BLOCKED_CYCLE
+    for cycle in (limit_of_cycles, 10**9):
         monkeypatch.setattr(newton, "BLOCKED_CYCLE", cycle)
         prob = Problem(model, rest.x, free)
         got = newton.newton_minimise(prob, rest.x.copy(), lo, hi, SolverSettings(maxiter=300))
         ends.append((got, prob.evaluations))
     (cut, n_cut), (limit, n_limit) = ends
-    assert not cut.converged and cut.iterations == 20 and "let go in turn" in cut.message
+    assert not cut.converged and cut.iterations == limit_of_cycles
+    assert "let go in turn" in cut.message
     assert not limit.converged and limit.iterations == 300 and "limit" in limit.message
     assert np.array_equal(cut.z, limit.z) and n_cut == n_limit
     for a, b in ((cut.carried.energy, limit.carried.energy),

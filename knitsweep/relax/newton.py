@@ -78,15 +78,17 @@ MAX_PROBES = 2
 gone after one; a mode that survives them is real (a state past the fold of its
 branch), and the trust region steps down it, growing 4x per good step. Only a mode
 that has just appeared, or whose decrement has grown a hundredfold, is probed."""
-BLOCKED_CYCLE = 20
+BLOCKED_CYCLE = 50
 """Iterations in a row that a bound blocks at once (no evaluation between them) after
 which the iteration gives up: the active set is cycling. Seen in seed's sweeps: two
 sets of bounds held and let go in turn, the multiplier flipping between two values,
 the state, the curvature and the radius unchanged, until the iteration limit (~2000
 steps of the KKT kernel, 2 CPU s). Leaving then returns the point and the curvature
-that the limit returns when the cycle goes on to it (it did in every relaxation of the
-patterns measured; no run of more than 3 such iterations ended otherwise), so SLSQP
-finishes from the same state; only the iterations and the message differ."""
+that the limit returns when the cycle goes on to it, so SLSQP finishes from the same
+state; only the iterations and the message differ. Measured over 3833 relaxations of
+garter, rib and seed (zero force, 2 starts, and both sweeps at 9.7, 10.9, 12.5 and
+13.3 mm): two runs went on to the limit (217 and 1997 iterations long), and the
+longest that ended otherwise was 12 iterations long, the next 4."""
 MIN_START_RADIUS = 0.01
 """A relaxation starts with at least this radius: one that collapsed on the last
 one's final, noise-level steps would cost a dozen doublings."""
