@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numba import njit
 
@@ -156,3 +157,12 @@ def pattern_min_zeta(pts, s_mid, s_tot, a_x, a_y, r, r_core, pm, pn, s_excl):
             if dmin < 2 * r and z < best:
                 best, bm, bn, bi, bj = z, m, n, wi, wj
     return best, bm, bn, bi, bj
+
+
+def compile_checks() -> None:
+    """Compile (or load from numba's cache) both kernels for the argument types their
+    callers pass, without running them (``model.compile_group``)."""
+    f, i = numba.float64, numba.int64
+    pts = numba.float64[:, ::1]
+    polyline_crossings.compile((pts, f, f, i, i, numba.boolean))
+    pattern_min_zeta.compile((pts, numba.float64[::1], f, f, f, f, f, i, i, f))
