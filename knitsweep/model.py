@@ -20,6 +20,7 @@ from .config import Fidelity, InternalParams, StitchParams
 from .errors import InputError
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
+from .kernels.checks import compile_checks
 from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE, find_contacts, min_zeta
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
@@ -317,8 +318,8 @@ def _thickness_basis(samples: int) -> np.ndarray:
 
 KERNEL_GROUPS = {
     "geometry": "the stitch's state -> control points + Jacobian kernel (knitsweep.stitches)",
-    "contact": "energies, gradients, neighbour list, min zeta, contact forces "
-    "(kernels.bending, contact, partition, neighbours, forces, cell)",
+    "contact": "energies, gradients, neighbour list, min zeta, contact forces, a pattern's "
+    "checks (kernels.bending, contact, partition, neighbours, forces, cell, checks)",
     "solver": "the Newton-KKT step of the relaxations (kernels.kkt)",
 }
 """The kernels a task uses, in groups whose compiled sources are disjoint (no kernel of
@@ -406,6 +407,7 @@ def _compile_contact(model: CellModel, what: str) -> None:
                                          *model.stitch.mirror_parity, True, model._grad_e,
                                          model._grad_l)))  # fmt: skip
         if what != "energy":
+            compile_checks()  # the checks after every relaxation
             forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
             mirrored_forces_by_class.compile(sig((cp, np.ascontiguousarray(jac[..., -2:]), tab,
                                                   x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,

@@ -160,3 +160,37 @@ def _at(x, a_x):
     x = x.copy()
     x[IDX_AX] = a_x
     return x
+
+
+def test_a_cycling_active_set_ends_as_the_iteration_limit_would(rest, monkeypatch):
+    """Bounds held and let go in turn without an evaluation (seen in seed's sweeps, each
+    to the iteration limit) end the iteration after ``BLOCKED_CYCLE`` such steps with
+    the point and the curvature that the limit returns: SLSQP then finishes from the
+    same state."""
+    from knitsweep.relax import newton
+
+    def blocked_step(b_full, pt, free, active, radius):  # every step leaves z_0's bound
+        p = np.zeros(free.size)
+        p[0] = 1.0
+        return newton._Step(p, 0.0, 1.0, None, np.zeros(free.size))
+
+    monkeypatch.setattr(newton, "_kkt_step", blocked_step)
+    model = CellModel(POINT)
+    free = np.arange(30)
+    lo, hi = np.full(30, -np.inf), np.full(30, np.inf)
+    hi[0] = rest.x[0]
+    ends, limit_of_cycles = [], newton.BLOCKED_CYCLE
+    for cycle in (limit_of_cycles, 10**9):
+        monkeypatch.setattr(newton, "BLOCKED_CYCLE", cycle)
+        prob = Problem(model, rest.x, free)
+        got = newton.newton_minimise(prob, rest.x.copy(), lo, hi, SolverSettings(maxiter=300))
+        ends.append((got, prob.evaluations))
+    (cut, n_cut), (limit, n_limit) = ends
+    assert not cut.converged and cut.iterations == limit_of_cycles
+    assert "let go in turn" in cut.message
+    assert not limit.converged and limit.iterations == 300 and "limit" in limit.message
+    assert np.array_equal(cut.z, limit.z) and n_cut == n_limit
+    for a, b in ((cut.carried.energy, limit.carried.energy),
+                 (cut.carried.length, limit.carried.length)):  # fmt: skip
+        assert np.array_equal(a, b)
+    assert cut.carried.radius == limit.carried.radius

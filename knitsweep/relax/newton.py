@@ -78,6 +78,17 @@ MAX_PROBES = 2
 gone after one; a mode that survives them is real (a state past the fold of its
 branch), and the trust region steps down it, growing 4x per good step. Only a mode
 that has just appeared, or whose decrement has grown a hundredfold, is probed."""
+BLOCKED_CYCLE = 50
+"""Iterations in a row that a bound blocks at once (no evaluation between them) after
+which the iteration gives up: the active set is cycling. Seen in seed's sweeps: two
+sets of bounds held and let go in turn, the multiplier flipping between two values,
+the state, the curvature and the radius unchanged, until the iteration limit (~2000
+steps of the KKT kernel, 2 CPU s). Leaving then returns the point and the curvature
+that the limit returns when the cycle goes on to it, so SLSQP finishes from the same
+state; only the iterations and the message differ. Measured over 3833 relaxations of
+garter, rib and seed (zero force, 2 starts, and both sweeps at 9.7, 10.9, 12.5 and
+13.3 mm): two runs went on to the limit (217 and 1997 iterations long), and the
+longest that ended otherwise was 12 iterations long, the next 4."""
 MIN_START_RADIUS = 0.01
 """A relaxation starts with at least this radius: one that collapsed on the last
 one's final, noise-level steps would cost a dozen doublings."""
@@ -234,7 +245,7 @@ def newton_minimise(
     radius, rho = max(curvature.radius, MIN_START_RADIUS), 1.0
     active = (pt.z <= lo) | (pt.z >= hi)
     lam = pt.multiplier
-    probes, previous = 0, None
+    probes, previous, blocked = 0, None, 0
     for it in range(1, settings.maxiter + 1):
         b_full = curvature.lagrangian(lam)
         step = _kkt_step(b_full, pt, free, active, radius)
@@ -257,7 +268,7 @@ def newton_minimise(
             # a negative mode that has just appeared (or grown a hundredfold) may be a
             # rank-one update's artefact: measure the curvature along it (one
             # evaluation) and let the update correct the model there
-            probes += 1
+            probes, blocked = probes + 1, 0
             q = prob.evaluate(pt.z + FD_STEP * step.negative)
             s_full = np.zeros(prob.x.size)
             s_full[free] = q.z - pt.z
@@ -287,7 +298,12 @@ def newton_minimise(
         hit = room <= alpha
         if alpha <= 0.0:  # blocked at once: hold the bound and try again
             active = active | hit
+            blocked += 1
+            if blocked >= BLOCKED_CYCLE:
+                message = f"Newton: bounds held and let go in turn for {blocked} iterations"
+                return Minimum(pt.z, False, message, it, curvature)
             continue
+        blocked = 0
         trial = prob.evaluate(np.clip(pt.z + alpha * p, lo, hi) if alpha < 1.0 else pt.z + p)
         s = trial.z - pt.z
         # the augmented Lagrangian merit and the decrease the model predicts for it

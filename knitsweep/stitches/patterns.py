@@ -1,5 +1,6 @@
 """Knit/purl patterns on the free yarn: their images, garter's starting shape and the
-check that refuses overlapping starts (docs/model.md §11); numpy only.
+check that refuses overlapping starts (docs/model.md §11); numpy, the overlap check
+compiled (``kernels.checks``).
 
 A pattern repeats one stitch's cell under translations and glide reflections: the image
 at (m, n) is mirrored through the fabric plane z = 0 when pm m + pn n is odd
@@ -18,6 +19,7 @@ from math import comb
 import numpy as np
 
 from ..errors import InputError
+from ..kernels.checks import pattern_min_zeta
 
 PARITIES = {"stockinette": (0, 0), "garter": (0, 1), "rib": (1, 0), "seed": (1, 1)}
 """(pm, pn) per pattern: image (m, n) mirrored when pm m + pn n is odd."""
@@ -86,7 +88,22 @@ def _samples(cp: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, float]:
 def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10):
     """Smallest ζ over the counted contacts of the pattern (images mirrored by
     ``parity``; same-row neighbours along the yarn excluded as in §6) and where:
-    (ζ, (m, n), segment of the cell, segment of the image); ζ = 1 if nothing touches."""
+    (ζ, (m, n), segment of the cell, segment of the image); ζ = 1 if nothing touches.
+    Compiled (``kernels.checks.pattern_min_zeta``): bit for bit what
+    ``min_zeta_where_reference`` finds (which samples that are not finite are left to)."""
+    pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
+    if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(s_mid))):
+        return min_zeta_where_reference(cp, a_x, a_y, r, r_core, parity, samples)
+    z, m, n, i, j = pattern_min_zeta(pts, s_mid, s_tot, float(a_x), float(a_y), float(r),
+                                     float(r_core), int(parity[0]), int(parity[1]),
+                                     EXCLUSION_FACTOR * r)  # fmt: skip
+    if i < 0:
+        return (1.0, None, None, None)
+    return (float(z), (int(m), int(n)), int(i // samples), int(j // samples))
+
+
+def min_zeta_where_reference(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10):
+    """``min_zeta_where`` in numpy: the reference the compiled one is tested against."""
     pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
     d = 2 * r - 2 * r_core
     lo, hi = pts.min(axis=0), pts.max(axis=0)

@@ -12,7 +12,8 @@ any change of topology (seen at L = 10.5 mm in the free yarn, docs/model.md §11
 ``same_topology`` compares two such lists as multisets; a difference (a crossing gained,
 lost, or with its sign flipped) means the states are not one fabric, or that a pair of
 crossings appeared or vanished (a Reidemeister II move in projection), which is flagged
-the same way: the check errs on the side of reporting. numpy only.
+the same way: the check errs on the side of reporting. The search is compiled
+(``kernels.checks``); ``crossings_reference`` is the same in numpy.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from math import comb
 
 import numpy as np
 
+from ..kernels.checks import polyline_crossings
 from .base import is_mirrored
 
 SAMPLES = 48
@@ -38,7 +40,7 @@ def _polyline(cp: np.ndarray, samples: int) -> np.ndarray:
 
 def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
               parity: tuple[int, int] = (0, 0), heights: list | None = None,
-              along: list | None = None) -> Counter:  # fmt: skip
+              along: list | None = None, adjacent_only: bool = False) -> Counter:  # fmt: skip
     """Crossings in projection of the cell's yarn with itself and its images, as a
     Counter of (m, n, sign) (see the module docstring).
 
@@ -46,14 +48,37 @@ def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
     (docs/model.md §11: garter (0, 1), rib (1, 0), seed (1, 1)). ``heights``, if given,
     receives (m, n, z of the cell's strand, z of the image's) of every crossing;
     ``along`` receives (position along the cell's yarn in polyline pieces, n, sign)
-    (``gauss_word``)."""
+    (``gauss_word``). ``adjacent_only``: the images in the rows just above and below
+    (|n| = 1) alone. Compiled (``kernels.checks.polyline_crossings``): the same
+    crossings, positions and heights, in the same order, as ``crossings_reference``
+    (which a polyline with non-finite points is left to)."""
+    pts = _polyline(np.asarray(cp, dtype=float), samples)
+    if not np.all(np.isfinite(pts)):
+        return crossings_reference(cp, a_x, a_y, samples, parity, heights, along, adjacent_only)
+    out: Counter = Counter()
+    rows = polyline_crossings(pts, float(a_x), float(a_y), int(parity[0]), int(parity[1]),
+                              adjacent_only)  # fmt: skip
+    for m_, n_, i_, _, s, _, za, zb in rows:
+        m, n, sign = int(m_), int(n_), 1 if za > zb else -1
+        out[(m, n, sign)] += 1
+        if heights is not None:
+            heights.append((m, n, float(za), float(zb)))
+        if along is not None:
+            along.append((float(int(i_) + s), n, sign))
+    return out
+
+
+def crossings_reference(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
+                        parity: tuple[int, int] = (0, 0), heights: list | None = None,
+                        along: list | None = None, adjacent_only: bool = False) -> Counter:  # fmt: skip
+    """``crossings`` in numpy: the reference the compiled search is tested against."""
     pts = _polyline(np.asarray(cp, dtype=float), samples)
     p0, p1 = pts[:-1], pts[1:]
     out: Counter = Counter()
     n_p = len(p0)
     d = p1 - p0
     for m in (-1, 0, 1):
-        for n in (-2, -1, 0, 1, 2):
+        for n in (-1, 1) if adjacent_only else (-2, -1, 0, 1, 2):
             shift = np.array([m * a_x, n * a_y, 0.0])
             flip = np.array([1.0, 1.0, -1.0 if is_mirrored(parity, m, n) else 1.0])
             q0, q1 = p0 * flip + shift, p1 * flip + shift
@@ -133,14 +158,17 @@ def same_topology(before: Counter, after: Counter) -> tuple[bool, str]:
 
 
 def gauss_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
-               samples: int = SAMPLES) -> tuple[tuple[int, int], ...]:  # fmt: skip
+               samples: int = SAMPLES, adjacent_only: bool = False
+               ) -> tuple[tuple[int, int], ...]:  # fmt: skip
     """The crossings met along the cell's yarn, in order, as (row offset n, sign), in the
     rotation that sorts first (a cyclic word: a crossing sliding across the cell's end
     rotates it). Unlike ``crossings`` it does not name the partner's column m, which a
     crossing changes when it slides across the partner cell's end (seen in garter), and
-    it does tell stockinette from garter, whose (n, sign) counts agree."""
+    it does tell stockinette from garter, whose (n, sign) counts agree. With
+    ``adjacent_only``, the crossings with the rows just above and below alone (the word
+    ``adjacent_rows`` keeps, at less cost)."""
     along: list = []
-    crossings(cp, a_x, a_y, samples, parity, along=along)
+    crossings(cp, a_x, a_y, samples, parity, along=along, adjacent_only=adjacent_only)
     return least_rotation([(n, s) for _, n, s in sorted(along)])
 
 
@@ -176,7 +204,7 @@ def fabric_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] 
     the word; over the cell alone, where the course closes through a glide, it would
     come back mirrored (its sign flipped)."""
     cp2, a_x2, parity2 = row_period(cp, a_x, parity)
-    return adjacent_rows(gauss_word(cp2, a_x2, a_y, parity2, samples))
+    return adjacent_rows(gauss_word(cp2, a_x2, a_y, parity2, samples, adjacent_only=True))
 
 
 def adjacent_rows(word) -> tuple[tuple[int, int], ...]:
@@ -226,4 +254,5 @@ def topology_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int
     the knit and purl columns slide behind one another as the fabric draws in."""
     if parity[0]:
         return interlocking(cp, a_x, a_y, parity, samples)
-    return tuple((n, (s,)) for n, s in adjacent_rows(gauss_word(cp, a_x, a_y, parity, samples)))
+    word = adjacent_rows(gauss_word(cp, a_x, a_y, parity, samples, adjacent_only=True))
+    return tuple((n, (s,)) for n, s in word)
