@@ -80,6 +80,22 @@ def renamed(values: dict[str, Any]) -> dict[str, Any]:
     return values
 
 
+def attr_value(value: Any) -> Any:
+    """A record's scalar as stored: bool, int, float or str (a dict as sorted JSON);
+    None for no value."""
+    if value is None:
+        return None
+    if isinstance(value, dict):
+        return json.dumps(value, sort_keys=True)
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value)
+    return str(value)
+
+
 def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
     """A task's record as datasets (arrays) and attributes (scalars) of ``group``;
     every dataset gets ``units`` and ``long_name`` and labelled dimension scales
@@ -97,16 +113,8 @@ def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
                     key, data=value, compression="gzip" if value.size > 256 else None
                 )
             describe_dataset(group, kind, key)
-        elif isinstance(value, dict):
-            group.attrs[key] = json.dumps(value, sort_keys=True)
-        elif isinstance(value, (bool, np.bool_)):
-            group.attrs[key] = bool(value)
-        elif isinstance(value, (int, np.integer)):
-            group.attrs[key] = int(value)
-        elif isinstance(value, (float, np.floating)):
-            group.attrs[key] = float(value)
         else:
-            group.attrs[key] = str(value)
+            group.attrs[key] = attr_value(value)
     seal_group(group)
 
 

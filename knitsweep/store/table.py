@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from .checksum import Damaged, FileCheck
-from .format import renamed
+from .checksum import Damaged, FileCheck, _update
+from .format import attr_value, renamed
 from .journal import Entry
 
 LAYOUT = "table"
@@ -82,22 +82,6 @@ def create_table(f, kind: str):
 # ---- one row ---------------------------------------------------------------------
 
 
-def attr_value(value: Any) -> Any:
-    """A record's scalar as stored: bool, int, float or str (a dict as sorted JSON);
-    None for no value."""
-    if value is None:
-        return None
-    if isinstance(value, dict):
-        return json.dumps(value, sort_keys=True)
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value)
-    return str(value)
-
-
 def _is_array(value: Any) -> bool:
     return isinstance(value, np.ndarray) and value.ndim > 0
 
@@ -110,16 +94,6 @@ def _stored_array(value: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(value)
 
 
-def _feed_array(h, name: str, value: np.ndarray) -> None:
-    h.update(b"A" + name.encode() + b"\0" + repr(value.shape).encode())
-    if value.dtype.kind == "O":
-        for s in value.reshape(-1):
-            data = s.encode("utf-8", "surrogatepass")
-            h.update(b"s%d:" % len(data) + data)
-    else:
-        h.update(value.dtype.str.encode() + b":" + value.tobytes())
-
-
 def row_digest(task_id: str, entry_json: str, arrays: dict[str, np.ndarray]) -> str:
     """The digest of one row: its task id, its ``entry`` JSON and its arrays (name,
     shape, dtype and bytes, in name order)."""
@@ -127,8 +101,9 @@ def row_digest(task_id: str, entry_json: str, arrays: dict[str, np.ndarray]) -> 
     for text in (task_id, entry_json):
         data = text.encode("utf-8", "surrogatepass")
         h.update(b"%d:" % len(data) + data)
-    for name in sorted(arrays):
-        _feed_array(h, name, arrays[name])
+    for name in sorted(arrays):  # tagged as a task group's datasets are (store.checksum)
+        h.update(b"D" + name.encode() + b"\0")
+        _update(h, arrays[name])
     return h.hexdigest()
 
 
@@ -319,8 +294,8 @@ class _Columns:
                     if d == dim:
                         shape[axis] = size
                 ds.resize(tuple(shape))
-        for name in (ENTRY, DIGEST):
-            if dim == TASK:
+        if dim == TASK:
+            for name in (ENTRY, DIGEST):
                 self.g[name].resize((size,))
 
 
@@ -394,11 +369,6 @@ def _selection(index: np.ndarray):
 
 def _decode(v: Any) -> Any:
     return v.decode("utf-8", "surrogatepass") if isinstance(v, bytes) else v
-
-
-def task_ids(group) -> list[str]:
-    """The task ids of a table, in row order."""
-    return [t for t in _rows_of(group[TASK][()]) if t]
 
 
 def table_entries(group, kind: str, check: FileCheck | None = None,
