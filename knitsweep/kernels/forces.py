@@ -11,7 +11,8 @@ Two kinds of force per class:
 * ``contact_forces_by_class``: generalised forces on the cell periods, -dE_c(class)/da
   at fixed shape (what the envelope stress is made of);
 * ``contact_pair_forces_by_class``: the pair forces f = -dV/dR between sampled yarn
-  points, projected on x, y, z (the paper's Table S3 and Fig. 6h quantity).
+  points, projected on x, y, z (the paper's Table S3 and Fig. 6h quantity); their rule,
+  ``pair_forces``, is shared with the patterns' (``mirrored.mirrored_pair_forces_by_class``).
 """
 
 from __future__ import annotations

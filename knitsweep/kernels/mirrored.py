@@ -35,6 +35,10 @@ mirrored image: in garter the rows above and below, in rib the columns beside, i
 seed both); 4 other (unmirrored diagonal or farther images). With ``only_class`` >= 0
 the kernel sums that class alone, so each class's energy and gradient (its forces)
 are exact derivatives of one function, checked against finite differences.
+
+Pair forces by class (``mirrored_pair_forces_by_class``): the translations' rule
+(``forces.pair_forces``) on the same pairs, listed by ``mirrored_contacts`` (the search of
+``mirrored_contact_energy``), a mirrored partner as it sits in its own cell (z -> -z).
 """
 
 from __future__ import annotations
