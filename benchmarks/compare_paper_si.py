@@ -189,7 +189,8 @@ def forces_along(red: Reduction, L_mm: float = 10.5) -> list[str]:
     out = ["| pulled | class | F_x at ε = 0 → end (N) | F_y | F_z | end strain |",
            "|---|---|---|---|---|---:|"]  # fmt: skip
     for e in sweeps_with_states(red):
-        if abs(float(e.meta["L_mm"]) - L_mm) > 1e-9:
+        paper = e.meta.get("stitch", "stockinette") == "stockinette"  # (a pattern's classes differ)
+        if abs(float(e.meta["L_mm"]) - L_mm) > 1e-9 or not paper:
             continue
         d = e.meta["direction"]
         strain, f = pair_forces_along(red, e)

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import Fidelity, InternalParams, StitchParams
-from .errors import InputError
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
 from .kernels.checks import compile_checks
@@ -25,7 +24,7 @@ from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE, find_con
 from .kernels.forces import N_CLASSES
 from .kernels.forces import contact_forces_by_class as _forces_by_class
 from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
-from .kernels.mirrored import mirrored_forces_by_class
+from .kernels.mirrored import mirrored_forces_by_class, mirrored_pair_forces_by_class
 from .kernels.neighbours import NO_LIST, build_neighbour_list
 from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import DEFAULT_STITCH, Stitch, get_stitch
@@ -283,17 +282,20 @@ class CellModel:
         separation, on both of its samples, projected on x, y, z; positive extends
         the fabric (pushes the two stitches apart along an axis on which they are
         offset, else pushes the sample away from its own stitch's mid-plane).
-        Rows: the stitch's ``contact_classes``. Unweighted, the bare force between two samples,
-        whose sums depend on the sampling (the paper's 10 samples per segment);
-        ``weighted=True`` multiplies each pair by ds ds' as in E_c (N mm^2), the
+        Rows: the stitch's ``contact_classes`` (a pattern's over its mirrored images too,
+        ``kernels.mirrored.mirrored_pair_forces_by_class``). Unweighted, the bare force
+        between two samples, whose sums depend on the sampling (the paper's 10 samples per
+        segment); ``weighted=True`` multiplies each pair by ds ds' as in E_c (N mm^2), the
         sampling-independent integral.
         """
         ip = self.ip
         x = self._as_state(x)
-        if self.stitch.images == "glides":
-            raise InputError(f"stitch = {self.stitch.name}: pair forces by class are not "
-                             "implemented for mirrored images yet (docs/model.md §11)")  # fmt: skip
         forces = np.empty((N_CLASSES, 3))
+        if self.stitch.images == "glides":
+            mirrored_pair_forces_by_class(self.control_points(x), self._ctab, x[-2], x[-1], ip.r,
+                                          ip.rc, ip.k, ip.p, *self.stitch.mirror_parity,
+                                          weighted, forces)  # fmt: skip
+            return forces
         _pair_forces_by_class(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
                               ip.k, ip.p, self._mode, weighted, forces)  # fmt: skip
         return forces
@@ -401,7 +403,7 @@ def _compile_contact(model: CellModel, what: str) -> None:
     x = model.stitch.start(1)
     cp, jac = model.stitch.buffers()
     ip, tab, mode = model.ip, model._ctab, model._mode
-    if model.stitch.images == "glides":  # a knit/purl pattern: its own two kernels too
+    if model.stitch.images == "glides":  # a knit/purl pattern: its own kernels too
         pattern_cell_energy.compile(sig((cp, jac, x[-2], x[-1], model._qtab, model._qw, tab,
                                          model._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
                                          *model.stitch.mirror_parity, True, model._grad_e,
@@ -413,6 +415,10 @@ def _compile_contact(model: CellModel, what: str) -> None:
                                                   x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
                                                   *model.stitch.mirror_parity, forces,
                                                   energies)))  # fmt: skip
+            if what == "all":  # the post-processing's pair forces
+                mirrored_pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k,
+                                                           ip.p, *model.stitch.mirror_parity,
+                                                           False, forces)))  # fmt: skip
     # the translations' kernels as well: ``kernels.cached`` looks for them, so a cache
     # filled by a job of patterns alone must hold them too
     # with or without a neighbour list (cell_energy is this kernel with NO_LIST)

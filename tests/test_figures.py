@@ -428,16 +428,17 @@ def test_render_garter_draws_its_mirrored_rows(tmp_path):
     assert warm > 0.05 and cool > 0.05, (warm, cool)
 
 
-def test_contact_volumes_of_a_pattern_are_refused(tmp_path):
-    """The tube estimator's images are translations: a pattern's contact volumes would be
-    another fabric's, so they are refused in one line, as its contact forces by class."""
+@pytest.mark.parametrize("name", ["rib", "garter", "seed"])
+def test_render_contact_volumes_of_a_pattern(tmp_path, name):
+    """``render --stitch rib --contact-volumes`` (and garter, seed) draws the pattern's
+    contact volumes over its mirrored images, once refused (tests/test_volumes.py checks
+    where the points lie)."""
     from knitsweep.stitches import get_stitch
 
-    state = tmp_path / "g.dat"
-    write_state(state, get_stitch("garter").start(1))
-    out = knitsweep("render", "--stitch", "garter", "--state", str(state), "--contact-volumes",
-                    "--out", str(tmp_path / "cv.png"))  # fmt: skip
-    assert out.returncode == 2, out.stdout
-    lines = out.stderr.strip().splitlines()
-    assert len(lines) == 1 and "contact volumes are not implemented for mirrored" in lines[0]
-    assert not (tmp_path / "cv.png").exists()
+    state = tmp_path / "s.dat"
+    write_state(state, get_stitch(name).start(1))
+    out = knitsweep("render", "--stitch", name, "--state", str(state), "--contact-volumes",
+                    "--volume-points", "4096", "--out", str(tmp_path / "cv.png"))  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert_image(tmp_path / "cv.png")
+    assert "wrote" in out.stdout and "cv.png" in out.stdout

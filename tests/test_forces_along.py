@@ -49,3 +49,37 @@ def test_table_s3_rms_is_a_line_through_the_first_20_steps(red):
     want = np.sqrt(np.mean((fz - np.polyval(np.polyfit(strain[:20], fz, 1), strain[:20])) ** 2))
     assert rms[round(float(e.meta["L_mm"]), 6)] == pytest.approx(want, rel=1e-9, abs=1e-15)
     assert np.sqrt(fit_line(strain[:20], fz).mse) == pytest.approx(want, rel=1e-9, abs=1e-15)
+
+
+@pytest.fixture(scope="module")
+def patterns(tmp_path_factory):
+    out = tmp_path_factory.mktemp("p") / "r.h5"
+    return reduce_results(write_results(out, ks=(0.1,), stitches=("stockinette", "rib", "seed")))
+
+
+def test_a_patterns_forces_along_a_sweep_are_its_classes(patterns):
+    """A pattern's sweeps count (docs/model.md §11): their pair forces are the model's over
+    the mirrored images, rows its classes; figS11 draws each stitch's two rows, each
+    stitch's classes in a legend; Table S3's RMS column stays stockinette's."""
+    from knitsweep.kernels.mirrored import MIRROR_CLASSES
+    from knitsweep.report.fig_forces import figS11_contact_forces_strain
+    from knitsweep.report.fig_mechanics import CLASS_LABEL
+
+    entries = sweeps_with_states(patterns)
+    by_stitch = {e.meta.get("stitch", "stockinette") for e in entries}
+    assert by_stitch == {"stockinette", "rib", "seed"}
+    e = next(e for e in entries if e.meta.get("stitch") == "rib")
+    _, f = pair_forces_along(patterns, e)
+    model = CellModel(StitchParams.from_flat(e.meta))
+    assert model.stitch.contact_classes == MIRROR_CLASSES
+    assert np.array_equal(f[0], model.contact_pair_forces_by_class(e.record["states"][0]))
+    assert f[:, MIRROR_CLASSES.index("mirrored")].any()
+    fig = figS11_contact_forces_strain(patterns, [])
+    assert len(fig.axes) == 3 * 3 * 2  # three stitches, pulled in x and y
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    labels = [tuple(t.get_text() for t in leg.get_texts()) for leg in legends]
+    assert labels == [tuple(CLASS_LABEL[c] for c in CONTACT_CLASSES),
+                      tuple(CLASS_LABEL[c] for c in MIRROR_CLASSES)]  # fmt: skip
+    rms = same_row_z_rms(patterns)
+    ys = [e for e in entries if e.meta["direction"] == "y" and "stitch" not in e.meta]
+    assert sorted(rms) == sorted(round(float(e.meta["L_mm"]), 6) for e in ys)

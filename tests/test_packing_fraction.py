@@ -92,3 +92,22 @@ def test_job_hash_without_it_unchanged(tmp_path):
     a, b, c = (load_job(p) for p in (plain, off, on))
     assert a.job_hash == b.job_hash != c.job_hash
     assert "packing_fraction" not in a.canonical()["store"]
+
+
+def test_a_patterns_stored_value_counts_its_mirrored_images():
+    """The worker's packing fraction of a rib start is the estimator's over the rib's
+    mirrored images, not over the translated fabric's."""
+    from knitsweep.analysis.volumes import packing_fraction
+    from knitsweep.config import StitchParams
+    from knitsweep.model import CellModel
+    from knitsweep.service.worker import _packing_fractions
+
+    model = CellModel(StitchParams(L_mm=11.6, k_mN_per_mm2=0.1, stitch="rib"))
+    x = model.stitch.start(1)
+    got = _packing_fractions(model, [x, x])
+    cp = model.control_points(x)
+    mirrored = packing_fraction(cp, x[-2], x[-1], model.params.r_mm, model.stitch.mirror_parity)
+    translated = packing_fraction(cp, x[-2], x[-1], model.params.r_mm)
+    assert model.stitch.mirror_parity == (1, 0)
+    assert np.array_equal(got["packing_fraction"], [mirrored[0]] * 2)
+    assert mirrored[0] != translated[0]

@@ -160,3 +160,44 @@ def test_render_contact_volumes(tmp_path):
     bad = CliRunner().invoke(app, ["render", "--state", str(state), "--contact-volumes",
                                    "--volume-points", "1000", "--out", str(out)])  # fmt: skip
     assert bad.exit_code == 2 and "samples = 1000" in bad.output
+
+
+@pytest.mark.parametrize(("name", "mirrored_kinds"), [
+    ("garter", ("mirrored_above", "mirrored_below")),
+    ("rib", ("mirrored_beside", "mirrored_above", "mirrored_below")),
+    ("seed", ("mirrored_above", "mirrored_below")),
+])  # fmt: skip
+def test_contact_volumes_of_a_pattern_touch_their_images(name, mirrored_kinds):
+    """A pattern's contact volumes (docs/model.md §11) over its mirrored images: each
+    point of a kind lies within r of the centre-line of an image of that kind, the
+    images built here as the pattern defines them (z -> -z where pm m + pn n is odd);
+    the mirrored neighbours touch the shipped start."""
+    from scipy.spatial import cKDTree
+
+    from knitsweep.config import StitchParams
+    from knitsweep.report.contact_volumes import KINDS, contact_volume_points, volume_kind
+    from knitsweep.report.render import cell_path, stitch_from_state
+    from knitsweep.stitches import get_stitch
+
+    stitch = get_stitch(name)
+    x = stitch.start(1)
+    drawn = stitch_from_state(x, StitchParams(stitch=name))
+    clouds = contact_volume_points(drawn, 1 << 12)
+    assert tuple(clouds) == KINDS[True]
+    assert all(len(clouds[k]) > 0 for k in ("self", *mirrored_kinds)), {
+        k: len(v) for k, v in clouds.items()
+    }
+    path = cell_path(drawn.control_points, 200)  # chords below 0.02 mm
+    pm, pn = stitch.mirror_parity
+    near: dict[str, list] = {}
+    for m in range(-3, 4):
+        for n in range(-3, 4):
+            flip = -1.0 if (pm * m + pn * n) % 2 else 1.0
+            image = path * [1.0, 1.0, flip] + [m * x[-2], n * x[-1], 0.0]
+            near.setdefault(volume_kind(m, n, (pm, pn)), []).append(image)
+    r = drawn.r_mm
+    for kind, pts in clouds.items():
+        if kind == "self" or not len(pts):
+            continue
+        d = cKDTree(np.concatenate(near[kind])).query(pts)[0]
+        assert d.max() <= r + 0.02, (kind, d.max(), r)

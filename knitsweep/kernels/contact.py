@@ -204,8 +204,19 @@ def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
     nseg = pts.shape[0] // n
     box = segment_boxes_soa(pos, nseg, n)
     blocks, images = candidate_blocks(pts, box, ax, ay, reach, mode)
-    reach2 = reach * reach
-    cap = 4 * nseg * n * n
+    return search_blocks(pos, s_mid, box, n, blocks, images, ax, ay, s_tot, reach * reach,
+                         s_excl)  # fmt: skip
+
+
+@njit(cache=True)
+def search_blocks(pos, s_mid, box, n, blocks, images, ax, ay, s_tot, reach2, s_excl):
+    """The sample pairs closer than sqrt(``reach2``) of the candidate ``blocks`` (k, 3) =
+    (image, segment a, segment b), image indexing ``images`` (q, 2) = (m, n) (-1: (0, 0)),
+    in block order (``partition.search_pairs`` on each; the segment b of a block may be a
+    column of ``box`` past the samples of one cell: ``kernels.mirrored``'s mirrored copy).
+    Returns ``ib`` (4, cap) int64 = (i, j, m, n), ``fb`` (4, cap) = (dx, dy, dz, R^2) and
+    the count c of filled columns, as ``collect_pairs``."""
+    cap = 4 * box.shape[1] * n * n
     ib = np.empty((4, cap), dtype=np.int64)
     fb = np.empty((4, cap))
     c = np.int64(0)  # not the literal 0: no extra specialisation of the callees
@@ -222,6 +233,20 @@ def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
 
 
 @njit(cache=True)
+def contact_list(ib, fb, c):
+    """The first ``c`` buffered pairs as (idx (c, 4) = (i, j, m, n), sep (c, 4) = (dx, dy,
+    dz, R))."""
+    idx = np.ascontiguousarray(ib[:, :c].T)
+    sep = np.empty((c, 4))
+    for q in range(c):
+        sep[q, 0] = fb[0, q]
+        sep[q, 1] = fb[1, q]
+        sep[q, 2] = fb[2, q]
+        sep[q, 3] = np.sqrt(fb[3, q])
+    return idx, sep
+
+
+@njit(cache=True)
 def find_contacts(cp, tab, ax, ay, r, mode):
     """Every counted contact of the cell, each unordered pair once (docs/model.md §6).
 
@@ -234,13 +259,7 @@ def find_contacts(cp, tab, ax, ay, r, mode):
     pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
     ib, fb, c = collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, 2.0 * r, EXCLUSION_FACTOR * r,
                               mode)  # fmt: skip
-    idx = np.ascontiguousarray(ib[:, :c].T)
-    sep = np.empty((c, 4))
-    for q in range(c):
-        sep[q, 0] = fb[0, q]
-        sep[q, 1] = fb[1, q]
-        sep[q, 2] = fb[2, q]
-        sep[q, 3] = np.sqrt(fb[3, q])
+    idx, sep = contact_list(ib, fb, c)
     return pts, r1, speed, idx, sep
 
 

@@ -11,7 +11,8 @@ Two kinds of force per class:
 * ``contact_forces_by_class``: generalised forces on the cell periods, -dE_c(class)/da
   at fixed shape (what the envelope stress is made of);
 * ``contact_pair_forces_by_class``: the pair forces f = -dV/dR between sampled yarn
-  points, projected on x, y, z (the paper's Table S3 and Fig. 6h quantity).
+  points, projected on x, y, z (the paper's Table S3 and Fig. 6h quantity); their rule,
+  ``pair_forces``, is shared with the patterns' (``mirrored.mirrored_pair_forces_by_class``).
 """
 
 from __future__ import annotations
@@ -148,8 +149,24 @@ def contact_pair_forces_by_class(cp, tab, ax, ay, r, rc, k, p, mode, weighted, f
       sample's own cell, so that only pairs across the mid-plane count.
     """
     n = tab.shape[1]
-    dt2 = 1.0 / (n * n)
     pts, _, speed, idx, sep = find_contacts(cp, tab, ax, ay, r, mode)
+    classes = np.empty(idx.shape[0], dtype=np.int64)
+    for q in range(idx.shape[0]):
+        classes[q] = contact_class(idx[q, 2], idx[q, 3])
+    pair_forces(pts, speed, idx, sep, classes, 1.0 / (n * n), r, rc, k, p, weighted, forces)
+
+
+@njit(cache=True)
+def pair_forces(pts, speed, idx, sep, classes, dt2, r, rc, k, p, weighted, forces):
+    """The rule of ``contact_pair_forces_by_class`` on a list of contacts, into
+    ``forces`` (rows of ``classes``, 3), N (N mm^2 when ``weighted``).
+
+    idx (c, 4) = (i, j, m, n) and sep (c, 4) = (dx, dy, dz, R) as from
+    ``contact.find_contacts``; ``classes`` (c,): each contact's row; ``pts`` (M, 3) and
+    ``speed`` (M,): the samples i and j index, each as it sits in its own cell (the
+    partner in a mirrored image, ``kernels.mirrored.mirrored_contacts``, z -> -z);
+    dt2 = 1 / N^2.
+    """
     forces[:] = 0.0
     for q in range(idx.shape[0]):
         i, j, m, nn = idx[q, 0], idx[q, 1], idx[q, 2], idx[q, 3]
@@ -158,7 +175,7 @@ def contact_pair_forces_by_class(cp, tab, ax, ay, r, rc, k, p, mode, weighted, f
         f = -dv / dist
         if weighted:
             f *= speed[i] * speed[j] * dt2
-        cls = contact_class(m, nn)
+        cls = classes[q]
         for a in range(3):
             fa = f * sep[q, a]  # force on sample i along a
             offset = m if a == 0 else (nn if a == 1 else 0)

@@ -35,6 +35,10 @@ mirrored image: in garter the rows above and below, in rib the columns beside, i
 seed both); 4 other (unmirrored diagonal or farther images). With ``only_class`` >= 0
 the kernel sums that class alone, so each class's energy and gradient (its forces)
 are exact derivatives of one function, checked against finite differences.
+
+Pair forces by class (``mirrored_pair_forces_by_class``): the translations' rule
+(``forces.pair_forces``) on the same pairs, listed by ``mirrored_contacts`` (the search of
+``mirrored_contact_energy``), a mirrored partner as it sits in its own cell (z -> -z).
 """
 
 from __future__ import annotations
@@ -45,12 +49,14 @@ from numba import njit
 from .contact import (
     EXCLUSION_FACTOR,
     accumulate_pairs,
+    contact_list,
     pair_buffers,
     pair_potential,
     project_gradient,
     sample_cell,
+    search_blocks,
 )
-from .forces import polygon_height
+from .forces import pair_forces, polygon_height
 from .partition import image_reaches, search_pairs, segment_boxes_soa, segment_gaps
 
 MIRROR_CLASSES = ("self", "same_row", "same_column", "mirrored", "other")
@@ -231,19 +237,14 @@ def _fold_gradient(g2, speed, r1, tab, grad_cp):
 
 
 @njit(cache=True)
-def _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad, class_energy):
-    """The sums of ``mirrored_contact_energy``: (E_c, explicit dE/da_x, dE/da_y, the
-    gradient (2 ns, 4) at the samples and at their mirrored copy (columns 0-2
-    dE/dposition, 3 dE/dspeed), the positions (3, 2 ns) of both, the samples' speeds
-    and first derivatives).
-
-    The samples are held twice (the second copy mirrored, z -> -z), so that a mirrored
-    partner is a sample of that copy and the translations' search and pair sums apply
-    unchanged.
-    """
+def _doubled_samples(cp, tab):
+    """The samples held twice, as they are and mirrored (z -> -z): (pts (ns, 3), their
+    positions (3, 2 ns), midpoint arclengths (2 ns,) and speeds (2 ns,) with the
+    mirrored copy's after the samples', the boxes (6, 2 S) of both copies' segments
+    (``segment_boxes_soa``), the samples' speeds (ns,) and first derivatives, and the
+    total arclength)."""
     nseg = cp.shape[0]
     n = tab.shape[1]
-    dt2 = 1.0 / (n * n)
     pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
     ns = pts.shape[0]
     pos2 = np.empty((3, 2 * ns))
@@ -257,6 +258,24 @@ def _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad, 
         s_mid2[i] = s_mid2[ns + i] = s_mid[i]
         speed2[i] = speed2[ns + i] = speed[i]
     box2 = segment_boxes_soa(pos2, 2 * nseg, n)
+    return pts, pos2, s_mid2, speed2, box2, speed, r1, s_tot
+
+
+@njit(cache=True)
+def _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad, class_energy):
+    """The sums of ``mirrored_contact_energy``: (E_c, explicit dE/da_x, dE/da_y, the
+    gradient (2 ns, 4) at the samples and at their mirrored copy (columns 0-2
+    dE/dposition, 3 dE/dspeed), the positions (3, 2 ns) of both, the samples' speeds
+    and first derivatives).
+
+    The samples are held twice (the second copy mirrored, z -> -z), so that a mirrored
+    partner is a sample of that copy and the translations' search and pair sums apply
+    unchanged.
+    """
+    n = tab.shape[1]
+    dt2 = 1.0 / (n * n)
+    pts, pos2, s_mid2, speed2, box2, speed, r1, s_tot = _doubled_samples(cp, tab)
+    ns = pts.shape[0]
     cut = 2.0 * r
     images = half_images(pts, ax, ay, r)
     blocks = mirrored_blocks(box2, images, ax, ay, cut, pm, pn, only_class)
@@ -320,3 +339,48 @@ def mirrored_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, pm, pn, forces, 
         forces[cls, 0] = -fx
         forces[cls, 1] = -fy
         forces[cls, 2] = -push / dz
+
+
+@njit(cache=True)
+def mirrored_contacts(cp, tab, ax, ay, r, pm, pn):
+    """Every counted contact of the cell over its images for mirror parities (pm, pn),
+    each unordered pair once: the pairs of ``mirrored_contact_energy``, found by the same
+    search (as ``contact.find_contacts`` for translations).
+
+    Returns (pts2 (2 ns, 3): the samples and then their mirrored copy (z -> -z), each as
+    it sits in its own cell; speed2 (2 ns,); idx (c, 4) = (i, j, m, n), j >= ns naming the
+    mirrored copy's sample j - ns, the partner in a mirrored image; sep (c, 4) = (dx, dy,
+    dz, R), d = p_i - g p_j = p_i - M^mu p_j - m t_c - n t_w; classes (c,): each
+    contact's row of ``MIRROR_CLASSES``).
+    """
+    n = tab.shape[1]
+    pts, pos2, s_mid2, speed2, box2, _, _, s_tot = _doubled_samples(cp, tab)
+    images = half_images(pts, ax, ay, r)
+    cut = 2.0 * r
+    blocks = mirrored_blocks(box2, images, ax, ay, cut, pm, pn, -1)
+    ib, fb, c = search_blocks(pos2, s_mid2, box2, n, blocks, images, ax, ay, s_tot, cut * cut,
+                              EXCLUSION_FACTOR * r)  # fmt: skip
+    idx, sep = contact_list(ib, fb, c)
+    classes = np.empty(c, dtype=np.int64)
+    for q in range(c):
+        m, nn = idx[q, 2], idx[q, 3]
+        classes[q] = mirror_class(m, nn, is_mirrored(m, nn, pm, pn))
+    return np.ascontiguousarray(pos2.T), speed2, idx, sep, classes
+
+
+@njit(cache=True)
+def mirrored_pair_forces_by_class(cp, tab, ax, ay, r, rc, k, p, pm, pn, weighted, forces):
+    """Each class's pair forces between sampled yarn points over the images mirrored by
+    (pm, pn), projected on x, y, z (rows ``MIRROR_CLASSES``): the rule of
+    ``forces.contact_pair_forces_by_class`` on ``mirrored_contacts``.
+
+    A contact's force on sample i is F = f d, f = -dV/dR / R, d = p_i - g p_j, and on the
+    partner -F. Along an axis on which the partner's image is offset (x with m != 0, y
+    with n != 0) it counts 2 f (-d_a) sign(offset), positive when it pushes the stitches
+    apart; otherwise F_a (sign(a_i) - sign(a_j')), a_j' the partner's coordinate in its
+    own cell: in a mirrored image its z is -z_j (the mirror plane z = 0 is every
+    stitch's mid-plane in z). ``weighted`` and units as there; writes ``forces`` (5, 3).
+    """
+    pts2, speed2, idx, sep, classes = mirrored_contacts(cp, tab, ax, ay, r, pm, pn)
+    n = tab.shape[1]
+    pair_forces(pts2, speed2, idx, sep, classes, 1.0 / (n * n), r, rc, k, p, weighted, forces)

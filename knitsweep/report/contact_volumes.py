@@ -3,6 +3,11 @@ stitch's yarn tube that overlap another part of the yarn, as semi-transparent cl
 points, by contact class (self green, same row magenta, NN same column above lavender
 and below cyan, NNN same column yellow), around the stitch's centre-line.
 
+A knit/purl pattern (garter, rib, seed: images mirrored through the fabric plane,
+docs/model.md §11) has its own classes (``kernels.mirrored.MIRROR_CLASSES``): self,
+same row, same column, mirrored and other; its mirrored contacts are drawn by where the
+mirror image sits: beside in the row (n = 0), in a row above or below.
+
 The points are the tube estimator's (``analysis.volumes.tube_samples``: scrambled Sobol
 points in tube coordinates, seed 0) that lie in an overlap; their density follows the
 tube's volume element, so a cloud shows the volume it stands for (docs/model.md §9).
@@ -18,12 +23,16 @@ from ..config import StitchParams
 from ..errors import InputError
 from .render import OUT_SUFFIXES, Stitch, cell_path, stitch_to_draw
 
-VOLUME_COLOUR = {  # paper Fig. 6a–d
+VOLUME_COLOUR = {  # paper Fig. 6a–d; the patterns' classes after them
     "self": "#2ca02c",
     "same_row": "#c51bd6",
     "nn_above": "#9a8ee6",
     "nn_below": "#17becf",
     "nnn_column": "#d4a20f",
+    "same_column": "#9a8ee6",
+    "mirrored_beside": "#d62728",
+    "mirrored_above": "#1f5fbf",
+    "mirrored_below": "#17becf",
     "other": "#888888",
 }
 VOLUME_LABEL = {
@@ -32,49 +41,70 @@ VOLUME_LABEL = {
     "nn_above": "NN same column, row above",
     "nn_below": "NN same column, row below",
     "nnn_column": "NNN same column",
+    "same_column": "same column",
+    "mirrored_beside": "mirrored, same row",
+    "mirrored_above": "mirrored, row above",
+    "mirrored_below": "mirrored, row below",
     "other": "other",
 }
-PANELS = (
-    ("(a) self contact", ("self",)),
-    ("(b) same-row contacts", ("same_row",)),
-    ("(c) NN same-column contacts", ("nn_above", "nn_below")),
-    ("(d) NNN same-column contacts", ("nnn_column",)),
-    ("(e) all contact volumes", tuple(VOLUME_COLOUR)),
-)
+KINDS = {
+    False: ("self", "same_row", "nn_above", "nn_below", "nnn_column", "other"),
+    True: ("self", "same_row", "same_column", "mirrored_beside", "mirrored_above",
+           "mirrored_below", "other"),
+}  # fmt: skip
+"""The kinds drawn, for a fabric of translations (False) and a knit/purl pattern (True)."""
+PANELS = {
+    False: (
+        ("(a) self contact", ("self",)),
+        ("(b) same-row contacts", ("same_row",)),
+        ("(c) NN same-column contacts", ("nn_above", "nn_below")),
+        ("(d) NNN same-column contacts", ("nnn_column",)),
+        ("(e) all contact volumes", KINDS[False]),
+    ),
+    True: (
+        ("(a) self contact", ("self",)),
+        ("(b) same-row contacts", ("same_row",)),
+        ("(c) same-column contacts", ("same_column",)),
+        ("(d) mirrored contacts", ("mirrored_beside", "mirrored_above", "mirrored_below")),
+        ("(e) all contact volumes", KINDS[True]),
+    ),
+}
 MAX_SAMPLES = 1 << 20
 
 
-def contact_volume_points(stitch: Stitch, samples: int = 1 << 15) -> dict[str, np.ndarray]:
-    """Label → points (n, 3), mm, of the stitch's tube that lie in a contact volume of
-    that kind (labels of :data:`VOLUME_COLOUR`; a point in several is drawn in the
-    class of its nearest other stitch, a self overlap first).
+def volume_kind(m: int, n: int, parity: tuple[int, int] = (0, 0)) -> str:
+    """The kind (a key of :data:`VOLUME_COLOUR`) of a contact with the image (m, n): its
+    contact class (``analysis.volumes.contact_class``), NN same column and mirrored
+    split by where the image sits."""
+    from ..analysis.volumes import contact_class
 
-    Raises:
-        InputError: a stitch with mirrored images (a knit/purl pattern): the tube
-            estimator's images are translations only (as the contact forces by class,
-            docs/model.md §11), so its classes would be those of another fabric.
-    """
-    if stitch.mirrors:
-        raise InputError(f"mirror parity = {stitch.mirror_parity}: contact volumes are not "
-                         "implemented for mirrored images yet (docs/model.md §11); draw the "
-                         "stitch without --contact-volumes")  # fmt: skip
+    cls = contact_class(m, n, parity)
+    if cls == "nn_column":
+        return "nn_above" if n > 0 else "nn_below"
+    if cls == "mirrored":
+        return "mirrored_beside" if n == 0 else ("mirrored_above" if n > 0 else "mirrored_below")
+    return cls
+
+
+def contact_volume_points(stitch: Stitch, samples: int = 1 << 15) -> dict[str, np.ndarray]:
+    """Kind → points (n, 3), mm, of the stitch's tube that lie in a contact volume of
+    that kind (``KINDS[stitch.mirrors]``; a point in several is drawn in the kind of its
+    nearest other stitch, a self overlap first). A pattern's other stitches include its
+    mirrored images (``stitch.mirror_parity``)."""
     from scipy.stats import qmc
 
-    from ..analysis.volumes import build_pieces, contact_class, tube_samples
+    from ..analysis.volumes import build_pieces, tube_samples
 
     cp = np.asarray(stitch.control_points, dtype=float)
-    pieces = build_pieces(cp, stitch.a_x, stitch.a_y, stitch.r_mm)
+    parity = tuple(stitch.mirror_parity)
+    pieces = build_pieces(cp, stitch.a_x, stitch.a_y, stitch.r_mm, parity=parity)
     u = qmc.Sobol(3, scramble=True, seed=np.random.default_rng(0)).random(samples)
     ts = tube_samples(cp, pieces, stitch.r_mm, u)
     labels = np.full(len(u), "", dtype=object)
     for p in np.unique(ts.other[ts.other >= 0]):
-        m, n = (int(v) for v in pieces.offsets[p])
-        cls = contact_class(m, n)
-        if cls == "nn_column":
-            cls = "nn_above" if n > 0 else "nn_below"
-        labels[ts.other == p] = cls
+        labels[ts.other == p] = volume_kind(*(int(v) for v in pieces.offsets[p]), parity)
     labels[ts.self_overlap] = "self"
-    return {k: ts.x[labels == k] for k in VOLUME_COLOUR}
+    return {k: ts.x[labels == k] for k in KINDS[stitch.mirrors]}
 
 
 def draw_contact_volumes(stitch: Stitch, out: str | Path, samples: int = 1 << 15) -> Path:
@@ -88,8 +118,9 @@ def draw_contact_volumes(stitch: Stitch, out: str | Path, samples: int = 1 << 15
     fig = Figure(figsize=(16.0, 4.6), layout="constrained")
     FigureCanvasAgg(fig)
     lo, hi = path.min(axis=0) - stitch.r_mm, path.max(axis=0) + stitch.r_mm
-    for i, (name, kinds) in enumerate(PANELS):
-        ax = fig.add_subplot(1, len(PANELS), i + 1, projection="3d")
+    panels = PANELS[stitch.mirrors]
+    for i, (name, kinds) in enumerate(panels):
+        ax = fig.add_subplot(1, len(panels), i + 1, projection="3d")
         ax.plot(*path.T, color="0.25", lw=1.2)
         for k in kinds:
             pts = clouds[k]
@@ -107,7 +138,7 @@ def draw_contact_volumes(stitch: Stitch, out: str | Path, samples: int = 1 << 15
         ax.set_ylabel("y (mm)", fontsize=8)
         ax.set_zlabel("z (mm)", fontsize=8)
     handles = [fig.axes[-1].plot([], [], "o", color=VOLUME_COLOUR[k], label=VOLUME_LABEL[k])[0]
-               for k in VOLUME_COLOUR if len(clouds[k])]  # fmt: skip
+               for k in clouds if len(clouds[k])]  # fmt: skip
     fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), frameon=False,
                fontsize=9)  # fmt: skip
     fig.suptitle(f"contact volumes: {stitch.label}", fontsize=11)
@@ -125,8 +156,7 @@ def render_contact_volumes(out: str | Path, *, results: str | Path | None = None
 
     Raises:
         InputError: bad output suffix, samples not a power of 2 in 2^10..2^20, both or
-            neither source, unknown task or bad step, a stitch with mirrored images
-            (``contact_volume_points``).
+            neither source, unknown task or bad step.
     """
     out = Path(out)
     if out.suffix.lower() not in OUT_SUFFIXES:

@@ -1,6 +1,8 @@
 """Contact forces by class along a strain sweep (paper SI "Contact Forces", the figure
 of forces against strain, panels a–e; docs/model.md §9), from the states a job stores
 with ``[store] states = true``, and the RMS column of Table S3 from the same forces.
+A knit/purl pattern's (garter, rib, seed) rows are its own classes, over its mirrored
+images too (``kernels.mirrored.MIRROR_CLASSES``, docs/model.md §11).
 
 The forces are the paper's pair forces between sampled yarn points
 (``CellModel.contact_pair_forces_by_class``, N; both contacts of a class added), with
@@ -20,6 +22,7 @@ import numpy as np
 
 from ..analysis import fit_line
 from ..config import StitchParams
+from ..stitches import DEFAULT_STITCH, STITCH_NAMES
 from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from ..store.format import SWEEPS
 from .fig_mechanics import CLASS_COLOUR, CLASS_LABEL
@@ -36,17 +39,16 @@ PAPER_L_MM = 10.5
 
 
 def sweeps_with_states(red: Reduction) -> list[Any]:
-    """Done sweeps of the reduction that store every step's state, of stitches whose
-    pair forces by class are implemented (translated images only: not yet garter, rib
-    or another pattern with mirrored images)."""
+    """Done sweeps of the reduction that store every step's state, of every stitch (a
+    pattern's pair forces by class include its mirrored images)."""
     return [e for e in red.entries if e.kind == SWEEPS and e.meta.get("status") == "done"
-            and "states" in e.record
-            and contact_classes(e.meta) == tuple(CONTACT_CLASSES)]  # fmt: skip
+            and "states" in e.record]  # fmt: skip
 
 
 def pair_forces_along(red: Reduction, entry: Any) -> tuple[np.ndarray, np.ndarray]:
-    """(strain (n,), pair forces by class (n, 5, 3) N, positive extends the fabric) of
-    one stored sweep, from its states."""
+    """(strain (n,), pair forces by class (n, 5, 3) N, rows the stitch's
+    ``contact_classes``, positive extends the fabric) of one stored sweep, from its
+    states."""
     from ..model import CellModel  # numba: only for files that store the states
 
     model = CellModel(StitchParams.from_flat(entry.meta), job_fidelity(red.roots[0]))
@@ -65,17 +67,25 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
     """Pair forces by class against strain at the L nearest 10.5 mm, pulled in x (top)
     and y (bottom), components x, y, z (columns), in the paper's sign convention
     (positive assists linear elastic behaviour); ``upto``: strains up to it only (the
-    forces grow by two orders of magnitude towards the end of a sweep)."""
+    forces grow by two orders of magnitude towards the end of a sweep). Each stitch
+    whose sweeps store their states has its two rows (stitches in ``STITCH_NAMES``
+    order), a pattern's with its own classes."""
     entries = sweeps_with_states(red)
     if not entries:
-        raise SkipFigure("needs sweeps that store their states ([store] states = true), "
-                         "of a stitch without mirrored images (stockinette)")  # fmt: skip
-    picked = {d: _nearest_L(entries, d, PAPER_L_MM) for d in "xy"}
-    picked = {d: e for d, e in picked.items() if e is not None}
+        raise SkipFigure("needs sweeps that store their states ([store] states = true)")
+    picked = []  # (direction, sweep) of each row; the series label names the stitch
+    for stitch in STITCH_NAMES:
+        mine = [e for e in entries if e.meta.get("stitch", DEFAULT_STITCH) == stitch]
+        for d in "xy":
+            e = _nearest_L(mine, d, PAPER_L_MM)
+            if e is not None:
+                picked.append((d, e))
     fig = new_figure(13.0, 3.4 * len(picked) + 1.0, wide=True)
     sweep_rows = {r["task_id"]: r for r in red.sweeps}
     axes = np.atleast_2d(fig.subplots(len(picked), 3, squeeze=False))
-    for row, (d, e) in enumerate(sorted(picked.items())):
+    legends = set()
+    for row, (d, e) in enumerate(picked):
+        classes = contact_classes(e.meta)
         strain, f = pair_forces_along(red, e)
         signed = f * LINEAR_ELASTIC_SIGN[d][None, None, :]
         if upto is not None:
@@ -83,7 +93,7 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
             strain, signed = strain[keep], signed[keep]
         for col, a in enumerate("xyz"):
             ax = axes[row, col]
-            for j, cls in enumerate(CONTACT_CLASSES):
+            for j, cls in enumerate(classes):
                 ax.plot(strain, signed[:, j, col], color=CLASS_COLOUR[cls], lw=1.5,
                         label=CLASS_LABEL[cls])  # fmt: skip
             ax.axhline(0.0, color="0.6", lw=0.8)
@@ -95,7 +105,9 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
                     f"pulled in {d}, L = {float(e.meta['L_mm']):g} mm", lab, "force (N)"))))  # fmt: skip
             if row == 0:
                 ax.set_title(f"{a} component")
-    axes[0, 0].legend(frameon=True, framealpha=0.9)
+        if classes not in legends:  # a legend where a stitch's classes first appear
+            legends.add(classes)
+            axes[row, 0].legend(frameon=True, framealpha=0.9)
     title(
         fig,
         red,
@@ -108,10 +120,12 @@ def figS11_contact_forces_strain(red: Reduction, notes: list[str],
 def same_row_z_rms(red: Reduction, points: int = 20) -> dict[float, float]:
     """Paper Table S3's RMS column: for each y pull that stores its states, the RMS
     (N) of the residuals of a straight line fitted to the z pair force of the
-    same-row contacts against strain over the first ``points`` steps."""
+    same-row contacts against strain over the first ``points`` steps (stitches of
+    translated images alone: the paper's classes)."""
     out = {}
     for e in sweeps_with_states(red):
-        if e.meta.get("direction") != "y" or len(e.record["strain"]) < points:
+        if (e.meta.get("direction") != "y" or len(e.record["strain"]) < points
+                or contact_classes(e.meta) != tuple(CONTACT_CLASSES)):  # fmt: skip
             continue
         strain, f = pair_forces_along(red, e)
         fz = f[:points, CONTACT_CLASSES.index("same_row"), 2]

@@ -57,6 +57,8 @@ CLASS_COLOUR = {  # paper Fig. 6a–d: self green, same row magenta, NN lavender
     "same_row": "#c51bd6",
     "nn_column": "#7b68d9",
     "nnn_column": "#d4a20f",
+    "same_column": "#7b68d9",  # a knit/purl pattern's (kernels.mirrored.MIRROR_CLASSES)
+    "mirrored": "#1f5fbf",
     "other": "#888888",
 }
 CLASS_LABEL = {
@@ -64,6 +66,8 @@ CLASS_LABEL = {
     "same_row": "same row",
     "nn_column": "NN same column",
     "nnn_column": "NNN same column",
+    "same_column": "same column",
+    "mirrored": "mirrored images",
     "other": "other",
 }
 

@@ -9,8 +9,9 @@ Two kinds, both in N:
 * ``pair_F_<class>_<axis>_N``: the paper's contact forces, unweighted pair forces
   between sampled yarn points (``CellModel.contact_pair_forces_by_class``), computed
   here from the stored zero-force state, rows
-  :data:`~knitsweep.stitches.TRANSLATION_CLASSES` (empty for a pattern with mirrored
-  images). Their ratio ``force_ratio_xy`` is Fig. 6h's.
+  :data:`~knitsweep.stitches.TRANSLATION_CLASSES`: the paper's columns, empty for a
+  pattern with mirrored images, whose classes are others (its pair forces by class are
+  drawn along its sweeps, ``fig_forces``). Their ratio ``force_ratio_xy`` is Fig. 6h's.
 """
 
 from __future__ import annotations
@@ -77,7 +78,7 @@ def pair_force_columns(state: np.ndarray | None, meta: Mapping[str, Any],
     and same-row contacts ... become larger than the NNN same-column and NN
     same-column contacts in the y-direction, shown in Fig. 6h")."""
     if state is None or contact_classes(meta) != tuple(CONTACT_CLASSES):
-        return dict.fromkeys(PAIR_KEYS)  # (pair forces over mirrored images: not yet)
+        return dict.fromkeys(PAIR_KEYS)  # (a pattern's classes are not these columns)
     from ..model import CellModel  # numba: only for files that store the states
 
     f = CellModel(StitchParams.from_flat(meta), fidelity).contact_pair_forces_by_class(state)

@@ -31,7 +31,7 @@ from ..config import StitchParams
 from ..errors import InputError
 from ..formats import check_writable, replace_file
 from ..kernels.bezier import basis_tables
-from ..stitches.base import is_mirrored
+from ..stitches.base import MIRROR, is_mirrored
 
 ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
 """Base colour of each row (course) of yarn, cycling."""
@@ -77,10 +77,6 @@ class Stitch:
     def mirrored(self, m: int, n: int) -> bool:
         """Whether the image at lattice offset (m, n) (m t_c + n t_w) is mirrored."""
         return is_mirrored(self.mirror_parity, m, n)
-
-
-MIRROR = np.array([1.0, 1.0, -1.0])
-"""M = diag(1, 1, −1): the mirror z → −z through the fabric plane z = 0."""
 
 
 def copy_mirrored(stitch: Stitch, row: int, column: int) -> bool | None:

@@ -214,7 +214,8 @@ def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dic
 
 def _packing_fractions(model: Any, states: Any) -> dict[str, np.ndarray]:
     """``packing_fraction`` and ``packing_fraction_error`` (n,) of states (n, n_state)
-    (docs/model.md §9, paper SI "Contact Volumes"); NaN where a state is not finite."""
+    (docs/model.md §9, paper SI "Contact Volumes"; over the stitch's mirrored images, §11);
+    NaN where a state is not finite."""
     from ..analysis.volumes import packing_fraction
 
     phi = np.full(len(states), np.nan)
@@ -226,7 +227,7 @@ def _packing_fractions(model: Any, states: Any) -> dict[str, np.ndarray]:
             key = x.tobytes()
             if key not in seen:
                 seen[key] = packing_fraction(model.control_points(x), x[-2], x[-1],
-                                             model.params.r_mm)  # fmt: skip
+                                             model.params.r_mm, model.stitch.mirror_parity)  # fmt: skip
             phi[i], err[i] = seen[key]
     return {"packing_fraction": phi, "packing_fraction_error": err}
 

@@ -63,6 +63,21 @@ def is_mirrored(parity: tuple[int, int], m: int, n: int) -> bool:
     return bool((parity[0] * m + parity[1] * n) % 2)
 
 
+MIRROR = np.array([1.0, 1.0, -1.0])
+"""M = diag(1, 1, -1): the mirror z -> -z through the fabric plane z = 0."""
+
+
+def image_points(points: np.ndarray, m: int, n: int, a_x: float, a_y: float,
+                 parity: tuple[int, int] = (0, 0)) -> np.ndarray:  # fmt: skip
+    """The cell's ``points`` (..., 3), mm, in its image at lattice offset (m, n):
+    g p = M^mu p + m t_c + n t_w, mirrored (M) when ``is_mirrored(parity, m, n)``
+    (docs/model.md §11; the compiled kernels' twin is the sign sz = -1 of a mirrored
+    partner's z in ``kernels.mirrored``). A new array."""
+    if is_mirrored(parity, m, n):
+        points = points * MIRROR
+    return points + np.array([m * a_x, n * a_y, 0.0])
+
+
 @dataclass(frozen=True, eq=False)
 class Stitch:
     """One stitch geometry (the module docstring states the contract)."""

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..kernels.checks import pattern_min_zeta
+from .base import image_points
 
 PARITIES = {"stockinette": (0, 0), "garter": (0, 1), "rib": (1, 0), "seed": (1, 1)}
 """(pm, pn) per pattern: image (m, n) mirrored when pm m + pn n is odd."""
@@ -110,10 +111,7 @@ def min_zeta_where_reference(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10)
     images, copies = [], []
     for m in range(-2, 3):
         for n in range(-3, 4):
-            q = pts.copy()
-            if (parity[0] * m + parity[1] * n) % 2:
-                q[:, 2] *= -1.0
-            q += (m * a_x, n * a_y, 0.0)
+            q = image_points(pts, m, n, a_x, a_y, parity)
             if np.any(q.min(axis=0) - hi >= 2 * r) or np.any(lo - q.max(axis=0) >= 2 * r):
                 continue  # every sample of the image 2r away or more: no contact counted
             images.append((m, n))

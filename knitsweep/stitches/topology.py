@@ -24,7 +24,7 @@ from math import comb
 import numpy as np
 
 from ..kernels.checks import polyline_crossings
-from .base import is_mirrored
+from .base import image_points
 
 SAMPLES = 48
 """Polyline pieces per segment."""
@@ -79,9 +79,8 @@ def crossings_reference(cp: np.ndarray, a_x: float, a_y: float, samples: int = S
     d = p1 - p0
     for m in (-1, 0, 1):
         for n in (-1, 1) if adjacent_only else (-2, -1, 0, 1, 2):
-            shift = np.array([m * a_x, n * a_y, 0.0])
-            flip = np.array([1.0, 1.0, -1.0 if is_mirrored(parity, m, n) else 1.0])
-            q0, q1 = p0 * flip + shift, p1 * flip + shift
+            q0 = image_points(p0, m, n, a_x, a_y, parity)
+            q1 = image_points(p1, m, n, a_x, a_y, parity)
             e = q1 - q0
             i_idx, j_idx = _near_pieces(p0, p1, q0, q1)
             w = q0[j_idx, :2] - p0[i_idx, :2]
@@ -187,7 +186,7 @@ def row_period(cp: np.ndarray, a_x: float, parity: tuple[int, int] = (0, 0)):
     if not parity[0]:
         return np.asarray(cp, dtype=float), a_x, parity
     cp = np.asarray(cp, dtype=float)
-    image = cp * np.array([1.0, 1.0, -1.0]) + np.array([a_x, 0.0, 0.0])
+    image = image_points(cp, 1, 0, a_x, 0.0, parity)  # (1, 0): mirrored, pm = 1
     return np.concatenate([cp, image]), 2.0 * a_x, (0, parity[1])
 
 

@@ -36,6 +36,7 @@ import numpy as np
 
 from ...kernels.bezier import basis_tables
 from ...kernels.contact import EXCLUSION_FACTOR
+from ...kernels.mirrored import MIRROR_CLASSES, is_mirrored, mirror_class
 from ...stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from .geometry import Pieces, arc_length, build_pieces, cell_depth, distances
 
@@ -50,7 +51,7 @@ class Volumes:
     ``method``: "voxel" or "qmc"; ``resolution``: voxel side (mm) or points per
     scramble; ``*_error``: one standard error (qmc; None for voxels, whose error is
     not statistical); ``compressed_by_class``: V_comp split by the class of the
-    nearest other stitch (``CONTACT_CLASSES`` without self), and the self-overlap
+    nearest other stitch (``contact_classes(parity)`` without self), and the self-overlap
     volume (counted once in V_uncomp, qmc only) under "self".
     """
 
@@ -69,8 +70,18 @@ class Volumes:
         return asdict(self)
 
 
-def contact_class(m: int, n: int) -> str:
-    """``CONTACT_CLASSES`` name of image offset (m, n) (docs/model.md §9)."""
+def contact_classes(parity: tuple[int, int] = (0, 0)) -> tuple[str, ...]:
+    """The contact classes of a fabric whose images are mirrored by ``parity``: those of
+    translations (``CONTACT_CLASSES``, docs/model.md §9) for (0, 0), else a knit/purl
+    pattern's (``kernels.mirrored.MIRROR_CLASSES``, §11), as the stitches name them."""
+    return MIRROR_CLASSES if any(parity) else tuple(CONTACT_CLASSES)
+
+
+def contact_class(m: int, n: int, parity: tuple[int, int] = (0, 0)) -> str:
+    """Name in ``contact_classes(parity)`` of image offset (m, n) (docs/model.md §9;
+    a pattern's by the mirrored kernel's ``mirror_class``, §11)."""
+    if any(parity):
+        return MIRROR_CLASSES[mirror_class(m, n, is_mirrored(m, n, *parity))]
     if (m, n) == (0, 0):
         return "self"
     if n == 0:
@@ -83,16 +94,18 @@ def contact_class(m: int, n: int) -> str:
 
 
 def _by_class(pieces: Pieces, who: np.ndarray, weights: np.ndarray) -> dict[str, float]:
-    out = dict.fromkeys(CONTACT_CLASSES, 0.0)
+    out = dict.fromkeys(contact_classes(pieces.parity), 0.0)
     hit = who >= 0
     for p in np.unique(who[hit]):
-        out[contact_class(*map(int, pieces.offsets[p]))] += float(weights[hit][who[hit] == p].sum())
+        cls = contact_class(*map(int, pieces.offsets[p]), pieces.parity)
+        out[cls] += float(weights[hit][who[hit] == p].sum())
     return out
 
 
 def voxel_volumes(cp: np.ndarray, a_x: float, a_y: float, r: float, voxel_mm: float,
                   spacing: float = 0.01, closed: bool = False,
-                  offset: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Volumes:  # fmt: skip
+                  offset: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                  parity: tuple[int, int] = (0, 0)) -> Volumes:  # fmt: skip
     """The paper's voxel method (module docstring) with voxels of side ``voxel_mm``.
 
     cp (S, 6, 3): the stitch's control points, mm (``CellModel.control_points``);
@@ -101,11 +114,13 @@ def voxel_volumes(cp: np.ndarray, a_x: float, a_y: float, r: float, voxel_mm: fl
     (fractions of a voxel, each in [0, 1): the lattice's phase). ``spacing``: the
     centre-line is a polyline of chords at most this long (mm; its distance error is
     below spacing² κ / 8). ``closed``: the piece is a closed loop (test shapes).
+    ``parity``: the images' mirror parity (a knit/purl pattern's ``mirror_parity``;
+    (0, 0): translations only).
     """
     if not voxel_mm > 0.0:
         raise ValueError(f"voxel_mm = {voxel_mm}: must be > 0")
     cp = np.asarray(cp, dtype=float)
-    pieces = build_pieces(cp, a_x, a_y, r, spacing, closed)
+    pieces = build_pieces(cp, a_x, a_y, r, spacing, closed, parity)
     ends = np.concatenate([pieces.a[pieces.piece == 0], pieces.b[pieces.piece == 0][-1:]])
     lo = ends.min(axis=0) - r - np.asarray(offset, dtype=float) * voxel_mm
     counts = np.ceil((ends.max(axis=0) + r - lo) / voxel_mm).astype(int)
@@ -113,7 +128,7 @@ def voxel_volumes(cp: np.ndarray, a_x: float, a_y: float, r: float, voxel_mm: fl
     n_xy = counts[0] * counts[1]
     gx, gy = (g.ravel() for g in np.meshgrid(axes[0], axes[1], indexing="ij"))
     n_unc = n_comp = 0
-    comp_by = dict.fromkeys(CONTACT_CLASSES, 0.0)
+    comp_by = dict.fromkeys(contact_classes(parity), 0.0)
     # z-slabs of whole (x, y) layers, about VOXEL_BATCH voxels each
     per = max(1, VOXEL_BATCH // n_xy)
     for z0 in range(0, counts[2], per):
@@ -180,7 +195,7 @@ def tube_samples(cp: np.ndarray, pieces: Pieces, r: float, u: np.ndarray) -> Tub
 
 def qmc_volumes(cp: np.ndarray, a_x: float, a_y: float, r: float, samples: int = 1 << 14,
                 scrambles: int = 8, seed: int = 0, spacing: float = 0.01,
-                closed: bool = False) -> Volumes:  # fmt: skip
+                closed: bool = False, parity: tuple[int, int] = (0, 0)) -> Volumes:  # fmt: skip
     """The same volumes by randomised quasi-Monte Carlo over the tube (module
     docstring): ``scrambles`` independent scrambled Sobol sequences of ``samples``
     points (a power of 2) each, seeded by ``seed``; the estimate is their mean and the
@@ -192,7 +207,7 @@ def qmc_volumes(cp: np.ndarray, a_x: float, a_y: float, r: float, samples: int =
     if scrambles < 2:
         raise ValueError(f"scrambles = {scrambles}: must be >= 2 (for the error estimate)")
     cp = np.asarray(cp, dtype=float)
-    pieces = build_pieces(cp, a_x, a_y, r, spacing, closed)
+    pieces = build_pieces(cp, a_x, a_y, r, spacing, closed, parity)
     tube = np.pi * r * r * arc_length(cp)
     rng = np.random.default_rng(seed)
     rows = []
@@ -211,7 +226,7 @@ def qmc_volumes(cp: np.ndarray, a_x: float, a_y: float, r: float, samples: int =
     mean = est.mean(axis=0)
     err = est.std(axis=0, ddof=1) / np.sqrt(scrambles)
     v_cell = a_x * a_y * cell_depth(cp, r)
-    classes = {k: float(np.mean([c[k] for c in by_class])) for k in CONTACT_CLASSES}
+    classes = {k: float(np.mean([c[k] for c in by_class])) for k in contact_classes(parity)}
     return Volumes("qmc", float(samples), float(mean[0]), float(mean[1]), float(mean[2]), v_cell,
                    float(mean[2] / v_cell), float(err[2]), float(err[2] / v_cell), classes)  # fmt: skip
 
@@ -222,8 +237,10 @@ STORED_SCRAMBLES = 4
 """Scrambles of the stored packing fraction (its error is one standard error)."""
 
 
-def packing_fraction(cp: np.ndarray, a_x: float, a_y: float, r: float) -> tuple[float, float]:
+def packing_fraction(cp: np.ndarray, a_x: float, a_y: float, r: float,
+                     parity: tuple[int, int] = (0, 0)) -> tuple[float, float]:  # fmt: skip
     """(φ, its standard error) by :func:`qmc_volumes` at the stored resolution and seed
-    0: what ``[store] packing_fraction = true`` writes for each state."""
-    v = qmc_volumes(cp, a_x, a_y, r, STORED_SAMPLES, STORED_SCRAMBLES, seed=0)
+    0: what ``[store] packing_fraction = true`` writes for each state (``parity``: the
+    images' mirror parity)."""
+    v = qmc_volumes(cp, a_x, a_y, r, STORED_SAMPLES, STORED_SCRAMBLES, seed=0, parity=parity)
     return v.phi, float(v.phi_error)

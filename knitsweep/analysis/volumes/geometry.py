@@ -3,10 +3,13 @@ the pieces of its neighbouring stitches (docs/model.md §3–4, §9 "Contact vol
 
 A stitch's centre-line is S Bézier segments (control points (S, 6, 3), mm); the fabric
 repeats it by the periods t_c = (a_x, 0, 0) and t_w = (0, a_y, 0), so image (m, n) is
-the stitch m columns along and n rows up. The images m = ±1, ±2, … of row n = 0 continue
-the same yarn: their arc coordinate runs on from the own piece's, so that a point's own
-branch of the tube can be told from a different part of the yarn by arc length, as the
-contact energy does (``kernels.contact.EXCLUSION_FACTOR``).
+the stitch m columns along and n rows up, mirrored through the fabric plane (z -> -z)
+where a knit/purl pattern's mirror parity says so (``stitches.base.image_points``,
+docs/model.md §11). The images m = ±1, ±2, … of row n = 0 continue the same yarn
+(mirrored or not: a mirrored cell's yarn runs in the same direction): their arc
+coordinate runs on from the own piece's, so that a point's own branch of the tube can be
+told from a different part of the yarn by arc length, as the contact energy does
+(``kernels.contact.EXCLUSION_FACTOR``).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...kernels.bezier import basis_tables, gauss_legendre
+from ...stitches.base import image_points
 
 CHUNK = 16
 """Segments per chunk of the distance search (one bounding sphere each)."""
@@ -39,7 +43,9 @@ class Pieces:
     block_hi, block_centre, block_radius: blocks of BLOCK chunks, likewise; arc_t (K,) and
     arc_s (K,): the own piece's vertices' global parameter t in [0, S] and arc
     coordinate (mm); length (mm): the own piece's arc length (by the polyline);
-    closed_length: its length if the own piece is a closed loop, else 0.
+    closed_length: its length if the own piece is a closed loop, else 0; parity: the
+    mirror parity (pm, pn) of the images (image (m, n) mirrored when pm m + pn n is odd;
+    (0, 0): translations only).
     """
 
     a: np.ndarray
@@ -61,6 +67,7 @@ class Pieces:
     arc_s: np.ndarray
     length: float
     closed_length: float
+    parity: tuple[int, int] = (0, 0)
 
 
 def centre_line(cp: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -101,32 +108,32 @@ def cell_depth(cp: np.ndarray, r: float, samples: int = 64) -> float:
 
 
 def build_pieces(cp: np.ndarray, a_x: float, a_y: float, r: float, spacing: float = 0.01,
-                 closed: bool = False) -> Pieces:  # fmt: skip
+                 closed: bool = False, parity: tuple[int, int] = (0, 0)) -> Pieces:  # fmt: skip
     """The own piece and every image (m, n) whose bounding box comes within 2r of the
-    own piece's (|m|, |n| <= REACH), as polylines of at most ``spacing`` mm per segment.
-    ``closed``: the own piece is a closed loop (test shapes), so that arc distances
-    along it wrap."""
+    own piece's (|m|, |n| <= REACH), as polylines of at most ``spacing`` mm per segment,
+    each image mirrored where ``parity`` says (``image_points``). ``closed``: the own
+    piece is a closed loop (test shapes), so that arc distances along it wrap."""
     verts, ts = centre_line(cp, spacing)
     chord = np.linalg.norm(np.diff(verts, axis=0), axis=1)
     arc = np.concatenate([[0.0], np.cumsum(chord)])
     length = float(arc[-1])
-    lo, hi = verts.min(axis=0) - 2.0 * r, verts.max(axis=0) + 2.0 * r
+    box = np.stack([verts.min(axis=0), verts.max(axis=0)])
+    lo, hi = box[0] - 2.0 * r, box[1] + 2.0 * r
     offsets = [(0, 0)]
     for m in range(-REACH, REACH + 1):
         for n in range(-REACH, REACH + 1):
             if (m, n) == (0, 0):
                 continue
-            shift = np.array([m * a_x, n * a_y, 0.0])
-            vlo, vhi = verts.min(axis=0) + shift, verts.max(axis=0) + shift
-            if np.all(vhi >= lo) and np.all(vlo <= hi):
+            corners = image_points(box, m, n, a_x, a_y, parity)  # mirrored: z swaps ends
+            if np.all(corners.max(axis=0) >= lo) and np.all(corners.min(axis=0) <= hi):
                 offsets.append((m, n))
     a, b, s_mid, piece, chunks = [], [], [], [], []
     mid = 0.5 * (arc[1:] + arc[:-1])
     start = 0
     for p, (m, n) in enumerate(offsets):
-        shift = np.array([m * a_x, n * a_y, 0.0])
-        a.append(verts[:-1] + shift)
-        b.append(verts[1:] + shift)
+        image = image_points(verts, m, n, a_x, a_y, parity)
+        a.append(image[:-1])
+        b.append(image[1:])
         s_mid.append(mid + m * length if n == 0 else np.full(len(mid), np.nan))
         piece.append(np.full(len(mid), p))
         for c in range(0, len(mid), CHUNK):
@@ -153,7 +160,8 @@ def build_pieces(cp: np.ndarray, a_x: float, a_y: float, r: float, spacing: floa
                   np.array(offsets, dtype=np.int64), np.ascontiguousarray(lo_hi[:, 0]),
                   np.ascontiguousarray(lo_hi[:, 1]), centre, radius, s_lo, s_hi,
                   np.ascontiguousarray(bl[:, 0]), np.ascontiguousarray(bl[:, 1]), b_centre,
-                  b_radius, ts, arc, length, length if closed else 0.0)  # fmt: skip
+                  b_radius, ts, arc, length, length if closed else 0.0,
+                  tuple(parity))  # fmt: skip
 
 
 def distances(pieces: Pieces, x: np.ndarray, s0: np.ndarray | None, r: float,
