@@ -26,12 +26,14 @@ import numpy as np
 
 
 def task_times(path: str) -> tuple[np.ndarray, np.ndarray]:
-    import h5py
+    """The ``seconds`` of every finished point and sweep of a results file (any schema)."""
+    from knitsweep.store.read import iter_entries
 
-    with h5py.File(path) as f:
-        points = np.array([g.attrs["seconds"] for g in f["points"].values()], float)
-        sweeps = np.array([g.attrs["seconds"] for g in f["sweeps"].values()], float)
-    return points, sweeps
+    seconds: dict[str, list[float]] = {"points": [], "sweeps": []}
+    for entry in iter_entries(path):
+        if entry.kind in seconds:
+            seconds[entry.kind].append(float(entry.meta["seconds"]))
+    return np.array(seconds["points"]), np.array(seconds["sweeps"])
 
 
 def simulate(points: np.ndarray, sweeps_of: list[np.ndarray], ranks: int, rate: float,

@@ -26,26 +26,23 @@ deduplicated by task id, the journal winning (it is never older than the file).
 A malformed journal entry is skipped, reported by ``journal_problems`` and its
 task recomputed. Disk use during a run: twice the file, plus the journal.
 
-Schema (``schema_version`` 2, :data:`RESULTS_SCHEMA_VERSION`; documented in the
-README). Files of schema 1 (knitsweep before the record round trip) still read;
-they cannot be resumed or merged into.
+Schema (``schema_version`` 3, :data:`RESULTS_SCHEMA_VERSION`; documented in the
+README). Files of schema 1 and 2 (one HDF5 group per task) still read; ``merge`` and
+``recover`` rewrite schema 2 into 3; a schema-2 file is not resumed.
 
 * root attributes: ``schema_version``, ``knitsweep_version``, ``git_commit``,
   ``job_json`` (effective job spec), ``job_hash``, ``job_name``, library versions
   (``numpy_version`` … ``mpi_library_version``), ``host``, ``slurm_job_id``,
   ``started_at``, ``finished_at``, ``run_status``, ``n_points``, ``n_sweeps``;
-* ``/points/<id>``: one grid point's zero-force relaxation over all starts
-  (``ZeroForce.to_record``: every field of every start);
-* ``/sweeps/<id>``: one strain sweep (``SweepResult.to_record``: arrays over steps,
-  step 0 = zero force), with its energy gaps ``delta_E_b``, ``delta_E_c`` and
-  ``jamming_gap`` (the direction's jamming gap: ΔE_c in x, ΔE_b in y; ``energy_gap`` in
-  files of earlier versions, read under the new name) as attributes;
-* ``/series/<id>`` (adaptive jobs): one L series' final transition bracket.
-Each task group has attributes ``status`` (done | failed | not_knittable),
-``message``, the stitch parameters (``L_mm`` … ``twist_bound``, and ``L_over_r``),
-``rank``, ``host``, ``seconds`` and, on failure, ``error_kind``,
-``error_message``, ``traceback``. Scalars of a record are attributes, arrays are
-datasets.
+* ``/points``, ``/sweeps`` and ``/series`` (adaptive jobs): one table each
+  (``store.table``), one row per task: its ``task`` id, its ``entry`` (the task's
+  scalars, exactly, as JSON), a SHA-256 ``sha256`` of the row, a column per scalar and
+  a padded column per array (``ZeroForce.to_record`` over the starts, ``SweepResult
+  .to_record`` over steps, step 0 = zero force; a series' final transition bracket).
+  A row's scalars include ``status`` (done | failed | not_knittable), ``message``,
+  the stitch parameters (``L_mm`` … ``twist_bound``, and ``L_over_r``), ``rank``,
+  ``host``, ``seconds``, a sweep's energy gaps ``delta_E_b``, ``delta_E_c`` and
+  ``jamming_gap`` and, on failure, ``error_kind``, ``error_message``, ``traceback``.
 """
 
 from __future__ import annotations
