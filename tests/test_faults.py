@@ -304,6 +304,44 @@ def test_full_disk_mid_run_stops_cleanly_and_resumes(tmpfs, tmp_path, six_stored
     assert_same_results(reference, roomy / "r.h5")
 
 
+def test_h5py_reports_of_a_failed_flush_are_silenced_once_a_write_failed(monkeypatch, capsys):
+    """An h5py object freed after a failed flush reports the failure again from its
+    ``__dealloc__`` (Cython prints it through ``sys.excepthook`` and
+    ``sys.unraisablehook``, whenever it is collected); after a failed write those
+    reports are silent for the rest of the process, other errors are not."""
+    from knitsweep.errors import StorageError
+    from knitsweep.store import writer
+
+    monkeypatch.setattr(sys, "excepthook", sys.excepthook)
+    monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)
+    monkeypatch.setattr(writer, "_HDF5_WRITE_FAILED", False)
+
+    def raised_in(filename: str):
+        code = compile('raise RuntimeError("Can\'t decrement id ref count")', filename, "exec")
+        try:
+            exec(code, {})
+        except RuntimeError as e:
+            return e
+
+    with writer._hdf5_writes(Path("ok.h5")):  # nothing fails: the hooks come back
+        pass
+    assert not writer.hdf5_write_failed()
+    with pytest.raises(StorageError, match=r"cannot write r\.h5: the disk is full"):
+        with writer._hdf5_writes(Path("r.h5")):
+            raise RuntimeError("Can't write data (file write failed: No space left on device)")
+    assert writer.hdf5_write_failed()
+    h5 = raised_in("h5py/_objects.pyx")
+    sys.excepthook(RuntimeError, h5, h5.__traceback__)
+    from types import SimpleNamespace
+
+    report = dict(exc_type=RuntimeError, exc_value=h5, exc_traceback=h5.__traceback__)
+    sys.unraisablehook(SimpleNamespace(**report, err_msg=None, object=None))
+    assert capsys.readouterr().err == ""
+    ours = raised_in("knitsweep_code.py")
+    sys.excepthook(RuntimeError, ours, ours.__traceback__)
+    assert "knitsweep_code.py" in capsys.readouterr().err
+
+
 # ---- bad inputs on the command line ------------------------------------------------
 
 

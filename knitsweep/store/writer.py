@@ -55,6 +55,7 @@ import os
 import shutil
 import socket
 import sys
+import traceback
 from pathlib import Path
 from typing import Any
 
@@ -281,7 +282,7 @@ class ResultWriter:
             return
         tmp = _hidden(self.path, f"{os.getpid()}.tmp")
         try:
-            with _quiet_failed_writes(), h5py.File(tmp, "w") as f:
+            with _hdf5_writes(self.path), h5py.File(tmp, "w") as f:
                 f.attrs["schema_version"] = RESULTS_SCHEMA_VERSION
                 f.attrs["job_json"] = self.job.model_dump_json()
                 f.attrs["job_hash"] = self.job.job_hash
@@ -296,7 +297,10 @@ class ResultWriter:
                 seal_root(f)
             _fsync_file(tmp)
             os.replace(tmp, self.path)
-        except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
+        except StorageError:
+            tmp.unlink(missing_ok=True)
+            raise
+        except OSError as e:
             tmp.unlink(missing_ok=True)
             raise storage_error(self.path, e) from None
         fsync_dir(self.path.parent)
@@ -372,21 +376,15 @@ class ResultWriter:
         attrs = {**self._root_updates, **(attrs or {})}
         if not entries and not attrs:
             return 0
-        spare = None
-        failure = None
         self._check_space(entries)
-        with _quiet_failed_writes():
-            try:
+        try:
+            with _hdf5_writes(self.path):
                 spare = self._fold(entries, attrs)
-            except (OSError, RuntimeError) as e:  # h5py reports failed flushes as RuntimeError
-                global _HDF5_WRITE_FAILED
-                _HDF5_WRITE_FAILED = True
-                for p in (self._shadow, self._spare):
-                    with contextlib.suppress(OSError):  # (a read-only directory keeps them)
-                        p.unlink(missing_ok=True)
-                failure = storage_error(self.path, e)
-        if failure is not None:
-            raise failure
+        except StorageError:
+            for p in (self._shadow, self._spare):
+                with contextlib.suppress(OSError):  # (a read-only directory keeps them)
+                    p.unlink(missing_ok=True)
+            raise
         fsync_dir(self.path.parent)
         for path in self._files:  # every pending entry is in the file now
             with contextlib.suppress(OSError):
@@ -462,23 +460,57 @@ class ResultWriter:
 
 
 @contextlib.contextmanager
-def _quiet_failed_writes():
-    """While a write may fail: h5py objects freed after a failed flush report it again
-    from ``__dealloc__`` ("Exception ignored"); the failure itself is raised once."""
-    previous = sys.unraisablehook
-
-    def hook(unraisable) -> None:
-        if not (
-            isinstance(unraisable.exc_value, RuntimeError) and "h5py" in repr(unraisable.object)
-        ):
-            previous(unraisable)
-
-    sys.unraisablehook = hook
+def _hdf5_writes(path: Path):
+    """While HDF5 writes ``path`` (or its shadow): a failed write (h5py reports a
+    failed flush as RuntimeError) leaves as one StorageError naming the cause. The
+    h5py objects freed after a failed flush report it again from ``__dealloc__``,
+    through both ``sys.excepthook`` and ``sys.unraisablehook``, now or whenever they
+    are collected; those reports are silenced here and, once a write has failed, for
+    the rest of the process (the failure itself was raised once)."""
+    global _HDF5_WRITE_FAILED
+    hooks = _silence_h5py_dealloc()
+    failure = None
     try:
         yield
+    except (OSError, RuntimeError) as e:
+        _HDF5_WRITE_FAILED = True
+        failure = storage_error(path, e)
+        traceback.clear_frames(e.__traceback__)  # free the h5py objects now, quietly
     finally:
         gc.collect()
-        sys.unraisablehook = previous
+        if not _HDF5_WRITE_FAILED:
+            sys.excepthook, sys.unraisablehook = hooks
+    if failure is not None:
+        raise failure
+
+
+def _silence_h5py_dealloc() -> tuple:
+    """Install filters on ``sys.excepthook`` and ``sys.unraisablehook`` that drop an
+    h5py object's report of a failed flush; returns the hooks they replaced."""
+    excepthook, unraisablehook = sys.excepthook, sys.unraisablehook
+
+    def on_exception(kind, value, tb) -> None:
+        if not _from_h5py(value, tb):
+            excepthook(kind, value, tb)
+
+    def on_unraisable(unraisable) -> None:
+        exc = unraisable.exc_value
+        if not (_from_h5py(exc, unraisable.exc_traceback) or (
+                isinstance(exc, RuntimeError) and "h5py" in repr(unraisable.object))):  # fmt: skip
+            unraisablehook(unraisable)
+
+    sys.excepthook, sys.unraisablehook = on_exception, on_unraisable
+    return excepthook, unraisablehook
+
+
+def _from_h5py(exc: BaseException | None, tb) -> bool:
+    """A RuntimeError raised in h5py's own code (its innermost frame is h5py's)."""
+    if not isinstance(exc, RuntimeError) or tb is None:
+        return False
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    name = tb.tb_frame.f_code.co_filename.replace("\\", "/")
+    return name.startswith("h5py/") or "/h5py/" in name
 
 
 def _fsync_file(path: Path) -> None:
