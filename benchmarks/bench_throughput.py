@@ -9,7 +9,7 @@ figures are medians. With ``--baseline OTHER/venv/bin/python`` the other install
 the same, in turn with this one, from a neutral directory.
 
 Each run's file is compared with this install's first serial file: the same task
-ids and every dataset and attribute bit for bit, except the timings
+ids and every array and scalar of every task bit for bit, except the timings
 (``relax_seconds``, ``wall_seconds``, and ``rank``, ``host``, ``seconds``) and each task's
 checksum, which covers them.
 
@@ -44,30 +44,26 @@ def _time(cmd: list[str], cwd: str) -> float:
 
 
 def differences(a: Path, b: Path) -> list[str]:
-    """What differs between two results files, timings aside (empty: identical)."""
-    import h5py
+    """What differs between two results files, timings aside (empty: identical): every
+    task's arrays and scalars, read through the store (rows of a table may arrive in
+    another order)."""
+    from knitsweep.store.read import iter_entries
 
+    ea, eb = ({(e.kind, e.task_id): e for e in iter_entries(f, with_data=True)} for f in (a, b))
+    if ea.keys() != eb.keys():
+        return ["other task ids"]
     out = []
-    with h5py.File(a) as fa, h5py.File(b) as fb:
-        for kind in ("points", "sweeps", "series"):
-            if sorted(fa[kind]) != sorted(fb[kind]):
-                return [f"{kind}: other task ids"]
-            for tid in fa[kind]:
-                ga, gb = fa[kind][tid], fb[kind][tid]
-                for name in set(ga) | set(gb):
-                    if name in TIMINGS:
-                        continue
-                    if name not in ga or name not in gb:
-                        out.append(f"{kind}/{tid}/{name} missing")
-                        continue
-                    x, y = ga[name][()], gb[name][()]
-                    nan = x.dtype.kind in "fc"
-                    if x.shape != y.shape or not np.array_equal(x, y, equal_nan=nan):
-                        out.append(f"{kind}/{tid}/{name}")
-                for k in (set(ga.attrs) | set(gb.attrs)) - TIMINGS:
-                    va, vb = ga.attrs.get(k), gb.attrs.get(k)
-                    if not (va == vb or (isinstance(va, float) and np.isnan(va) and np.isnan(vb))):
-                        out.append(f"{kind}/{tid}@{k}")
+    for key, x in ea.items():
+        y = eb[key]
+        for part, va, vb in (("record", x.record, y.record), ("meta", x.meta, y.meta)):
+            for name in (set(va) | set(vb)) - TIMINGS:
+                if name not in va or name not in vb:
+                    out.append(f"{key}/{part}/{name} missing")
+                    continue
+                u, v = np.asarray(va[name]), np.asarray(vb[name])
+                nan = u.dtype.kind in "fc"
+                if u.shape != v.shape or not np.array_equal(u, v, equal_nan=nan):
+                    out.append(f"{key}/{part}/{name}")
     return out
 
 
