@@ -119,3 +119,22 @@ def test_weighted_pattern_pair_forces_are_the_image_shift_derivative(pattern):
                 assert got[c, col] * k == pytest.approx(fd[c], rel=1e-6), (c, col)
                 direct += 1
     assert direct > 0
+
+
+def test_a_patterns_table_columns_are_its_pair_forces_by_class(pattern):
+    """The post-processor's ``pair_F_<class>_<axis>_N`` of a pattern's point are its pair
+    forces by its own classes (mirrored images included); Fig. 6h's sums, defined on the
+    paper's classes, stay empty."""
+    from knitsweep.config import Fidelity
+    from knitsweep.report.force_columns import FIG6H_KEYS, pair_force_columns, pair_keys
+
+    model, x = pattern
+    meta = model.params.model_dump()
+    row = pair_force_columns(x, meta, Fidelity())
+    assert tuple(row) == pair_keys(MIRROR_CLASSES)
+    f = model.contact_pair_forces_by_class(x)
+    got = np.array([[row[f"pair_F_{c}_{a}_N"] for a in "xyz"] for c in MIRROR_CLASSES])
+    assert np.array_equal(got, f)
+    assert np.any(got[MIRROR_CLASSES.index("mirrored")] != 0.0)
+    assert all(row[k] is None for k in FIG6H_KEYS)
+    assert all(v is None for v in pair_force_columns(None, meta, Fidelity()).values())

@@ -8,10 +8,11 @@ Two kinds, both in N:
   the stitch's contact classes (``contact_classes``: a pattern's include ``mirrored``);
 * ``pair_F_<class>_<axis>_N``: the paper's contact forces, unweighted pair forces
   between sampled yarn points (``CellModel.contact_pair_forces_by_class``), computed
-  here from the stored zero-force state, rows
-  :data:`~knitsweep.stitches.TRANSLATION_CLASSES`: the paper's columns, empty for a
-  pattern with mirrored images, whose classes are others (its pair forces by class are
-  drawn along its sweeps, ``fig_forces``). Their ratio ``force_ratio_xy`` is Fig. 6h's.
+  here from the stored zero-force state, rows the stitch's contact classes (the paper's
+  :data:`~knitsweep.stitches.TRANSLATION_CLASSES` for stockinette; a pattern's
+  ``MIRROR_CLASSES`` over its mirrored images). Fig. 6h's sums and their ratio
+  ``force_ratio_xy`` are defined on the paper's classes, so they stay empty for a
+  pattern, whose column neighbours fall in two classes (same column and mirrored).
 """
 
 from __future__ import annotations
@@ -66,25 +67,38 @@ def force_columns(forces: Any, classes: tuple[str, ...] = CONTACT_CLASSES) -> di
     return out
 
 
-PAIR_KEYS = (*PAIR_COLUMNS, "pair_F_x_self_row_N", "pair_F_y_column_N", "force_ratio_xy")
+FIG6H_KEYS = ("pair_F_x_self_row_N", "pair_F_y_column_N", "force_ratio_xy")
+PAIR_KEYS = (*PAIR_COLUMNS, *FIG6H_KEYS)
+"""Stockinette's pair-force columns (``pair_keys`` of its classes)."""
+
+
+def pair_keys(classes: tuple[str, ...] = CONTACT_CLASSES) -> tuple[str, ...]:
+    """The pair-force columns of a stitch whose contact classes are ``classes``."""
+    return (*(f"pair_F_{c}_{a}_N" for c in classes for a in "xyz"), *FIG6H_KEYS)
 
 
 def pair_force_columns(state: np.ndarray | None, meta: Mapping[str, Any],
                         fidelity: Fidelity) -> dict[str, Any]:  # fmt: skip
     """The paper's contact forces at zero strain (SI "Contact Forces", Table S3, Fig.
     6h): unweighted pair forces by class of the zero-force state (N; positive extends
-    the fabric), and ``force_ratio_xy`` = |x force of self + same-row contacts| /
-    |y force of NN + NNN same-column contacts| (paper: "the sum of the self contacts
-    and same-row contacts ... become larger than the NNN same-column and NN
-    same-column contacts in the y-direction, shown in Fig. 6h")."""
-    if state is None or contact_classes(meta) != tuple(CONTACT_CLASSES):
-        return dict.fromkeys(PAIR_KEYS)  # (a pattern's classes are not these columns)
+    the fabric; rows the stitch's classes, ``contact_classes``), and, on the paper's
+    classes, ``force_ratio_xy`` = |x force of self + same-row contacts| / |y force of
+    NN + NNN same-column contacts| (paper: "the sum of the self contacts and same-row
+    contacts ... become larger than the NNN same-column and NN same-column contacts in
+    the y-direction, shown in Fig. 6h"); None for a pattern's."""
+    classes = contact_classes(meta)
+    keys = pair_keys(classes)
+    if state is None:
+        return dict.fromkeys(keys)
     from ..model import CellModel  # numba: only for files that store the states
 
     f = CellModel(StitchParams.from_flat(meta), fidelity).contact_pair_forces_by_class(state)
-    out: dict[str, Any] = dict(zip(PAIR_COLUMNS, map(float, f.ravel()), strict=True))
+    columns = keys[: -len(FIG6H_KEYS)]
+    out: dict[str, Any] = dict(zip(columns, map(float, f.ravel()), strict=True))
+    if tuple(classes) != tuple(CONTACT_CLASSES):
+        return out | dict.fromkeys(FIG6H_KEYS)
     fx, fy, ratio = fig6h_forces(f)
-    return out | {"pair_F_x_self_row_N": fx, "pair_F_y_column_N": fy, "force_ratio_xy": ratio}
+    return out | dict(zip(FIG6H_KEYS, (fx, fy, ratio), strict=True))
 
 
 def job_fidelity(root: Mapping[str, Any]) -> Fidelity:

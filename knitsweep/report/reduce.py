@@ -456,7 +456,9 @@ def reduce_results(
     for e, meta in sorted(tasks[POINTS], key=lambda em: (series_values(em[1]), em[1]["L_mm"])):
         row = _point_row(e, meta, fidelity_of[meta["file"]])
         points.append(row)
-        pair_of[e.task_id] = {k: row[k] for k in PAIR_KEYS}
+        pair_of[e.task_id] = {k: v for k, v in row.items() if k.startswith("pair_F_")} | {
+            "force_ratio_xy": row["force_ratio_xy"]
+        }
         if row["status"] != "done":
             problems.append(_problem("point", row, meta, str(meta.get("message", ""))))
     for e, meta in sorted(
