@@ -29,7 +29,9 @@ import h5py
 import numpy as np
 
 from knitsweep.service.jobs import JobSpec
-from knitsweep.store.format import _write_group
+from knitsweep.store.checksum import seal_root
+from knitsweep.store.journal import Entry
+from knitsweep.store.table import put_rows
 from knitsweep.store.writer import ResultWriter
 
 JOB = JobSpec(schema_version=1, name="bench", grid={"L_mm": 11.6})
@@ -42,14 +44,17 @@ def sweep_record(rng: np.random.Generator, steps: int) -> tuple[dict, dict]:
 
 
 def fill(path: Path, size_mb: int, rng: np.random.Generator) -> None:
-    """A results file of about ``size_mb`` MB: created by the writer, bulk added in place."""
+    """A results file of about ``size_mb`` MB: created by the writer, bulk rows added in
+    place (1 MiB of incompressible ``states`` each, the shape of a long sweep's)."""
     ResultWriter(path, JOB).close("running")
-    chunk = rng.random((1 << 17,))  # 1 MiB of incompressible float64
+    bulk = rng.random((4369, 30))  # ~1 MiB of float64
+    meta = {"status": "done", "message": "", "direction": "x", "L_mm": 11.6}
     with h5py.File(path, "a") as f:
-        for i in range(size_mb):
-            g = f.create_group(f"sweeps/bulk{i:06d}")
-            g.attrs["status"] = "done"
-            g.create_dataset("states", data=chunk)  # uncompressed: the bulk is the point
+        for start in range(0, size_mb, 64):
+            rows = [Entry("sweeps", f"bulk{i:06d}", {"states": bulk}, meta)
+                    for i in range(start, min(size_mb, start + 64))]  # fmt: skip
+            put_rows(f["sweeps"], "sweeps", rows)
+        seal_root(f)
     with open(path, "rb") as fh:
         os.fsync(fh.fileno())
 
@@ -60,8 +65,8 @@ def copy_checkpoint(path: Path, batch: list) -> float:
     tmp = path.with_name(f".{path.name}.tmp")
     shutil.copyfile(path, tmp)
     with h5py.File(tmp, "a") as f:
-        for tid, record, meta in batch:
-            _write_group(f.create_group(f"sweeps/{tid}"), record, meta)
+        put_rows(f["sweeps"], "sweeps", [Entry("sweeps", *task) for task in batch])
+        seal_root(f)
     with open(tmp, "rb") as fh:
         os.fsync(fh.fileno())
     os.replace(tmp, path)

@@ -10,8 +10,10 @@ from conftest import TINY
 
 from knitsweep.config import Fidelity, SolverSettings, StartSettings, StitchParams
 from knitsweep.service.jobs import load_job, plan
-from knitsweep.store.format import POINTS, SWEEPS, _read_group, _write_group, split_record
+from knitsweep.store.format import POINTS, SWEEPS, split_record
+from knitsweep.store.journal import Entry
 from knitsweep.store.read import read_entry
+from knitsweep.store.table import create_table, find_row, put_rows
 from knitsweep.strain_sweep import SweepResult, strain_sweep, strain_sweep_from_rest
 from knitsweep.zero_force import ZeroForce, zero_force
 
@@ -20,14 +22,17 @@ FIDELITY = Fidelity(samples_per_segment=6, quadrature_nodes=12)
 SOLVER = SolverSettings(ftol=1e-8)
 
 
-def _through_hdf5(tmp_path, record):
-    """A record written as a results-file group and read back (attrs + datasets)."""
+def _through_hdf5(tmp_path, record, kind):
+    """A record written as a row of a results-file table and read back (scalars and
+    arrays, verified)."""
     arrays, scalars = split_record(record)
     with h5py.File(tmp_path / "r.h5", "w") as f:
-        _write_group(f.create_group("g"), arrays, scalars)
+        create_table(f, kind)
+        put_rows(f[kind], kind, [Entry(kind, "t", arrays, scalars)])
     with h5py.File(tmp_path / "r.h5", "r") as f:
-        meta, data = _read_group(f["g"])
-    return {**data, **meta}
+        back = find_row(f[kind], kind, "t")
+    assert back is not None
+    return {**back.record, **back.meta}
 
 
 def _assert_same(a, b):
@@ -49,7 +54,7 @@ def zero():
 
 
 def test_zero_force_round_trips_every_field(zero, tmp_path):
-    back = ZeroForce.from_record(_through_hdf5(tmp_path, zero.to_record()))
+    back = ZeroForce.from_record(_through_hdf5(tmp_path, zero.to_record(), POINTS))
     _assert_same(zero, back)
     assert back.best.period_forces != (0.0, 0.0)  # the real forces, not placeholders
 
@@ -61,7 +66,7 @@ def test_sweep_result_round_trips_every_field(zero, tmp_path):
     sweep = strain_sweep(PARAMS, zero, "x", protocol, FIDELITY, SOLVER)
     record = sweep.to_record()
     assert record["delta_E_c"] == sweep.energy_gaps.delta_E_c == record["jamming_gap"]
-    back = SweepResult.from_record(_through_hdf5(tmp_path, record))
+    back = SweepResult.from_record(_through_hdf5(tmp_path, record, SWEEPS))
     _assert_same(sweep, back)
 
 
@@ -91,7 +96,7 @@ def test_records_of_earlier_versions_read_under_todays_names(tmp_path):
     import h5py
 
     from knitsweep.store.format import _read_group
-    from knitsweep.store.journal import Entry, decode, encode
+    from knitsweep.store.journal import decode, encode
 
     with h5py.File(tmp_path / "old.h5", "w") as f:
         g = f.create_group("sweeps/abc")
