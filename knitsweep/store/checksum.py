@@ -1,17 +1,16 @@
-"""Checksums of a results file: a SHA-256 digest per task group and one over the
-root attributes, written with the data and verified on every read (README, "The
-results file").
+"""Checksums of a results file: the root attributes' digest, written with the data and
+verified on every read (README, "The results file"), and the verification of the task
+groups of schema-2 files. (A schema-3 row's digest is ``store.table.row_digest``, which
+shares this module's ``_update`` for arrays.)
 
-A task group's digest (attribute ``sha256`` of the group) covers, in name order,
-every attribute of the group and every dataset in it (its name, dtype, shape and
+A schema-2 task group's digest (attribute ``sha256`` of the group) covers, in name
+order, every attribute of the group and every dataset in it (its name, dtype, shape and
 bytes, and its attributes but the dimension-scale references, which hold file
-addresses). It is computed by reading the group back from the file right after
-writing it, so it checks what a reader will see: scalar, empty and string datasets
-and attributes alike. The root's digest (root attribute ``root_sha256``) covers the
-root attributes. A digest that does not match, or a group HDF5 cannot read, makes
-the task *damaged*: readers skip it and say so by id, and a resumed run recomputes
-it. Files written before checksums (no ``sha256`` attributes) still read, as
-*unverified*.
+addresses), as read back from the file. The root's digest (root attribute
+``root_sha256``) covers the root attributes. A digest that does not match, or a group
+HDF5 cannot read, makes the task *damaged*: readers skip it and say so by id, and a
+resumed run recomputes it. Files written before checksums (no ``sha256`` attributes)
+still read, as *unverified*.
 """
 
 from __future__ import annotations
@@ -133,11 +132,6 @@ def root_digest(f) -> str:
     h = hashlib.sha256(_DOMAIN + b"root\0")
     _feed(h, {name: f.attrs[name] for name in sorted(f.attrs.keys()) if name not in DIGEST_ATTRS})
     return h.hexdigest()
-
-
-def seal_group(group) -> None:
-    """Write the digest of a group just written."""
-    group.attrs[GROUP_DIGEST] = group_digest(group)
 
 
 def seal_root(f) -> None:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..stitches import DEFAULT_STITCH
-from .checksum import DIGEST_ATTRS, Damaged, FileCheck, read_verified, seal_group
+from .checksum import DIGEST_ATTRS, Damaged, FileCheck, read_verified
 
 RESULTS_SCHEMA_VERSION = 3
 """The results-file format this knitsweep writes (3: a table per kind, ``store.table``;
@@ -94,28 +94,6 @@ def attr_value(value: Any) -> Any:
     if isinstance(value, (float, np.floating)):
         return float(value)
     return str(value)
-
-
-def _write_group(group, record: dict[str, Any], meta: dict[str, Any]) -> None:
-    """A task's record as datasets (arrays) and attributes (scalars) of ``group``;
-    every dataset gets ``units`` and ``long_name`` and labelled dimension scales
-    (``step`` in a sweep, ``start`` in a point, then e.g. ``state_entry``)."""
-    kind = group.name.strip("/").split("/")[0]
-    for key, value in {**meta, **record}.items():
-        if value is None:
-            continue
-        if isinstance(value, np.ndarray) and value.ndim > 0:
-            if value.dtype == object:
-                group.create_dataset(key, data=value.astype(str).astype(object),
-                                     dtype=_string_dtype())  # fmt: skip
-            else:
-                group.create_dataset(
-                    key, data=value, compression="gzip" if value.size > 256 else None
-                )
-            describe_dataset(group, kind, key)
-        else:
-            group.attrs[key] = attr_value(value)
-    seal_group(group)
 
 
 _LEADING_DIM = {"start": "start of the zero-force relaxation",
