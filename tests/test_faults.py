@@ -310,11 +310,11 @@ def test_h5py_reports_of_a_failed_flush_are_silenced_once_a_write_failed(monkeyp
     ``sys.unraisablehook``, whenever it is collected); after a failed write those
     reports are silent for the rest of the process, other errors are not."""
     from knitsweep.errors import StorageError
-    from knitsweep.store import writer
+    from knitsweep.store import failed_writes as writes
 
     monkeypatch.setattr(sys, "excepthook", sys.excepthook)
     monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)
-    monkeypatch.setattr(writer, "_HDF5_WRITE_FAILED", False)
+    monkeypatch.setattr(writes, "_HDF5_WRITE_FAILED", False)
 
     def raised_in(filename: str):
         code = compile('raise RuntimeError("Can\'t decrement id ref count")', filename, "exec")
@@ -323,13 +323,13 @@ def test_h5py_reports_of_a_failed_flush_are_silenced_once_a_write_failed(monkeyp
         except RuntimeError as e:
             return e
 
-    with writer._hdf5_writes(Path("ok.h5")):  # nothing fails: the hooks come back
+    with writes.hdf5_writes(Path("ok.h5")):  # nothing fails: the hooks come back
         pass
-    assert not writer.hdf5_write_failed()
+    assert not writes.hdf5_write_failed()
     with pytest.raises(StorageError, match=r"cannot write r\.h5: the disk is full"):
-        with writer._hdf5_writes(Path("r.h5")):
+        with writes.hdf5_writes(Path("r.h5")):
             raise RuntimeError("Can't write data (file write failed: No space left on device)")
-    assert writer.hdf5_write_failed()
+    assert writes.hdf5_write_failed()
     h5 = raised_in("h5py/_objects.pyx")
     sys.excepthook(RuntimeError, h5, h5.__traceback__)
     from types import SimpleNamespace

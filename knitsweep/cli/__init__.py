@@ -33,8 +33,8 @@ def main() -> None:
         print(f"interrupted by {interrupt}", file=sys.stderr, flush=True)
         rc = signals.EXIT_INTERRUPTED
     signals.quiet_exit(_leave)
-    results_file = sys.modules.get("knitsweep.store.writer")
-    if results_file is not None and results_file.hdf5_write_failed():
+    failed_writes = sys.modules.get("knitsweep.store.failed_writes")
+    if failed_writes is not None and failed_writes.hdf5_write_failed():
         import os
 
         sys.stdout.flush()

@@ -50,18 +50,16 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
-import gc
 import os
 import shutil
 import socket
-import sys
-import traceback
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
 from ..formats import refuse_link
 from .checksum import FileCheck, seal_root
+from .failed_writes import hdf5_writes
 from .format import (
     KINDS,
     RESULTS_SCHEMA_VERSION,
@@ -96,13 +94,6 @@ COMMIT_BYTES = 8 * 1024 * 1024
 """… or this many bytes of arrays."""
 SPACE_MARGIN_BYTES = 256 * 1024
 """Free space a checkpoint leaves at least, for HDF5's own metadata."""
-_HDF5_WRITE_FAILED = False
-
-
-def hdf5_write_failed() -> bool:
-    """Whether an HDF5 write failed in this process: the library may then fail again
-    when it closes its files at exit, so the CLI leaves without that clean-up."""
-    return _HDF5_WRITE_FAILED
 
 
 def _hidden(path: Path, what: str) -> Path:
@@ -282,7 +273,7 @@ class ResultWriter:
             return
         tmp = _hidden(self.path, f"{os.getpid()}.tmp")
         try:
-            with _hdf5_writes(self.path), h5py.File(tmp, "w") as f:
+            with hdf5_writes(self.path), h5py.File(tmp, "w") as f:
                 f.attrs["schema_version"] = RESULTS_SCHEMA_VERSION
                 f.attrs["job_json"] = self.job.model_dump_json()
                 f.attrs["job_hash"] = self.job.job_hash
@@ -378,7 +369,7 @@ class ResultWriter:
             return 0
         self._check_space(entries)
         try:
-            with _hdf5_writes(self.path):
+            with hdf5_writes(self.path):
                 spare = self._fold(entries, attrs)
         except StorageError:
             for p in (self._shadow, self._spare):
@@ -457,60 +448,6 @@ class ResultWriter:
                 with contextlib.suppress(OSError):
                     p.unlink(missing_ok=True)
             self._release_lock()
-
-
-@contextlib.contextmanager
-def _hdf5_writes(path: Path):
-    """While HDF5 writes ``path`` (or its shadow): a failed write (h5py reports a
-    failed flush as RuntimeError) leaves as one StorageError naming the cause. The
-    h5py objects freed after a failed flush report it again from ``__dealloc__``,
-    through both ``sys.excepthook`` and ``sys.unraisablehook``, now or whenever they
-    are collected; those reports are silenced here and, once a write has failed, for
-    the rest of the process (the failure itself was raised once)."""
-    global _HDF5_WRITE_FAILED
-    hooks = _silence_h5py_dealloc()
-    failure = None
-    try:
-        yield
-    except (OSError, RuntimeError) as e:
-        _HDF5_WRITE_FAILED = True
-        failure = storage_error(path, e)
-        traceback.clear_frames(e.__traceback__)  # free the h5py objects now, quietly
-    finally:
-        gc.collect()
-        if not _HDF5_WRITE_FAILED:
-            sys.excepthook, sys.unraisablehook = hooks
-    if failure is not None:
-        raise failure
-
-
-def _silence_h5py_dealloc() -> tuple:
-    """Install filters on ``sys.excepthook`` and ``sys.unraisablehook`` that drop an
-    h5py object's report of a failed flush; returns the hooks they replaced."""
-    excepthook, unraisablehook = sys.excepthook, sys.unraisablehook
-
-    def on_exception(kind, value, tb) -> None:
-        if not _from_h5py(value, tb):
-            excepthook(kind, value, tb)
-
-    def on_unraisable(unraisable) -> None:
-        exc = unraisable.exc_value
-        if not (_from_h5py(exc, unraisable.exc_traceback) or (
-                isinstance(exc, RuntimeError) and "h5py" in repr(unraisable.object))):  # fmt: skip
-            unraisablehook(unraisable)
-
-    sys.excepthook, sys.unraisablehook = on_exception, on_unraisable
-    return excepthook, unraisablehook
-
-
-def _from_h5py(exc: BaseException | None, tb) -> bool:
-    """A RuntimeError raised in h5py's own code (its innermost frame is h5py's)."""
-    if not isinstance(exc, RuntimeError) or tb is None:
-        return False
-    while tb.tb_next is not None:
-        tb = tb.tb_next
-    name = tb.tb_frame.f_code.co_filename.replace("\\", "/")
-    return name.startswith("h5py/") or "/h5py/" in name
 
 
 def _fsync_file(path: Path) -> None:
