@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import math
 
+import numba.np.linalg  # noqa: F401  (registers numba's LAPACK helpers)
 import numpy as np
-from numba import njit
+from numba import njit, types
 
 
 @njit(cache=True)
@@ -210,6 +211,251 @@ def kkt_step(b_full, free, held, g, a, c, radius, normal_share, flat_mode, p, ka
     return lam, decrement, has_negative
 
 
+_POTRF = types.ExternalFunction(
+    "numba_xxpotrf", types.intc(types.char, types.char, types.intp, types.voidptr, types.intp)
+)
+"""LAPACK's Cholesky factorisation (xPOTRF) as numba's own ``np.linalg.cholesky`` calls it:
+(kind, uplo, n, a, lda) -> info, > 0 where the matrix is not positive definite."""
+
+
+@njit(cache=True)
+def _forward(low, b, out):
+    """out = L⁻¹ b (forward substitution, L lower)."""
+    m = low.shape[0]
+    for i in range(m):
+        li = low[i]
+        s = b[i]
+        for k in range(i):
+            s -= li[k] * out[k]
+        out[i] = s / li[i]
+
+
+@njit(cache=True)
+def _backward(low, b, out):
+    """out = L⁻ᵀ b (back substitution, L lower), by columns of Lᵀ: rows of L."""
+    m = low.shape[0]
+    for i in range(m):
+        out[i] = b[i]
+    for i in range(m - 1, -1, -1):
+        li = low[i]
+        out[i] /= li[i]
+        oi = out[i]
+        for k in range(i):
+            out[k] -= li[k] * oi
+
+
+@njit(cache=True)
+def _shifted_rows(hz, rz, nu, low, q, u):
+    """u = −(hz + νI)⁻¹ rz by the lower Cholesky factor ``low`` of hz + νI (in its lower
+    triangle; q = L⁻¹ rz); False if hz + νI is not positive definite."""
+    m = hz.shape[0]
+    for i in range(m):
+        for j in range(m):
+            low[i, j] = hz[i, j]
+        low[i, i] += nu
+    # LAPACK reads the C array as its transpose: its upper factor U (UᵀU = hz + νI) is
+    # the lower factor L = Uᵀ here, in the lower triangle
+    if _POTRF(ord("d"), ord("U"), m, low.ctypes, m) != 0:
+        return False
+    _forward(low, rz, q)
+    _backward(low, q, u)
+    for i in range(m):
+        u[i] = -u[i]
+    return True
+
+
+@njit(cache=True)
+def _eigen_step(hz, rz, radius, flat_mode, u, negative):
+    """``tangential_step``'s branch for an indefinite (or singular) hz: the same
+    operations, by its eigendecomposition."""
+    m = hz.shape[0]
+    w, v = np.linalg.eigh(hz)
+    b = v.T @ rz
+    wmax = abs(w[0])
+    for i in range(1, m):
+        wi = abs(w[i])
+        wmax = wi if wi > wmax or wi != wi else wmax
+    flat = flat_mode * max(wmax, 1e-300)
+    total = 0.0
+    for i in range(m):
+        wi = w[i]
+        total += b[i] * b[i] / (wi if wi > flat or wi != wi else flat)
+    decrement = 0.5 * total
+    lo = max(0.0, -w[0]) + flat
+    y = -b / (w + lo)
+    norm = math.sqrt(np.dot(y, y))
+    if norm <= radius:
+        y[0] += math.sqrt(max(radius * radius - norm * norm, 0.0)) * (1.0 if b[0] <= 0 else -1.0)
+    else:
+        nu = lo
+        for _ in range(40):
+            d = w + nu
+            y = -b / d
+            norm = math.sqrt(np.dot(y, y))
+            if norm <= 1.01 * radius:
+                break
+            nu += (norm / radius - 1.0) * norm * norm / np.sum(b * b / d**3)
+    vy = v @ y
+    for i in range(m):
+        u[i] = vy[i]
+    is_negative = w[0] < -flat
+    if is_negative:
+        for i in range(m):
+            negative[i] = v[i, 0]
+    return decrement, is_negative
+
+
+@njit(cache=True)
+def tangential_step_rows(hz, rz, radius, flat_mode, u, negative):
+    """``tangential_step`` with LAPACK's Cholesky factorisation (row-major lower factor)
+    and the solves without temporaries: the same algorithm, equal to round-off."""
+    m = hz.shape[0]
+    low = np.empty((m, m))
+    q = np.empty(m)
+    w = np.empty(m)
+    if _shifted_rows(hz, rz, 0.0, low, q, u):
+        decrement = 0.5 * np.dot(q, q)
+        norm = math.sqrt(np.dot(u, u))
+        if norm <= radius:
+            return decrement, False
+        nu = 0.0
+        for _ in range(20):  # Moré–Sorensen on ν: ‖u(ν)‖ = radius
+            _forward(low, u, w)  # L w = u
+            nu += (norm / math.sqrt(np.dot(w, w))) ** 2 * (norm - radius) / radius
+            if not _shifted_rows(hz, rz, nu, low, q, u):
+                break
+            norm = math.sqrt(np.dot(u, u))
+            if norm <= 1.01 * radius:
+                if norm > radius:
+                    for i in range(m):
+                        u[i] *= radius / norm
+                return decrement, False
+    return _eigen_step(hz, rz, radius, flat_mode, u, negative)
+
+
+@njit(cache=True)
+def _reflect(vh, beta, x, out):
+    """out = (I − β vh vhᵀ) x: the Householder reflection, O(m)."""
+    m = vh.size
+    t = 0.0
+    for i in range(m):
+        t += vh[i] * x[i]
+    t *= beta
+    for i in range(m):
+        out[i] = x[i] - t * vh[i]
+
+
+@njit(cache=True)
+def kkt_step_rows(b_full, free, held, g, a, c, radius, normal_share, flat_mode, p, kappa,
+                  negative):  # fmt: skip
+    """``kkt_step`` for many unknowns (the free yarn's 87–88): the same step, equal to
+    round-off, in O(m²) operations outside the factorisation. The reduced Hessian
+    ZᵀBZ with Z = the last m − 1 columns of the reflection H = I − β v vᵀ is (HBH)
+    without its first row and column, HBH = B − β(v wᵀ + w vᵀ) + β²(vᵀw) v vᵀ with
+    w = B v, instead of two dense products with Z; Z u = H (0, u) likewise."""
+    n = free.size
+    cols = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        if not held[i]:
+            cols[m] = i
+            m += 1
+    cols = cols[:m]
+    bf = np.empty((m, m))
+    gf = np.empty(m)
+    af = np.empty(m)
+    for i in range(m):
+        gf[i] = g[cols[i]]
+        af[i] = a[cols[i]]
+        fi = free[cols[i]]
+        for j in range(m):
+            bf[i, j] = b_full[fi, free[cols[j]]]
+    aa = 0.0
+    for i in range(m):
+        aa += af[i] * af[i]
+    pn = (-c / aa) * af
+    nn = math.sqrt(np.dot(pn, pn))
+    if nn > normal_share * radius:
+        pn *= normal_share * radius / nn
+        nn = normal_share * radius
+    vh = af.copy()
+    vh[0] += math.copysign(math.sqrt(aa), af[0] if af[0] != 0.0 else 1.0)
+    vv = 0.0
+    for i in range(m):
+        vv += vh[i] * vh[i]
+    beta = 2.0 / vv
+    wv = np.zeros(m)  # B v
+    t = gf.copy()  # ∇E + B pn
+    for i in range(m):
+        bi = bf[i]
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(m):
+            s1 += bi[j] * vh[j]
+            s2 += bi[j] * pn[j]
+        wv[i] = s1
+        t[i] += s2
+    vw = 0.0
+    for i in range(m):
+        vw += vh[i] * wv[i]
+    hz = np.empty((m - 1, m - 1))
+    b2 = beta * beta * vw
+    for i in range(1, m):
+        ci = beta * vh[i]
+        di = beta * wv[i] - b2 * vh[i]
+        bi = bf[i]
+        hi = hz[i - 1]
+        for j in range(1, m):
+            hi[j - 1] = bi[j] - ci * wv[j] - di * vh[j]
+    # symmetric to the last bit (the formula's rounding need not be)
+    for i in range(m - 1):
+        for j in range(i + 1, m - 1):
+            s = 0.5 * (hz[i, j] + hz[j, i])
+            hz[i, j] = s
+            hz[j, i] = s
+    ht = np.empty(m)
+    _reflect(vh, beta, t, ht)
+    rz = ht[1:].copy()
+    u = np.empty(m - 1)
+    neg_u = np.zeros(m - 1)
+    decrement, has_negative = tangential_step_rows(
+        hz, rz, math.sqrt(max(radius * radius - nn * nn, 0.0)), flat_mode, u, neg_u
+    )
+    e = np.zeros(m)
+    for i in range(m - 1):
+        e[i + 1] = u[i]
+    zu = np.empty(m)
+    _reflect(vh, beta, e, zu)
+    pf = pn + zu
+    lam_num = 0.0
+    for i in range(m):
+        bi = bf[i]
+        s = gf[i]
+        for j in range(m):
+            s += bi[j] * pf[j]
+        lam_num += af[i] * s
+    lam = lam_num / aa
+    p[:] = 0.0
+    negative[:] = 0.0
+    for i in range(m):
+        p[cols[i]] = pf[i]
+    if has_negative:
+        for i in range(m - 1):
+            e[i + 1] = neg_u[i]
+        e[0] = 0.0
+        nf = np.empty(m)
+        _reflect(vh, beta, e, nf)
+        for i in range(m):
+            negative[cols[i]] = nf[i]
+    for i in range(n):
+        s = g[i] - lam * a[i]
+        bi = b_full[free[i]]
+        for j in range(m):
+            s += bi[free[cols[j]]] * pf[j]
+        kappa[i] = s
+    return lam, decrement, has_negative
+
+
 @njit(cache=True)
 def sr1_update(h, s, y, skip):
     """h += vvᵀ/(vᵀs), v = y − h s (symmetric rank one), in place; skipped when
@@ -234,4 +480,5 @@ def compile_solver() -> None:
     g, a = np.ones(n), np.array([1.0, 0.5, 0.25])
     out = [np.empty(n) for _ in range(3)]
     kkt_step(b, free, np.zeros(n, dtype=np.bool_), g, a, 0.0, 1.0, 0.8, 1e-12, *out)
+    kkt_step_rows(b, free, np.zeros(n, dtype=np.bool_), g, a, 0.0, 1.0, 0.8, 1e-12, *out)
     sr1_update(np.eye(n), g, a, 1e-8)
