@@ -8,6 +8,17 @@ tangential step in the constraint's null space (Householder basis) minimising th
 reduced quadratic model within the rest of the radius: Cholesky when the reduced
 Hessian is positive definite, Moré–Sorensen shifts when the Newton step is too long,
 eigenvalues when it is indefinite.
+
+Two implementations of that one step. ``kkt_step`` (dense: the null-space basis formed,
+hand-written Cholesky, the full eigendecomposition) serves stockinette's 29–30 unknowns,
+whose results are its bits. ``kkt_step_rows`` serves the free yarn's 86–88 (the
+patterns, docs/model.md §11), where the dense step's O(m³) products and its
+eigendecomposition took half of a pattern's time: the reflection applied implicitly
+(O(m²)), LAPACK's Cholesky, and an indefinite reduced Hessian through its tridiagonal
+form (eigenvalues without vectors, inverse iteration for the few modes at or below the
+flat threshold, O(m) shifted solves for the rest). In exact arithmetic both compute the
+same step, multiplier, decrement and negative mode (tested to 1e-10 on the patterns'
+Hessians); in floating point they differ by round-off.
 """
 
 from __future__ import annotations
