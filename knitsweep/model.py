@@ -352,8 +352,9 @@ def compile_kernels(
     """
     from . import kernels
 
-    cold = not kernels.cached()
-    message = kernels.compile_notice() if notice is not None else None
+    entries = kernel_entry_points(stitches)
+    cold = not kernels.cached(entries)
+    message = kernels.compile_notice(entries) if notice is not None else None
     if message:
         notice(message)
     groups = ("geometry", "contact") if what == "energy" else tuple(KERNEL_GROUPS)
@@ -365,6 +366,19 @@ def compile_kernels(
         compile_group(group, fidelity, stitches, what)
         seconds[group] = seconds.get(group, 0.0) + time.perf_counter() - t0
     return seconds
+
+
+def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,)) -> tuple[str, ...]:
+    """The kernels whose place in numba's cache says that a task of these ``stitches``
+    finds its kernels compiled (``kernels.cached``): every task's, and a knit/purl
+    pattern's energy and the large states' KKT step where a stitch needs them."""
+    from .kernels import ENTRY_POINTS
+    from .kernels.kkt import ROWS_FROM
+
+    chosen = [get_stitch(name) for name in stitches]
+    extra = (("pattern_cell.pattern_cell_energy-",) * any(s.images == "glides" for s in chosen)
+             + ("kkt.kkt_step_rows-",) * any(s.n_state >= ROWS_FROM for s in chosen))  # fmt: skip
+    return ENTRY_POINTS + extra
 
 
 def compile_group(
@@ -380,9 +394,10 @@ def compile_group(
     may be compiling at the same time).
     """  # fmt: skip
     if group == "solver":
-        from .kernels.kkt import compile_solver
+        from .kernels.kkt import ROWS_FROM, compile_solver
 
-        compile_solver()
+        largest = max(get_stitch(name).n_state for name in stitches)
+        compile_solver(ROWS_FROM if what == "all" else largest)
         return
     for name in stitches:
         model = CellModel(StitchParams(stitch=name), fidelity)

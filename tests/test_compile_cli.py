@@ -74,3 +74,24 @@ def test_compile_fills_an_empty_cache_that_a_task_then_uses(tmp_path, jobs):
     assert used.stdout.strip() == "[]", used.stdout
     energy = _knitsweep("energy", "--state", str(SHIPPED / "Init_1.dat"), "--L", "11.6", env=env)
     assert energy.returncode == 0 and "compiling" not in energy.stderr, energy.stderr
+
+
+def test_a_runs_cache_check_names_the_kernels_its_stitches_need():
+    """``kernels.cached`` of a job looks for the kernels its stitches call (a knit/purl
+    pattern's energy, the large states' KKT step) under the names numba gives their cache
+    indexes, so a pattern run after a stockinette run compiles its own kernels once."""
+    from knitsweep.kernels import ENTRY_POINTS
+    from knitsweep.kernels.kkt import kkt_step_rows
+    from knitsweep.kernels.pattern_cell import pattern_cell_energy
+    from knitsweep.model import kernel_entry_points
+
+    def index_prefix(dispatcher) -> str:
+        f = dispatcher.py_func
+        return f"{Path(f.__code__.co_filename).stem}.{f.__qualname__}-"
+
+    assert kernel_entry_points(("stockinette",)) == ENTRY_POINTS
+    both = kernel_entry_points(("stockinette", "rib"))
+    assert set(both) - set(ENTRY_POINTS) == {index_prefix(pattern_cell_energy),
+                                             index_prefix(kkt_step_rows)}  # fmt: skip
+    free = kernel_entry_points(("stockinette_free",))
+    assert set(free) - set(ENTRY_POINTS) == {index_prefix(kkt_step_rows)}

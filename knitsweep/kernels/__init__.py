@@ -46,11 +46,11 @@ COMPILE_SECONDS = 30
 """About how long compiling every kernel takes once (benchmarks/bench_compile.py on the
 idle 2-core project VM: 21 s in one process, 14 s with the groups side by side, which
 ``model.compile_kernels`` does when cores are idle; a loaded machine takes longer)."""
-_ENTRY_POINTS = ("cell.cell_energy_listed-", "contact.find_contacts-",
+ENTRY_POINTS = ("cell.cell_energy_listed-", "contact.find_contacts-",
                  "forces.contact_forces_by_class-", "kkt.kkt_step-")  # fmt: skip
 
 
-def cached(entry_points: tuple[str, ...] = _ENTRY_POINTS) -> bool:
+def cached(entry_points: tuple[str, ...] = ENTRY_POINTS) -> bool:
     """Whether numba's on-disk cache holds this version's kernels (by default the
     ones every task uses; ``("cell.cell_energy_listed-",)`` for one energy) already; if not,
     the first call compiles them: up to ``COMPILE_SECONDS``."""
@@ -58,7 +58,7 @@ def cached(entry_points: tuple[str, ...] = _ENTRY_POINTS) -> bool:
     return all(any(n.startswith(entry) for n in indexes) for entry in entry_points)
 
 
-def compile_notice(entry_points: tuple[str, ...] = _ENTRY_POINTS) -> str | None:
+def compile_notice(entry_points: tuple[str, ...] = ENTRY_POINTS) -> str | None:
     """What to tell a user before the first call compiles these kernels (None if
     they are cached)."""
     if cached(entry_points):

@@ -707,13 +707,23 @@ def sr1_update(h, s, y, skip):
     return True
 
 
-def compile_solver() -> None:
-    """Compile (or load from numba's cache) these kernels, once, before work fans out."""
+ROWS_FROM = 60
+"""From this many free entries (the free yarn's patterns: 86–88) the relaxation's step is
+``kkt_step_rows`` (O(m²) outside LAPACK's factorisations, equal to the dense step to
+round-off); below (stockinette: 29–30) the dense ``kkt_step``, whose bits its results
+are (``relax.newton``)."""
+
+
+def compile_solver(largest: int = ROWS_FROM) -> None:
+    """Compile (or load from numba's cache) these kernels, once, before work fans out:
+    ``kkt_step_rows`` only if a state of ``largest`` entries needs it (its compile costs
+    ~5 s that a stockinette run would spend for nothing)."""
     n = 3
     b = np.eye(n + 1)  # any size: numba compiles for the types
     free = np.arange(n)
     g, a = np.ones(n), np.array([1.0, 0.5, 0.25])
     out = [np.empty(n) for _ in range(3)]
     kkt_step(b, free, np.zeros(n, dtype=np.bool_), g, a, 0.0, 1.0, 0.8, 1e-12, *out)
-    kkt_step_rows(b, free, np.zeros(n, dtype=np.bool_), g, a, 0.0, 1.0, 0.8, 1e-12, *out)
+    if largest >= ROWS_FROM:
+        kkt_step_rows(b, free, np.zeros(n, dtype=np.bool_), g, a, 0.0, 1.0, 0.8, 1e-12, *out)
     sr1_update(np.eye(n), g, a, 1e-8)

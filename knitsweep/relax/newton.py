@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import SolverSettings
-from ..kernels.kkt import kkt_step, kkt_step_rows, sr1_update
+from ..kernels.kkt import ROWS_FROM, kkt_step, kkt_step_rows, sr1_update
 from .problem import Minimum, Point, Problem
 
 FD_STEP = 1e-7
@@ -89,11 +89,6 @@ state; only the iterations and the message differ. Measured over 3833 relaxation
 garter, rib and seed (zero force, 2 starts, and both sweeps at 9.7, 10.9, 12.5 and
 13.3 mm): two runs went on to the limit (217 and 1997 iterations long), and the
 longest that ended otherwise was 12 iterations long, the next 4."""
-ROWS_FROM = 60
-"""From this many free entries (the free yarn's patterns: 86–88) the step is computed by
-``kernels.kkt.kkt_step_rows`` (O(m²) outside LAPACK's factorisations, equal to the
-dense step to round-off); below (stockinette: 29–30) by the dense ``kkt_step``, whose
-bits its results are."""
 MIN_START_RADIUS = 0.01
 """A relaxation starts with at least this radius: one that collapsed on the last
 one's final, noise-level steps would cost a dozen doublings."""

@@ -69,7 +69,7 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
     load them side by side. Returns the seconds spent compiling (0.0 when every
     kernel was cached)."""
     from .. import kernels
-    from ..model import compile_kernels
+    from ..model import compile_kernels, kernel_entry_points
     from ..relax import single_threaded
     from ..stitches import get_stitch
 
@@ -85,9 +85,10 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
             notice(message)
 
     t0 = time.perf_counter()
-    if not kernels.cached():
+    entries = kernel_entry_points(job.stitches)
+    if not kernels.cached(entries):
         with compile_lock(notice):
-            if not kernels.cached():  # nobody compiled them while this one waited
+            if not kernels.cached(entries):  # nobody compiled them while this one waited
                 compile_kernels(job.fidelity, heard, job.stitches)
     compile_kernels(job.fidelity, heard, job.stitches)  # loads them (at once if just compiled)
     return time.perf_counter() - t0 if compiled else 0.0
@@ -130,12 +131,14 @@ def compile_lock(notice: Callable[[str], None] | None = None):
         os.close(fd)  # releases the lock
 
 
-def kernels_cached() -> bool:
-    """Whether numba's on-disk cache holds the kernels already: a master that does
-    not compute then need not load them (its workers do, at the same time)."""
+def kernels_cached(job: JobSpec) -> bool:
+    """Whether numba's on-disk cache holds the kernels of the job's tasks already: a
+    master that does not compute then need not load them (its workers do, at the same
+    time)."""
     from ..kernels import cached
+    from ..model import kernel_entry_points
 
-    return cached()
+    return cached(kernel_entry_points(job.stitches))
 
 
 def stderr_notice(message: str) -> None:

@@ -97,7 +97,7 @@ class ProcessExecutor:
 
     def _start(self) -> None:
         with signals.interruptible():  # compile once here; the workers load numba's cache
-            if not kernels_cached():
+            if not kernels_cached(self.job):
                 self.compile_seconds = prepare(self.job, stderr_notice)
         with signals.deferred():  # a pool is not left half-started
             ctx = multiprocessing.get_context("spawn")

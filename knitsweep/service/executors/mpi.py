@@ -82,7 +82,7 @@ class MPIExecutor:
     def _start(self) -> None:
         with signals.interruptible():  # compile once, into numba's cache, before the workers
             signals.test_point("compile")
-            if not kernels_cached():  # (cached: the workers load them, all at once)
+            if not kernels_cached(self.job):  # (cached: the workers load them, all at once)
                 self.compile_seconds = prepare(self.job, stderr_notice)
             signals.test_point("broadcast")
         with signals.deferred():
