@@ -115,44 +115,7 @@ def tangential_step(hz, rz, radius, flat_mode, u, negative):
                 if norm > radius:
                     u *= radius / norm
                 return decrement, False
-    w, v = np.linalg.eigh(hz)
-    b = v.T @ rz
-    # np.max(np.abs(w)) and np.sum(b * b / np.maximum(w, flat)) as plain loops (the
-    # same operations in the same order; numpy's reductions compile to far more)
-    wmax = abs(w[0])
-    for i in range(1, m):
-        wi = abs(w[i])
-        wmax = wi if wi > wmax or wi != wi else wmax
-    flat = flat_mode * max(wmax, 1e-300)
-    total = 0.0
-    for i in range(m):
-        wi = w[i]
-        total += b[i] * b[i] / (wi if wi > flat or wi != wi else flat)
-    decrement = 0.5 * total
-    lo = max(0.0, -w[0]) + flat
-    y = -b / (w + lo)
-    norm = math.sqrt(np.dot(y, y))
-    if norm <= radius:
-        # the hard case: even the least shift stays inside; reach the boundary along
-        # the lowest mode, downhill
-        y[0] += math.sqrt(max(radius * radius - norm * norm, 0.0)) * (1.0 if b[0] <= 0 else -1.0)
-    else:
-        nu = lo
-        for _ in range(40):  # Newton on 1/‖y(ν)‖ − 1/Δ, monotone from the left
-            d = w + nu
-            y = -b / d
-            norm = math.sqrt(np.dot(y, y))
-            if norm <= 1.01 * radius:
-                break
-            nu += (norm / radius - 1.0) * norm * norm / np.sum(b * b / d**3)
-    vy = v @ y
-    for i in range(m):  # element by element: no slice assignment of an array (its
-        u[i] = vy[i]  # shape-mismatch error path costs ~1.5 s of compile time)
-    is_negative = w[0] < -flat
-    if is_negative:
-        for i in range(m):
-            negative[i] = v[i, 0]
-    return decrement, is_negative
+    return _eigen_step(hz, rz, radius, flat_mode, u, negative)
 
 
 @njit(cache=True)
@@ -277,11 +240,13 @@ def _shifted_rows(hz, rz, nu, low, q, u):
 
 @njit(cache=True)
 def _eigen_step(hz, rz, radius, flat_mode, u, negative):
-    """``tangential_step``'s branch for an indefinite (or singular) hz: the same
-    operations, by its eigendecomposition."""
+    """``tangential_step``'s branch for an indefinite (or singular) hz, by its
+    eigendecomposition (also ``kkt_step_rows``'s fallback)."""
     m = hz.shape[0]
     w, v = np.linalg.eigh(hz)
     b = v.T @ rz
+    # np.max(np.abs(w)) and np.sum(b * b / np.maximum(w, flat)) as plain loops (the
+    # same operations in the same order; numpy's reductions compile to far more)
     wmax = abs(w[0])
     for i in range(1, m):
         wi = abs(w[i])
@@ -296,10 +261,12 @@ def _eigen_step(hz, rz, radius, flat_mode, u, negative):
     y = -b / (w + lo)
     norm = math.sqrt(np.dot(y, y))
     if norm <= radius:
+        # the hard case: even the least shift stays inside; reach the boundary along
+        # the lowest mode, downhill
         y[0] += math.sqrt(max(radius * radius - norm * norm, 0.0)) * (1.0 if b[0] <= 0 else -1.0)
     else:
         nu = lo
-        for _ in range(40):
+        for _ in range(40):  # Newton on 1/‖y(ν)‖ − 1/Δ, monotone from the left
             d = w + nu
             y = -b / d
             norm = math.sqrt(np.dot(y, y))
@@ -307,8 +274,8 @@ def _eigen_step(hz, rz, radius, flat_mode, u, negative):
                 break
             nu += (norm / radius - 1.0) * norm * norm / np.sum(b * b / d**3)
     vy = v @ y
-    for i in range(m):
-        u[i] = vy[i]
+    for i in range(m):  # element by element: no slice assignment of an array (its
+        u[i] = vy[i]  # shape-mismatch error path costs ~1.5 s of compile time)
     is_negative = w[0] < -flat
     if is_negative:
         for i in range(m):
