@@ -119,15 +119,9 @@ def tangential_step(hz, rz, radius, flat_mode, u, negative):
 
 
 @njit(cache=True)
-def kkt_step(b_full, free, held, g, a, c, radius, normal_share, flat_mode, p, kappa, negative):
-    """The trust-region SQP step over the free entries with the ``held`` bounds fixed.
-
-    b_full (n_state, n_state): the Lagrangian's Hessian; free (n,): the free state entries; held
-    (n,) bool; g, a (n,): ∇E and ∇ℓ over them; c = ℓ − L. Writes the step p (n,), the
-    multipliers of the held bounds kappa = (∇E + B p − λ∇ℓ) (n,) and, if the reduced
-    Hessian has a negative mode, its direction (n,) into ``negative``. Returns
-    (λ, decrement, has a negative mode).
-    """
+def _gather(b_full, free, held, g, a):
+    """The entries a step moves: ``cols`` (m,), the positions in ``free`` of the entries
+    not ``held``, and the Hessian (m, m), ∇E and ∇ℓ (m,) over them."""
     n = free.size
     cols = np.empty(n, dtype=np.int64)
     m = 0
@@ -142,8 +136,25 @@ def kkt_step(b_full, free, held, g, a, c, radius, normal_share, flat_mode, p, ka
     for i in range(m):
         gf[i] = g[cols[i]]
         af[i] = a[cols[i]]
+        fi = free[cols[i]]
         for j in range(m):
-            bf[i, j] = b_full[free[cols[i]], free[cols[j]]]
+            bf[i, j] = b_full[fi, free[cols[j]]]
+    return cols, bf, gf, af
+
+
+@njit(cache=True)
+def kkt_step(b_full, free, held, g, a, c, radius, normal_share, flat_mode, p, kappa, negative):
+    """The trust-region SQP step over the free entries with the ``held`` bounds fixed.
+
+    b_full (n_state, n_state): the Lagrangian's Hessian; free (n,): the free state entries; held
+    (n,) bool; g, a (n,): ∇E and ∇ℓ over them; c = ℓ − L. Writes the step p (n,), the
+    multipliers of the held bounds kappa = (∇E + B p − λ∇ℓ) (n,) and, if the reduced
+    Hessian has a negative mode, its direction (n,) into ``negative``. Returns
+    (λ, decrement, has a negative mode).
+    """
+    n = free.size
+    cols, bf, gf, af = _gather(b_full, free, held, g, a)
+    m = cols.size
     aa = np.dot(af, af)
     pn = (-c / aa) * af
     nn = math.sqrt(np.dot(pn, pn))
@@ -556,22 +567,8 @@ def kkt_step_rows(b_full, free, held, g, a, c, radius, normal_share, flat_mode, 
     without its first row and column, HBH = B − β(v wᵀ + w vᵀ) + β²(vᵀw) v vᵀ with
     w = B v, instead of two dense products with Z; Z u = H (0, u) likewise."""
     n = free.size
-    cols = np.empty(n, dtype=np.int64)
-    m = 0
-    for i in range(n):
-        if not held[i]:
-            cols[m] = i
-            m += 1
-    cols = cols[:m]
-    bf = np.empty((m, m))
-    gf = np.empty(m)
-    af = np.empty(m)
-    for i in range(m):
-        gf[i] = g[cols[i]]
-        af[i] = a[cols[i]]
-        fi = free[cols[i]]
-        for j in range(m):
-            bf[i, j] = b_full[fi, free[cols[j]]]
+    cols, bf, gf, af = _gather(b_full, free, held, g, a)
+    m = cols.size
     aa = 0.0
     for i in range(m):
         aa += af[i] * af[i]
