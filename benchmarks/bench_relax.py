@@ -33,7 +33,7 @@ from threadpoolctl import threadpool_limits
 
 from knitsweep.config import SolverSettings, StartSettings, StitchParams, SweepProtocol
 from knitsweep.formats import shipped_state
-from knitsweep.kernels.kkt import compile_solver
+from knitsweep.kernels.kkt_rows import compile_solver
 from knitsweep.model import CellModel, compile_kernels
 from knitsweep.relax import Relaxer, free_entries, relax
 from knitsweep.relax.newton import measure_curvature

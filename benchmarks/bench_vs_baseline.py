@@ -55,11 +55,15 @@ m.energy_and_gradients(x)
 m.energy_and_gradients(x, m.neighbour_list(x))
 m.min_zeta(x)
 m.thickness(x)
-try:
-    from knitsweep.kernels.kkt import compile_solver
-    compile_solver()
+try:  # where each version keeps it (none before the compiled step)
+    from knitsweep.kernels.kkt_rows import compile_solver
 except ImportError:
-    pass
+    try:
+        from knitsweep.kernels.kkt import compile_solver
+    except ImportError:
+        compile_solver = None
+if compile_solver is not None:
+    compile_solver()
 t = time.process_time()
 zero = zero_force(p, starts=StartSettings(count=starts))
 t_zero = time.process_time() - t

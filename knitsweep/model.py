@@ -377,7 +377,7 @@ def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,)) -> tuple[
 
     chosen = [get_stitch(name) for name in stitches]
     extra = (("pattern_cell.pattern_cell_energy-",) * any(s.images == "glides" for s in chosen)
-             + ("kkt.kkt_step_rows-",) * any(s.n_state >= ROWS_FROM for s in chosen))  # fmt: skip
+             + ("kkt_rows.kkt_step_rows-",) * any(s.n_state >= ROWS_FROM for s in chosen))  # fmt: skip
     return ENTRY_POINTS + extra
 
 
@@ -394,7 +394,8 @@ def compile_group(
     may be compiling at the same time).
     """  # fmt: skip
     if group == "solver":
-        from .kernels.kkt import ROWS_FROM, compile_solver
+        from .kernels.kkt import ROWS_FROM
+        from .kernels.kkt_rows import compile_solver
 
         largest = max(get_stitch(name).n_state for name in stitches)
         compile_solver(ROWS_FROM if what == "all" else largest)

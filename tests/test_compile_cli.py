@@ -65,7 +65,7 @@ def test_compile_fills_an_empty_cache_that_a_task_then_uses(tmp_path, jobs):
              "    model.min_zeta(x)\n"
              "    model.contacts_by_class(x)\n"
              "    model.contact_pair_forces_by_class(x, True)\n"
-             "    from knitsweep.kernels.kkt import compile_solver\n"
+             "    from knitsweep.kernels.kkt_rows import compile_solver\n"
              "    compile_solver()\n"
              "print(seen)\n")  # fmt: skip
     used = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
@@ -81,7 +81,7 @@ def test_a_runs_cache_check_names_the_kernels_its_stitches_need():
     pattern's energy, the large states' KKT step) under the names numba gives their cache
     indexes, so a pattern run after a stockinette run compiles its own kernels once."""
     from knitsweep.kernels import ENTRY_POINTS
-    from knitsweep.kernels.kkt import kkt_step_rows
+    from knitsweep.kernels.kkt_rows import kkt_step_rows
     from knitsweep.kernels.pattern_cell import pattern_cell_energy
     from knitsweep.model import kernel_entry_points
 

@@ -1,4 +1,4 @@
-"""The free yarn's Newton–KKT step (``kernels.kkt.kkt_step_rows``: the reduced Hessian by
+"""The free yarn's Newton–KKT step (``kernels.kkt_rows.kkt_step_rows``: the reduced Hessian by
 an implicit reflection, LAPACK's Cholesky, an indefinite one by its tridiagonal form)
 against the dense reference step (``kkt_step``) on real pattern Hessians (docs/model.md
 §7, §11)."""
@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from knitsweep.config import StitchParams
-from knitsweep.kernels.kkt import kkt_step, kkt_step_rows
+from knitsweep.kernels.kkt import kkt_step
+from knitsweep.kernels.kkt_rows import kkt_step_rows
 from knitsweep.model import CellModel
 from knitsweep.relax.newton import ROWS_FROM, measure_curvature
 from knitsweep.relax.problem import Problem

@@ -44,7 +44,7 @@ LAYERS = [
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
-                "forces", "cell", "kkt", "mirrored", "pattern_cell", "checks"],
+                "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks"],
     "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free", "garter", "rib",
                  "seed"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],

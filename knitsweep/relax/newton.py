@@ -49,7 +49,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import SolverSettings
-from ..kernels.kkt import ROWS_FROM, kkt_step, kkt_step_rows, sr1_update
+from ..kernels.kkt import ROWS_FROM, kkt_step, sr1_update
+from ..kernels.kkt_rows import kkt_step_rows
 from .problem import Minimum, Point, Problem
 
 FD_STEP = 1e-7
