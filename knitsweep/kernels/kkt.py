@@ -191,19 +191,27 @@ def kkt_step(b_full, free, held, g, a, c, radius, normal_share, flat_mode, p, ka
 
 
 @njit(cache=True)
+def flat_threshold(w, flat_mode):
+    """(max |w|, the flat threshold flat_mode · max |w|) of eigenvalues ``w``; a NaN
+    eigenvalue makes both NaN (np.max(np.abs(w)) as a plain loop: the same operations in
+    the same order)."""
+    wmax = abs(w[0])
+    for i in range(1, w.size):
+        wi = abs(w[i])
+        wmax = wi if wi > wmax or wi != wi else wmax
+    return wmax, flat_mode * max(wmax, 1e-300)
+
+
+@njit(cache=True)
 def _eigen_step(hz, rz, radius, flat_mode, u, negative):
     """``tangential_step``'s branch for an indefinite (or singular) hz, by its
     eigendecomposition (also ``kkt_step_rows``'s fallback)."""
     m = hz.shape[0]
     w, v = np.linalg.eigh(hz)
     b = v.T @ rz
-    # np.max(np.abs(w)) and np.sum(b * b / np.maximum(w, flat)) as plain loops (the
-    # same operations in the same order; numpy's reductions compile to far more)
-    wmax = abs(w[0])
-    for i in range(1, m):
-        wi = abs(w[i])
-        wmax = wi if wi > wmax or wi != wi else wmax
-    flat = flat_mode * max(wmax, 1e-300)
+    flat = flat_threshold(w, flat_mode)[1]
+    # np.sum(b * b / np.maximum(w, flat)) as a plain loop (the same operations in the
+    # same order; numpy's reductions compile to far more)
     total = 0.0
     for i in range(m):
         wi = w[i]

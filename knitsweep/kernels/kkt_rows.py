@@ -18,7 +18,7 @@ import numba.np.linalg  # noqa: F401  (registers numba's LAPACK helpers)
 import numpy as np
 from numba import njit, types
 
-from .kkt import ROWS_FROM, _eigen_step, _gather, kkt_step, sr1_update
+from .kkt import ROWS_FROM, _eigen_step, _gather, flat_threshold, kkt_step, sr1_update
 
 _POTRF = types.ExternalFunction(
     "numba_xxpotrf", types.intc(types.char, types.char, types.intp, types.voidptr, types.intp)
@@ -142,6 +142,22 @@ def _deflate(y, s, n_low):
 
 
 @njit(cache=True)
+def _shifted_norm(dg, e, nu, r_high, y_high, piv, s, b_low, wl):
+    """‖y(ν)‖ of the shifted step: y_high = (T + νI)⁻¹ r_high with the low modes ``s``
+    deflated (written into y_high), the low modes' share b/(w + ν) explicitly; −1.0 if
+    the tridiagonal solve fails."""
+    if not _shifted_solve(dg, e, nu, r_high, y_high, piv):
+        return -1.0
+    n_low = wl.size
+    _deflate(y_high, s, n_low)
+    sq = 0.0
+    for i in range(n_low):
+        yi = b_low[i] / (wl[i] + nu)
+        sq += yi * yi
+    return math.sqrt(sq + np.dot(y_high, y_high))
+
+
+@njit(cache=True)
 def _tridiagonal_step(hz, rz, radius, flat_mode, u, negative):
     """``_eigen_step`` (the step, the floored decrement, the negative mode) without the
     full eigendecomposition: hz = Q T Qᵀ (LAPACK's tridiagonalisation, DSYTRD), T's
@@ -183,11 +199,7 @@ def _tridiagonal_step(hz, rz, radius, flat_mode, u, negative):
     if ints[3] != 0:
         return 0.0, False, False
     w0 = w[0]
-    wmax = abs(w0)
-    for i in range(1, k):
-        wi = abs(w[i])
-        wmax = wi if wi > wmax or wi != wi else wmax
-    flat = flat_mode * max(wmax, 1e-300)
+    wmax, flat = flat_threshold(w, flat_mode)
     n_low = 0
     while n_low < k and not w[n_low] > flat:
         n_low += 1
@@ -238,14 +250,9 @@ def _tridiagonal_step(hz, rz, radius, flat_mode, u, negative):
     piv = np.empty(k)
 
     nu = lo
-    if not _shifted_solve(dg, e, nu, r_high, y_high, piv):
+    norm = _shifted_norm(dg, e, nu, r_high, y_high, piv, s, b_low, wl)
+    if norm < 0.0:
         return 0.0, False, False
-    _deflate(y_high, s, n_low)
-    sq = 0.0
-    for i in range(n_low):
-        yi = b_low[i] / (wl[i] + nu)
-        sq += yi * yi
-    norm = math.sqrt(sq + np.dot(y_high, y_high))
     hard = norm <= radius
     if not hard:
         for _ in range(40):  # Newton on 1/‖y(ν)‖ − 1/Δ, monotone from the left
@@ -261,14 +268,9 @@ def _tridiagonal_step(hz, rz, radius, flat_mode, u, negative):
             _deflate(z, s, n_low)
             cubes += np.dot(y_high, z)
             nu += (norm / radius - 1.0) * norm * norm / cubes
-            if not _shifted_solve(dg, e, nu, r_high, y_high, piv):
+            norm = _shifted_norm(dg, e, nu, r_high, y_high, piv, s, b_low, wl)
+            if norm < 0.0:
                 return 0.0, False, False
-            _deflate(y_high, s, n_low)
-            sq = 0.0
-            for i in range(n_low):
-                yi = b_low[i] / (wl[i] + nu)
-                sq += yi * yi
-            norm = math.sqrt(sq + np.dot(y_high, y_high))
     y = -y_high
     for i in range(n_low):
         c = -b_low[i] / (wl[i] + nu)
