@@ -109,18 +109,27 @@ STAGES = ("imports", "class", "mpi_init", "broadcast", "compile", "handout")
 """Start-up stages at which a test can have the signal arrive (``test_point``)."""
 
 
+_reached: dict[str, int] = {}
+"""How often this process has reached each test point (``test_point``)."""
+
+
 def test_point(stage: str) -> None:
-    """Fault injection for the tests: with ``KNITSWEEP_TEST_SIGNAL_AT=<stage>[@<rank>]``
-    (``<rank>``: the MPI rank, from the launcher's PMI_RANK; default every rank) this
-    process sends itself SIGTERM at that stage of start-up, so the signal arrives
-    exactly there. Does nothing otherwise."""
+    """Fault injection for the tests: with ``KNITSWEEP_TEST_SIGNAL_AT=<stage>[#<n>][@<rank>]``
+    (``<n>``: the n-th time this process reaches the stage, default the first;
+    ``<rank>``: the MPI rank, from the launcher's PMI_RANK; default every rank) this
+    process sends itself SIGTERM at that stage, so the signal arrives exactly there.
+    Does nothing otherwise."""
     from ..env import setting
 
     wanted = setting("TEST_SIGNAL_AT")
     if not wanted:
         return
     where, _, rank = wanted.partition("@")
+    where, _, nth = where.partition("#")
     if where != stage or (rank and rank != os.environ.get("PMI_RANK", "0")):
+        return
+    _reached[stage] = _reached.get(stage, 0) + 1
+    if _reached[stage] != int(nth or 1):
         return
     os.kill(os.getpid(), signal.SIGTERM)  # the handler runs before the next bytecode
 
