@@ -156,7 +156,9 @@ def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
     (rib at 11.6 mm: 0.2510962 and 0.2510620 mJ), neither always lower. Kept: the lowest
     converged (else knittable, else any) result, with the iterations, evaluations and
     seconds of all; if it is not the relaxer's own, the relaxer's curvature is dropped
-    (it belongs to another point)."""
+    (it belongs to another point). A converged minimum that Newton did not end at
+    (SLSQP's) is relaxed once more by Newton, which is kept if it converges no higher:
+    SLSQP stops when E stops changing, Newton only where the state is stationary."""
     first = relaxer.relax(model, x, None, settings)
     slsqp = _slsqp(settings)
     tried = [first]
@@ -173,9 +175,20 @@ def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
     if best is not first:
         relaxer.curvature = None
     how = ", ".join(f"{r.total_energy:.7f} mJ ({r.status})" for r in tried)
+    message = f"{best.message} [lowest of {len(tried)} descents: {how}]"
+    anchor = relaxer.curvature.anchor if relaxer.curvature is not None else None
+    if best.status == CONVERGED and (anchor is None or not np.array_equal(anchor.x, best.x)):
+        # SLSQP stops on the change of E alone, short of a stationary point: Newton goes
+        # on from its minimum, along the soft modes (joints sliding along the yarn)
+        polisher = Relaxer(settings)
+        polished = polisher.relax(model, best.x, None)
+        tried.append(polished)
+        if polished.status == CONVERGED and polished.total_energy <= best.total_energy:
+            message = f"{message[:-1]}; Newton from there: {polished.total_energy:.7f} mJ]"
+            best, relaxer.curvature = polished, polisher.curvature
     return replace(
         best,
-        message=f"{best.message} [lowest of {len(tried)} descents: {how}]",
+        message=message,
         iterations=sum(r.iterations for r in tried),
         evaluations=sum(r.evaluations for r in tried),
         seconds=sum(r.seconds for r in tried),
