@@ -19,7 +19,7 @@ so on an idle core they are its wall time; on a shared, loaded machine they are 
 stays comparable); ``wall`` is the whole ``compile_kernels`` call in the child
 (process start-up and imports excluded).
 
-With ``--jobs N`` > 1 the groups of kernels (``knitsweep.model.KERNEL_GROUPS``) compile
+With ``--jobs N`` > 1 the groups of kernels (``knitsweep.compilation.KERNEL_GROUPS``) compile
 in N child processes, whose compile events this process does not see: then only the
 wall times count.
 
@@ -70,14 +70,18 @@ t_import = time.perf_counter()
 import numba
 import knitsweep.model as model
 from knitsweep.config import StitchParams
+try:
+    from knitsweep.compilation import compile_kernels
+except ImportError:  # older trees: in knitsweep.model
+    compile_kernels = model.compile_kernels
 t0, c0 = time.perf_counter(), time.process_time()
 what, jobs = sys.argv[1], int(sys.argv[2])
-new_api = "jobs" in model.compile_kernels.__code__.co_varnames  # older trees: no jobs, no what
+new_api = "jobs" in compile_kernels.__code__.co_varnames  # older trees: no jobs, no what
 with event.install_listener("numba:compile", Listener()):
     if new_api:
-        model.compile_kernels(jobs=jobs, what=what)
+        compile_kernels(jobs=jobs, what=what)
     elif what == "run":
-        model.compile_kernels()
+        compile_kernels()
     else:  # what `knitsweep energy` calls
         m = model.CellModel(StitchParams())
         m.energies(m.stitch.start(1))

@@ -25,8 +25,8 @@ import statistics
 import time
 
 from knitsweep.analysis.stress_strain import secant_modulus
+from knitsweep.compilation import compile_kernels
 from knitsweep.config import StartSettings, StitchParams
-from knitsweep.model import compile_kernels
 from knitsweep.strain_sweep import strain_sweep
 from knitsweep.studies.accuracy import setting
 from knitsweep.zero_force import zero_force

@@ -28,9 +28,9 @@ from threadpoolctl import threadpool_limits
 
 from knitsweep.analysis import transition
 from knitsweep.analysis.transitions import GAP_THRESHOLD
+from knitsweep.compilation import compile_kernels
 from knitsweep.config import StartSettings, StitchParams, SweepProtocol
 from knitsweep.kernels.kkt_rows import compile_solver
-from knitsweep.model import compile_kernels
 from knitsweep.strain_sweep import strain_sweep
 from knitsweep.zero_force import zero_force
 

@@ -31,10 +31,11 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from knitsweep.compilation import compile_kernels
 from knitsweep.config import SolverSettings, StartSettings, StitchParams, SweepProtocol
 from knitsweep.formats import shipped_state
 from knitsweep.kernels.kkt_rows import compile_solver
-from knitsweep.model import CellModel, compile_kernels
+from knitsweep.model import CellModel
 from knitsweep.relax import Relaxer, free_entries, relax
 from knitsweep.relax.newton import measure_curvature
 from knitsweep.relax.problem import Problem

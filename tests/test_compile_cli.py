@@ -80,10 +80,10 @@ def test_a_runs_cache_check_names_the_kernels_its_stitches_need():
     """``kernels.cached`` of a job looks for the kernels its stitches call (a knit/purl
     pattern's energy, the large states' KKT step) under the names numba gives their cache
     indexes, so a pattern run after a stockinette run compiles its own kernels once."""
+    from knitsweep.compilation import kernel_entry_points
     from knitsweep.kernels import ENTRY_POINTS
     from knitsweep.kernels.kkt_rows import kkt_step_rows
     from knitsweep.kernels.pattern_cell import pattern_cell_energy
-    from knitsweep.model import kernel_entry_points
 
     def index_prefix(dispatcher) -> str:
         f = dispatcher.py_func

@@ -30,6 +30,7 @@ LAYERS = [
     ["formats"],
     ["store"],  # the results store: below both service and report
     ["model"],
+    ["compilation"],  # compiling the kernels a command uses
     ["relax"],
     ["zero_force"],
     ["strain_sweep"],

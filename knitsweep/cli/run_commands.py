@@ -255,7 +255,7 @@ def compile_(
             if name not in STITCH_NAMES:
                 raise InputError(f"stitch = {name!r}: one of {', '.join(STITCH_NAMES)}")
         from .. import kernels
-        from ..model import KERNEL_GROUPS, compile_kernels
+        from ..compilation import KERNEL_GROUPS, compile_kernels
 
         was_cached = kernels.cached()
         t0 = time.perf_counter()

@@ -45,7 +45,7 @@ numba.config.CACHE_DIR = _cache_dir()
 COMPILE_SECONDS = 30
 """About how long compiling every kernel takes once (benchmarks/bench_compile.py on the
 idle 2-core project VM: 21 s in one process, 14 s with the groups side by side, which
-``model.compile_kernels`` does when cores are idle; a loaded machine takes longer)."""
+``compilation.compile_kernels`` does when cores are idle; a loaded machine takes longer)."""
 ENTRY_POINTS = ("cell.cell_energy_listed-", "contact.find_contacts-",
                  "forces.contact_forces_by_class-", "kkt.kkt_step-")  # fmt: skip
 

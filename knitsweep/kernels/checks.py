@@ -161,7 +161,7 @@ def pattern_min_zeta(pts, s_mid, s_tot, a_x, a_y, r, r_core, pm, pn, s_excl):
 
 def compile_checks() -> None:
     """Compile (or load from numba's cache) both kernels for the argument types their
-    callers pass, without running them (``model.compile_group``)."""
+    callers pass, without running them (``compilation.compile_group``)."""
     f, i = numba.float64, numba.int64
     pts = numba.float64[:, ::1]
     polyline_crossings.compile((pts, f, f, i, i, numba.boolean))

@@ -69,7 +69,7 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
     load them side by side. Returns the seconds spent compiling (0.0 when every
     kernel was cached)."""
     from .. import kernels
-    from ..model import compile_kernels, kernel_entry_points
+    from ..compilation import compile_kernels, kernel_entry_points
     from ..relax import single_threaded
     from ..stitches import get_stitch
 
@@ -135,8 +135,8 @@ def kernels_cached(job: JobSpec) -> bool:
     """Whether numba's on-disk cache holds the kernels of the job's tasks already: a
     master that does not compute then need not load them (its workers do, at the same
     time)."""
+    from ..compilation import kernel_entry_points
     from ..kernels import cached
-    from ..model import kernel_entry_points
 
     return cached(kernel_entry_points(job.stitches))
 

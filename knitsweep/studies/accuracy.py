@@ -26,6 +26,7 @@ import numpy as np
 from ..analysis import offset_stress, secant_modulus
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import GAP_THRESHOLD, threshold_crossing
+from ..compilation import compile_kernels
 from ..config import (
     PRESETS,
     Fidelity,
@@ -36,7 +37,6 @@ from ..config import (
     StitchParams,
     SweepProtocol,
 )
-from ..model import compile_kernels
 from ..strain_sweep import strain_sweep
 from ..zero_force import zero_force
 

@@ -1,0 +1,214 @@
+"""Compiling the kernels a command uses, once, before work fans out (README "Compile
+time"): per group of kernels with disjoint sources, in child processes side by side when
+the cache is cold and cores are idle, each filling numba's shared on-disk cache.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from .config import Fidelity, StitchParams
+from .kernels.cell import cell_energy_listed
+from .kernels.checks import compile_checks
+from .kernels.contact import find_contacts
+from .kernels.forces import N_CLASSES
+from .kernels.forces import contact_forces_by_class as _forces_by_class
+from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
+from .kernels.mirrored import mirrored_forces_by_class, mirrored_pair_forces_by_class
+from .kernels.neighbours import NO_LIST, build_neighbour_list
+from .kernels.pattern_cell import pattern_cell_energy
+from .model import CellModel
+from .stitches import DEFAULT_STITCH, get_stitch
+
+KERNEL_GROUPS = {
+    "geometry": "the stitch's state -> control points + Jacobian kernel (knitsweep.stitches)",
+    "contact": "energies, gradients, neighbour list, min zeta, contact forces, a pattern's "
+    "checks (kernels.bending, contact, partition, neighbours, forces, cell, checks)",
+    "solver": "the Newton-KKT step of the relaxations (kernels.kkt)",
+}
+"""The kernels a task uses, in groups whose compiled sources are disjoint (no kernel of
+one group calls one of another), so that separate processes can compile them side by
+side into one numba cache without two of them ever writing the same cache index."""
+_GROUP_WEIGHT = {"geometry": 4, "contact": 6, "solver": 2}  # relative compile times
+
+
+def compile_kernels(
+    fidelity: Fidelity | None = None,
+    notice: Callable[[str], None] | None = None,
+    stitches: tuple[str, ...] = (DEFAULT_STITCH,),
+    jobs: int | None = None,
+    what: str = "run",
+) -> dict[str, float]:
+    """Compile (or load from numba's cache) every kernel a task of these ``stitches``
+    uses, once, before work fans out to other processes; returns the seconds per
+    group (``KERNEL_GROUPS``). ``notice`` is told first when the kernels are not
+    cached yet, so that a user knows why the first run waits.
+
+    ``what``: ``"run"`` (every kernel of a task), ``"all"`` (those and the ones only the
+    post-processing calls: the pair forces by class of ``report``; what ``knitsweep
+    compile`` warms) or ``"energy"`` (the geometry and ``cell_energy`` only: what
+    ``knitsweep energy`` calls). ``jobs``: processes that
+    compile groups side by side when the cache is cold (None: as many as there are
+    idle cores, at most one a group; 1: all here). Each fills the shared on-disk
+    cache; this process then loads the kernels from it.
+    """
+    from . import kernels
+
+    entries = kernel_entry_points(stitches)
+    cold = not kernels.cached(entries)
+    message = kernels.compile_notice(entries) if notice is not None else None
+    if message:
+        notice(message)
+    groups = ("geometry", "contact") if what == "energy" else tuple(KERNEL_GROUPS)
+    seconds: dict[str, float] = {}
+    if cold:
+        seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs, what))
+    for group in groups:
+        t0 = time.perf_counter()
+        compile_group(group, fidelity, stitches, what)
+        seconds[group] = seconds.get(group, 0.0) + time.perf_counter() - t0
+    return seconds
+
+
+def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,)) -> tuple[str, ...]:
+    """The kernels whose place in numba's cache says that a task of these ``stitches``
+    finds its kernels compiled (``kernels.cached``): every task's, and a knit/purl
+    pattern's energy and the large states' KKT step where a stitch needs them."""
+    from .kernels import ENTRY_POINTS
+    from .kernels.kkt import ROWS_FROM
+
+    chosen = [get_stitch(name) for name in stitches]
+    extra = (("pattern_cell.pattern_cell_energy-",) * any(s.images == "glides" for s in chosen)
+             + ("kkt_rows.kkt_step_rows-",) * any(s.n_state >= ROWS_FROM for s in chosen))  # fmt: skip
+    return ENTRY_POINTS + extra
+
+
+def compile_group(
+    group: str,
+    fidelity: Fidelity | None = None,
+    stitches: tuple[str, ...] = (DEFAULT_STITCH,),
+    what: str = "run",
+) -> None:
+    """Compile (or load) the kernels of one of ``KERNEL_GROUPS`` in this process.
+
+    The contact kernels are compiled for the argument types of the model's calls
+    without running them (so without the geometry kernel, which another process
+    may be compiling at the same time).
+    """  # fmt: skip
+    if group == "solver":
+        from .kernels.kkt import ROWS_FROM
+        from .kernels.kkt_rows import compile_solver
+
+        largest = max(get_stitch(name).n_state for name in stitches)
+        compile_solver(ROWS_FROM if what == "all" else largest)
+        return
+    for name in stitches:
+        model = CellModel(StitchParams(stitch=name), fidelity)
+        if group == "geometry":
+            model._geometry_of(model.stitch.start(1))
+        elif group == "contact":
+            _compile_contact(model, what)
+        else:
+            raise ValueError(f"kernel group {group!r}: one of {', '.join(KERNEL_GROUPS)}")
+
+
+def _compile_contact(model: CellModel, what: str) -> None:
+    import numba
+
+    def sig(args: tuple) -> tuple:
+        return tuple(numba.typeof(a) for a in args)
+
+    x = model.stitch.start(1)
+    cp, jac = model.stitch.buffers()
+    ip, tab, mode = model.ip, model._ctab, model._mode
+    if model.stitch.images == "glides":  # a knit/purl pattern: its own kernels too
+        pattern_cell_energy.compile(sig((cp, jac, x[-2], x[-1], model._qtab, model._qw, tab,
+                                         model._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
+                                         *model.stitch.mirror_parity, True, model._grad_e,
+                                         model._grad_l)))  # fmt: skip
+        if what != "energy":
+            compile_checks()  # the checks after every relaxation
+            forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
+            mirrored_forces_by_class.compile(sig((cp, np.ascontiguousarray(jac[..., -2:]), tab,
+                                                  x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
+                                                  *model.stitch.mirror_parity, forces,
+                                                  energies)))  # fmt: skip
+            if what == "all":  # the post-processing's pair forces
+                mirrored_pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k,
+                                                           ip.p, *model.stitch.mirror_parity,
+                                                           False, forces)))  # fmt: skip
+    # the translations' kernels as well: ``kernels.cached`` looks for them, so a cache
+    # filled by a job of patterns alone must hold them too
+    # with or without a neighbour list (cell_energy is this kernel with NO_LIST)
+    cell_energy_listed.compile(sig(model._energy_args(cp, jac, x, True) + NO_LIST))
+    if what == "energy":
+        return
+    build_neighbour_list.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode, 0.1)))
+    find_contacts.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode)))  # under min_zeta
+    dcp = np.ascontiguousarray(jac[..., -2:])
+    forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
+    _forces_by_class.compile(sig((cp, dcp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
+                                  forces, energies)))  # fmt: skip
+    if what == "all":  # the post-processing's pair forces: no task calls them
+        _pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
+                                           False, forces)))  # fmt: skip
+
+
+def idle_cores() -> int:
+    """Cores of this process's CPU set that the 1-minute load average leaves idle (>= 1)."""
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, round((cores or 1) - os.getloadavg()[0]))
+
+
+def _compile_in_processes(groups, fidelity, stitches, jobs, what="run") -> dict[str, float]:
+    """Compile ``groups`` in ``jobs`` child processes (largest first, each to the least
+    loaded process); {} when one process would do (then the caller compiles here)."""
+    import json
+    import subprocess
+    import sys
+
+    jobs = min(len(groups), idle_cores() if jobs is None else jobs)
+    if jobs <= 1:
+        return {}
+    bins: list[list[str]] = [[] for _ in range(jobs)]
+    for g in sorted(groups, key=lambda g: -_GROUP_WEIGHT[g]):
+        min(bins, key=lambda b: sum(_GROUP_WEIGHT[x] for x in b)).append(g)
+    spec = json.dumps({"fidelity": (fidelity or Fidelity()).model_dump(mode="json"),
+                       "stitches": list(stitches), "what": what})  # fmt: skip
+    code = (
+        "import sys; from knitsweep.compilation import _compile_child; _compile_child(sys.argv[1:])"
+    )
+    procs = [subprocess.Popen([sys.executable, "-c", code, spec, *b], stdout=subprocess.PIPE,
+                              text=True) for b in bins]  # fmt: skip
+    seconds: dict[str, float] = {}
+    try:
+        for proc in procs:
+            out, _ = proc.communicate()
+            if proc.returncode == 0:  # else: this process compiles what is missing
+                seconds.update(json.loads(out.strip().splitlines()[-1]))
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.terminate()
+                proc.wait()
+    return seconds
+
+
+def _compile_child(argv: list[str]) -> None:
+    """Entry point of one compiling process: ``SPEC_JSON GROUP...``; prints
+    {group: seconds} as JSON."""
+    import json
+
+    spec = json.loads(argv[0])
+    fidelity = Fidelity(**spec["fidelity"])
+    seconds = {}
+    for group in argv[1:]:
+        t0 = time.perf_counter()
+        compile_group(group, fidelity, tuple(spec["stitches"]), spec.get("what", "run"))
+        seconds[group] = time.perf_counter() - t0
+    print(json.dumps(seconds), flush=True)
