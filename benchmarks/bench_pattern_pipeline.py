@@ -27,7 +27,8 @@ from threadpoolctl import threadpool_limits
 
 from knitsweep.analysis.metrics import energy_gaps
 from knitsweep.analysis.stress_strain import secant_modulus
-from knitsweep.config import Numerics, StartSettings, StitchParams
+from knitsweep.config import StartSettings, StitchParams
+from knitsweep.presets import Numerics
 from knitsweep.stitches import STITCH_NAMES
 from knitsweep.strain_sweep import strain_sweep
 from knitsweep.zero_force import zero_force

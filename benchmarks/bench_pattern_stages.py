@@ -17,7 +17,8 @@ import time
 
 from threadpoolctl import threadpool_limits
 
-from knitsweep.config import Numerics, StartSettings, StitchParams
+from knitsweep.config import StartSettings, StitchParams
+from knitsweep.presets import Numerics
 from knitsweep.relax import relaxer
 from knitsweep.zero_force import zero_force
 

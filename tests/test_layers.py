@@ -25,6 +25,7 @@ LAYERS = [
     ["kernels"],  # generic numba: knows no stitch, no settings
     ["stitches"],  # geometries behind one interface; their kernels call down into kernels
     ["config"],
+    ["presets"],  # the presets: settings of every layer in one word
     ["quantities"],
     ["analysis"],
     ["formats"],

@@ -7,11 +7,11 @@ from knitsweep.analysis import secant_modulus
 from knitsweep.config import (
     Fidelity,
     InputError,
-    Numerics,
     StartSettings,
     StitchParams,
     SweepProtocol,
 )
+from knitsweep.presets import Numerics
 from knitsweep.strain_sweep import strain_sweep
 from knitsweep.strain_sweep.schedule import (
     GAP_MARGIN_MJ,

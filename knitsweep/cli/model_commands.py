@@ -85,9 +85,10 @@ def relax(
     """Relax the zero-force state at fixed yarn length (both periods free)."""
     import time
 
-    from ..config import Numerics, StartSettings
+    from ..config import StartSettings
     from ..errors import InputError, check_seed
     from ..formats import check_writable, read_state, write_state
+    from ..presets import Numerics
     from ..zero_force import zero_force
 
     with user_errors():
@@ -149,9 +150,10 @@ def sweep(
                                           default="printed only")] = None,
 ) -> None:  # fmt: skip
     """One point's strain sweep, with a progress bar; prints the stress–strain table."""
-    from ..config import Numerics, StartSettings
+    from ..config import StartSettings
     from ..errors import InputError, check_seed
     from ..formats import check_writable
+    from ..presets import Numerics
     from ..service.progress import SweepProgress
     from ..store.sweep_file import sweep_table, write_sweep
     from ..strain_sweep import NoRestState, strain_sweep_from_rest

@@ -32,8 +32,6 @@ from pydantic import (
 
 from ..analysis.transitions import GAP_THRESHOLD
 from ..config import (
-    DEFAULT_PRESET,
-    PRESETS,
     Fidelity,
     InputError,
     SolverSettings,
@@ -41,10 +39,10 @@ from ..config import (
     StitchName,
     StitchParams,
     SweepProtocol,
-    preset_sections,
 )
 from ..errors import MAX_SEED, describe_validation_error
 from ..formats import read_text
+from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
 from ..stitches import DEFAULT_STITCH, STITCH_NAMES
 from .grid import MAX_POINTS, Grid
 

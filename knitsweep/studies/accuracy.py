@@ -28,15 +28,14 @@ from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import GAP_THRESHOLD, threshold_crossing
 from ..compilation import compile_kernels
 from ..config import (
-    PRESETS,
     Fidelity,
     InputError,
-    Numerics,
     SolverSettings,
     StartSettings,
     StitchParams,
     SweepProtocol,
 )
+from ..presets import PRESETS, Numerics
 from ..strain_sweep import strain_sweep
 from ..zero_force import zero_force
 
