@@ -44,7 +44,8 @@ from .plotting import (
     series_rows,
     title,
 )
-from .reduce import Reduction, series_key
+from .reduce import Reduction
+from .series import series_key
 from .tables import series_label
 
 GAP_LABEL = {"x": r"$\Delta E_c$", "y": r"$\Delta E_b$"}

@@ -28,7 +28,8 @@ from ..store.format import SWEEPS
 from .fig_mechanics import CLASS_COLOUR, CLASS_LABEL
 from .force_columns import contact_classes, job_fidelity
 from .plotting import STRAIN, SkipFigure, label_of, new_figure, title
-from .reduce import Reduction, series_key
+from .reduce import Reduction
+from .series import series_key
 
 LINEAR_ELASTIC_SIGN = {"x": np.array([1.0, -1.0, 1.0]), "y": np.array([-1.0, 1.0, -1.0])}
 """Sign that turns 'extends the fabric along x, y, z' into the paper's 'assists linear

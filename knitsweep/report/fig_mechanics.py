@@ -47,7 +47,8 @@ from .plotting import (
     title,
     title_overhangs,
 )
-from .reduce import Reduction, SweepCurves, series_key
+from .reduce import Reduction, SweepCurves
+from .series import series_key
 
 SMALL_STRAIN = 0.1
 """Strain range of the small-strain figures (the jammed regime)."""

@@ -23,7 +23,8 @@ from .plotting import (
     series_rows,
     title,
 )
-from .reduce import Reduction, series_key
+from .reduce import Reduction
+from .series import series_key
 
 STITCH_COLOUR = {
     "stockinette": "#444444",

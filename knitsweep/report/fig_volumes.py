@@ -24,7 +24,8 @@ from .plotting import (
     series_legend,
     title,
 )
-from .reduce import Reduction, series_key
+from .reduce import Reduction
+from .series import series_key
 
 PHI_LABEL = r"packing fraction $\phi = V_{\rm total}/V_{\rm cell}$"
 

@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from ..quantities import SERIES_PARAMS
-from .reduce import Reduction, series_key
+from .reduce import Reduction
+from .series import series_key
 from .tables import series_label
 
 CONTACT_COLOUR = "#ee6a50"  # coral: contact energy gap ΔE_c

@@ -33,13 +33,12 @@ from typing import Any
 import numpy as np
 
 from ..analysis import GAP_THRESHOLD, area_strain, regime, sweep_metrics, thickness_strain
-from ..analysis.metrics import JAMMING_GAP
 from ..analysis.stress_strain import FD_STRESS_SMOOTHING
-from ..analysis.transitions import Transition, series_transitions
+from ..analysis.transitions import Transition
 from ..config import Fidelity
 from ..errors import InputError
 from ..plain import plain_value
-from ..quantities import NUMERIC_SERIES_PARAMS, PARAM_SYMBOLS, SERIES_PARAMS, value_text
+from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS
 from ..stitches import DEFAULT_STITCH
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
@@ -51,6 +50,7 @@ from .force_columns import (
     job_fidelity,
     pair_force_columns,
 )
+from .series import add_adaptive_brackets, series_key, series_values, transition_rows
 
 MIN_THRESHOLD, MAX_THRESHOLD = 1e-12, 1.0
 """The energy-gap thresholds (mJ) a reduction accepts (the paper's: GAP_THRESHOLD)."""
@@ -159,13 +159,6 @@ def _check_meta(path: Path, entry: Entry) -> dict[str, Any]:
                          f"{meta['stitch']!r}: must be a stitch's name: not a knitsweep results "
                          "file of this schema")  # fmt: skip
     return meta
-
-
-def series_values(meta: Mapping[str, Any]) -> tuple[Any, ...]:
-    """The series of a task's attributes: its stitch (absent: the default) and the
-    numbers of ``NUMERIC_SERIES_PARAMS``, in the order of ``SERIES_PARAMS``."""
-    return tuple(str(meta.get(k, DEFAULT_STITCH)) if k == "stitch" else float(meta[k])
-                 for k in SERIES_PARAMS)  # fmt: skip
 
 
 def _base_row(entry: Entry, meta: Mapping[str, Any]) -> dict[str, Any]:
@@ -296,111 +289,6 @@ def _problem(kind: str, row: Mapping[str, Any], meta: Mapping[str, Any], why: st
     }
 
 
-def transition_row(
-    values: tuple[Any, ...], direction: str, t: Transition, n_missing: int
-) -> dict[str, Any]:
-    """One row of transitions.csv: the series, (L/r)_trans, bracket, the Table S4 fit of
-    the linear jammed regime, its zero and ΔL/r.
-
-    The fit is against L in mm, the form of paper Table S4 (``fit_slope_mJ_per_mm``
-    is the slope per unit L/r divided by r; the intercept, at L = 0, is the same in
-    both); ``fit_L_lo_mm`` … ``fit_L_hi_mm`` are the points fitted, the linear run of
-    :func:`~knitsweep.analysis.transitions.linear_jammed_run`."""
-    params = dict(zip(SERIES_PARAMS, values, strict=True))
-    r = params["r_mm"]
-    trans = t.L_over_r_trans
-    fit = t.fit
-    zero = t.L_over_r_intercept
-
-    def mm(v: float | None) -> float | None:
-        return v * r if v is not None else None
-
-    return {
-        "direction": direction,
-        **params,
-        "gap": JAMMING_GAP[direction],
-        "status": t.status,
-        "L_over_r_trans": trans,
-        "bracket_lower": t.bracket_lower,
-        "bracket_upper": t.bracket_upper,
-        "L_trans_mm": mm(trans),
-        "n_points": t.n_points,
-        "n_jammed": t.n_jammed,
-        "n_jammed_after": t.n_jammed_after,
-        "n_missing": n_missing,
-        "fit_n_points": fit.n_points if fit else None,
-        "fit_L_lo_mm": mm(t.fit_lower),
-        "fit_L_hi_mm": mm(t.fit_upper),
-        "fit_slope_mJ_per_mm": fit.slope / r if fit else None,
-        "fit_intercept_mJ": fit.intercept if fit else None,
-        "fit_max_abs_residual_mJ": fit.max_abs_residual if fit else None,
-        "fit_mean_abs_residual_mJ": fit.mean_abs_residual if fit else None,
-        "fit_mse_mJ2": fit.mse if fit else None,
-        "fit_tolerance_mJ": t.fit_tolerance,
-        "fit_zero_L_over_r": zero,
-        "fit_zero_L_mm": mm(zero),
-        "delta_L_over_r": t.delta_L_over_r,
-        "delta_L_mm": mm(t.delta_L_over_r),
-        "threshold": t.threshold,
-    }
-
-
-def series_key(row: Mapping[str, Any]) -> tuple[Any, ...]:
-    """The series a table row belongs to: its values of ``SERIES_PARAMS`` (its stitch
-    first: two stitches are two series)."""
-    return tuple(row[k] for k in SERIES_PARAMS)
-
-
-def _transitions(
-    sweeps: list[dict[str, Any]], problems: list[dict[str, Any]], threshold: float
-) -> tuple[dict, list[dict[str, Any]]]:
-    """(L/r)_trans of every (series, direction) with at least one analysed sweep.
-
-    Every analysed L counts, so the series of an adaptive job (coarse grid plus
-    bisection points) gives its refined bracket here too."""
-    missing: dict[tuple[tuple[Any, ...], str], int] = {}
-    for p in problems:
-        if p["kind"] == "sweep":
-            key = (series_key(p), p["direction"])
-            missing[key] = missing.get(key, 0) + 1
-    found = series_transitions(sweeps, SERIES_PARAMS, threshold)
-    out = {key: found[key] for key in sorted(found)}
-    rows = [transition_row(key[0], key[1], t, missing.get(key, 0)) for key, t in out.items()]
-    return out, rows
-
-
-def _adaptive(entries: list[Entry], rows: list[dict[str, Any]], notes: list[str]) -> None:
-    """Add the bracket an adaptive job recorded per series (``/series`` groups) to the
-    transition rows, and note where it disagrees with the one found here."""
-    found = {}
-    for e in entries:
-        meta = {k: plain_value(v) for k, v in e.meta.items()}
-        if all(k in meta for k in ("direction", *NUMERIC_SERIES_PARAMS)):
-            found[(series_values(meta), meta["direction"])] = meta
-    for row in rows:
-        meta = found.get((series_key(row), row["direction"]))
-        if meta is None:
-            continue
-        row["adaptive_status"] = meta.get("status")
-        row["adaptive_bracket_lower"] = meta.get("bracket_lower")
-        row["adaptive_bracket_upper"] = meta.get("bracket_upper")
-        hi = meta.get("bracket_upper")
-        if meta.get("status") == "done" and hi is not None and row["L_over_r_trans"] is not None:
-            if abs(float(hi) - row["L_over_r_trans"]) > 1e-9 * max(1.0, abs(float(hi))):
-                notes.append(
-                    f"{row['direction']} series {series_text(row)}: the adaptive run bracketed "
-                    f"(L/r)_trans at {float(hi):.4f}, this threshold gives "
-                    f"{row['L_over_r_trans']:.4f}"
-                )
-
-
-def series_text(row: Mapping[str, Any]) -> str:
-    """'k = 0.1, B = 90, r_core = 0.325, r = 0.74, p = 2.4' (no units; the stitch first
-    unless it is the default one)."""
-    return ", ".join(f"{PARAM_SYMBOLS[k][0]} = {value_text(row[k])}" for k in SERIES_PARAMS
-                     if k != "stitch" or row[k] != DEFAULT_STITCH)  # fmt: skip
-
-
 def _partial_reasons(root: Mapping[str, Any], n_found: int) -> list[str]:
     run_status = str(root.get("run_status", "unknown"))
     n_expected = int(root.get("n_points", 0)) + int(root.get("n_sweeps", 0))
@@ -478,7 +366,7 @@ def reduce_results(
         sweeps.append(row | pair_of.get(base["point_id"], dict.fromkeys(PAIR_KEYS)))
         curves.append(c)
 
-    transition_of, transitions = _transitions(sweeps, problems, threshold)
+    transition_of, transitions = transition_rows(sweeps, problems, threshold)
     notes: list[str] = []
     for r in roots:  # damaged tasks are never used: listed, and the file is partial
         check = r["check"]
@@ -487,7 +375,7 @@ def reduce_results(
         if check.unverified:
             notes.append(f"{Path(r['file']).name}: {check.unverified} task(s) written without "
                          "checksums (a knitsweep before checksums): read unverified")  # fmt: skip
-    _adaptive([e for e in entries if e.kind not in tasks], transitions, notes)
+    add_adaptive_brackets([e for e in entries if e.kind not in tasks], transitions, notes)
     for row in (*points, *sweeps):
         row["regime"] = _regime(row, transition_of) if row["status"] == "done" else None
     n_found = len(tasks[POINTS]) + len(tasks[SWEEPS])

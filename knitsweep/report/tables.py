@@ -89,7 +89,7 @@ def series_label(values: Mapping[str, Any], names: Iterable[str]) -> str:
 @dataclass(frozen=True)
 class SummaryColumn:
     """One column of the transitions summary (the text table and the HTML report):
-    its header, the fields of ``transition_row`` it shows (two for a range) and how
+    its header, the fields of ``series.transition_row`` it shows (two for a range) and how
     each is formatted (a ``format`` spec)."""
 
     header: str
@@ -110,7 +110,7 @@ TRANSITION_SUMMARY = (
     SummaryColumn("missing", ("n_missing",)),
 )
 """The transitions summary after the direction and the series parameters that vary:
-the one list of its columns (``transition_row`` holds every field, for the CSV)."""
+the one list of its columns (``series.transition_row`` holds every field, for the CSV)."""
 
 
 def _fmt(value: Any, spec: str = ".4g") -> str:

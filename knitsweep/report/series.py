@@ -1,0 +1,130 @@
+"""The series of a study's table rows (a stitch and fixed k, B, r_core, r, p) and their
+transitions: one row per series and direction, (L/r)_trans, its bracket, the Table S4
+fit of the linear jammed regime, its zero and ΔL/r (paper Fig. 4a), and the bracket an
+adaptive run recorded beside it."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from ..analysis.metrics import JAMMING_GAP
+from ..analysis.transitions import Transition, series_transitions
+from ..plain import plain_value
+from ..quantities import NUMERIC_SERIES_PARAMS, PARAM_SYMBOLS, SERIES_PARAMS, value_text
+from ..stitches import DEFAULT_STITCH
+from ..store.journal import Entry
+
+
+def series_values(meta: Mapping[str, Any]) -> tuple[Any, ...]:
+    """The series of a task's attributes: its stitch (absent: the default) and the
+    numbers of ``NUMERIC_SERIES_PARAMS``, in the order of ``SERIES_PARAMS``."""
+    return tuple(str(meta.get(k, DEFAULT_STITCH)) if k == "stitch" else float(meta[k])
+                 for k in SERIES_PARAMS)  # fmt: skip
+
+
+def transition_row(
+    values: tuple[Any, ...], direction: str, t: Transition, n_missing: int
+) -> dict[str, Any]:
+    """One row of transitions.csv: the series, (L/r)_trans, bracket, the Table S4 fit of
+    the linear jammed regime, its zero and ΔL/r.
+
+    The fit is against L in mm, the form of paper Table S4 (``fit_slope_mJ_per_mm``
+    is the slope per unit L/r divided by r; the intercept, at L = 0, is the same in
+    both); ``fit_L_lo_mm`` … ``fit_L_hi_mm`` are the points fitted, the linear run of
+    :func:`~knitsweep.analysis.transitions.linear_jammed_run`."""
+    params = dict(zip(SERIES_PARAMS, values, strict=True))
+    r = params["r_mm"]
+    trans = t.L_over_r_trans
+    fit = t.fit
+    zero = t.L_over_r_intercept
+
+    def mm(v: float | None) -> float | None:
+        return v * r if v is not None else None
+
+    return {
+        "direction": direction,
+        **params,
+        "gap": JAMMING_GAP[direction],
+        "status": t.status,
+        "L_over_r_trans": trans,
+        "bracket_lower": t.bracket_lower,
+        "bracket_upper": t.bracket_upper,
+        "L_trans_mm": mm(trans),
+        "n_points": t.n_points,
+        "n_jammed": t.n_jammed,
+        "n_jammed_after": t.n_jammed_after,
+        "n_missing": n_missing,
+        "fit_n_points": fit.n_points if fit else None,
+        "fit_L_lo_mm": mm(t.fit_lower),
+        "fit_L_hi_mm": mm(t.fit_upper),
+        "fit_slope_mJ_per_mm": fit.slope / r if fit else None,
+        "fit_intercept_mJ": fit.intercept if fit else None,
+        "fit_max_abs_residual_mJ": fit.max_abs_residual if fit else None,
+        "fit_mean_abs_residual_mJ": fit.mean_abs_residual if fit else None,
+        "fit_mse_mJ2": fit.mse if fit else None,
+        "fit_tolerance_mJ": t.fit_tolerance,
+        "fit_zero_L_over_r": zero,
+        "fit_zero_L_mm": mm(zero),
+        "delta_L_over_r": t.delta_L_over_r,
+        "delta_L_mm": mm(t.delta_L_over_r),
+        "threshold": t.threshold,
+    }
+
+
+def series_key(row: Mapping[str, Any]) -> tuple[Any, ...]:
+    """The series a table row belongs to: its values of ``SERIES_PARAMS`` (its stitch
+    first: two stitches are two series)."""
+    return tuple(row[k] for k in SERIES_PARAMS)
+
+
+def transition_rows(
+    sweeps: list[dict[str, Any]], problems: list[dict[str, Any]], threshold: float
+) -> tuple[dict, list[dict[str, Any]]]:
+    """(L/r)_trans of every (series, direction) with at least one analysed sweep.
+
+    Every analysed L counts, so the series of an adaptive job (coarse grid plus
+    bisection points) gives its refined bracket here too."""
+    missing: dict[tuple[tuple[Any, ...], str], int] = {}
+    for p in problems:
+        if p["kind"] == "sweep":
+            key = (series_key(p), p["direction"])
+            missing[key] = missing.get(key, 0) + 1
+    found = series_transitions(sweeps, SERIES_PARAMS, threshold)
+    out = {key: found[key] for key in sorted(found)}
+    rows = [transition_row(key[0], key[1], t, missing.get(key, 0)) for key, t in out.items()]
+    return out, rows
+
+
+def add_adaptive_brackets(
+    entries: list[Entry], rows: list[dict[str, Any]], notes: list[str]
+) -> None:
+    """Add the bracket an adaptive job recorded per series (``/series`` groups) to the
+    transition rows, and note where it disagrees with the one found here."""
+    found = {}
+    for e in entries:
+        meta = {k: plain_value(v) for k, v in e.meta.items()}
+        if all(k in meta for k in ("direction", *NUMERIC_SERIES_PARAMS)):
+            found[(series_values(meta), meta["direction"])] = meta
+    for row in rows:
+        meta = found.get((series_key(row), row["direction"]))
+        if meta is None:
+            continue
+        row["adaptive_status"] = meta.get("status")
+        row["adaptive_bracket_lower"] = meta.get("bracket_lower")
+        row["adaptive_bracket_upper"] = meta.get("bracket_upper")
+        hi = meta.get("bracket_upper")
+        if meta.get("status") == "done" and hi is not None and row["L_over_r_trans"] is not None:
+            if abs(float(hi) - row["L_over_r_trans"]) > 1e-9 * max(1.0, abs(float(hi))):
+                notes.append(
+                    f"{row['direction']} series {series_text(row)}: the adaptive run bracketed "
+                    f"(L/r)_trans at {float(hi):.4f}, this threshold gives "
+                    f"{row['L_over_r_trans']:.4f}"
+                )
+
+
+def series_text(row: Mapping[str, Any]) -> str:
+    """'k = 0.1, B = 90, r_core = 0.325, r = 0.74, p = 2.4' (no units; the stitch first
+    unless it is the default one)."""
+    return ", ".join(f"{PARAM_SYMBOLS[k][0]} = {value_text(row[k])}" for k in SERIES_PARAMS
+                     if k != "stitch" or row[k] != DEFAULT_STITCH)  # fmt: skip
