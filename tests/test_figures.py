@@ -341,7 +341,7 @@ def _garter_stitch():
 def test_render_tile_mirrors_garter_rows():
     """Garter's tile: row n is row 0 mirrored (z -> -z) when n is odd, plus n t_w; the
     copies along a row are the cell's path repeated by t_c, as stockinette's."""
-    from knitsweep.report.render import cell_path, copy_mirrored, row_path, unit_cell
+    from knitsweep.report.tile import cell_path, copy_mirrored, row_path, unit_cell
 
     stitch = _garter_stitch()
     assert stitch.mirror_parity == (0, 1) and stitch.mirrors
@@ -368,7 +368,8 @@ def test_render_tile_of_seed_is_a_checkerboard():
     """Seed's tile: the copy at (row, column) is mirrored when row + column is odd, and
     each row's yarn runs on through the mirrored copies without a gap (the course closes
     through the glide, joint 0 on the mirror plane)."""
-    from knitsweep.report.render import cell_path, copy_mirrored, row_path, stitch_from_state
+    from knitsweep.report.render import stitch_from_state
+    from knitsweep.report.tile import cell_path, copy_mirrored, row_path
     from knitsweep.stitches import get_stitch
 
     stitch = stitch_from_state(get_stitch("seed").start(1), StitchParams(stitch="seed"))

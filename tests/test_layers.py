@@ -64,7 +64,7 @@ MODULE_ORDER = {
                 "slurm", "master", "runs", "recovery"],
     "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "plotting", "fig_energy",
                "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns", "figures", "html",
-               "render", "contact_volumes"],
+               "tile", "render", "contact_volumes"],
     "service.executors": ["protocol", "local", "mpi"],
     "cli": ["common", "model_commands", "run_commands", "analysis_commands", "application"],
 }  # fmt: skip

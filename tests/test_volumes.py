@@ -176,7 +176,8 @@ def test_contact_volumes_of_a_pattern_touch_their_images(name, mirrored_kinds):
 
     from knitsweep.config import StitchParams
     from knitsweep.report.contact_volumes import KINDS, contact_volume_points, volume_kind
-    from knitsweep.report.render import cell_path, stitch_from_state
+    from knitsweep.report.render import stitch_from_state
+    from knitsweep.report.tile import cell_path
     from knitsweep.stitches import get_stitch
 
     stitch = get_stitch(name)

@@ -21,7 +21,8 @@ import numpy as np
 
 from ..config import StitchParams
 from ..errors import InputError
-from .render import OUT_SUFFIXES, Stitch, cell_path, stitch_to_draw
+from .render import OUT_SUFFIXES, stitch_to_draw
+from .tile import Stitch, cell_path
 
 VOLUME_COLOUR = {  # paper Fig. 6a–d; the patterns' classes after them
     "self": "#2ca02c",
