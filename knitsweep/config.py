@@ -6,7 +6,7 @@
 * ``SolverSettings``: the constrained minimiser and the continuation in parameters.
 * ``SweepProtocol``: the strain schedule of a sweep.
 * ``StartSettings``: the starting states of a zero-force relaxation.
-(``knitsweep.presets``: the speed/accuracy trade in one word, on top of these.)
+* (in ``knitsweep.presets``) the presets: the speed/accuracy trade in one word.
 
 All are frozen, strict pydantic models: they refuse unknown fields (with a "did
 you mean"), values of the wrong type (no string-to-number or bool-to-number
