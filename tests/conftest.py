@@ -1,4 +1,8 @@
 import json
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +13,21 @@ SHIPPED = (Path(__file__).resolve().parents[1] / "knitsweep" / "stitches" / "sto
            / "data")  # the authors' Init_*.dat  # fmt: skip
 TINY = DATA / "jobs" / "tiny.toml"  # 2 points, 4 sweeps, coarse numerics: ~2 s serially
 VOLATILE = {"seconds", "relax_seconds", "wall_seconds", "rank", "host"}
+
+
+VENV_BIN = Path(sys.executable).parent
+MPIRUN = shutil.which("mpirun", path=str(VENV_BIN)) or shutil.which("mpirun")
+"""The mpich wheel's mpirun beside this Python (else one on PATH; None if neither)."""
+
+
+def run_knitsweep(*args, mpi=0, **kw):
+    """``python -m knitsweep ARGS`` (under ``mpirun -n mpi`` if ``mpi``), its output
+    captured, BLAS on one thread."""
+    cmd = [sys.executable, "-m", "knitsweep", *args]
+    if mpi:
+        cmd = [MPIRUN, "-n", str(mpi), *cmd]
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env, **kw)
 
 
 def golden_cases():
