@@ -20,14 +20,14 @@ MPIRUN = shutil.which("mpirun", path=str(VENV_BIN)) or shutil.which("mpirun")
 """The mpich wheel's mpirun beside this Python (else one on PATH; None if neither)."""
 
 
-def run_knitsweep(*args, mpi=0, **kw):
-    """``python -m knitsweep ARGS`` (under ``mpirun -n mpi`` if ``mpi``), its output
-    captured, BLAS on one thread."""
-    cmd = [sys.executable, "-m", "knitsweep", *args]
+def run_knitsweep(*args, mpi=0, timeout=600, **kw):
+    """``python -m knitsweep ARGS`` (paths and numbers as text; under ``mpirun -n mpi``
+    if ``mpi``), its output captured, BLAS on one thread."""
+    cmd = [sys.executable, "-m", "knitsweep", *map(str, args)]
     if mpi:
         cmd = [MPIRUN, "-n", str(mpi), *cmd]
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env, **kw)
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, **kw)
 
 
 def golden_cases():

@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import SHIPPED, TINY, assert_same_results, drop_tasks, stored, stored_meta
+from conftest import run_knitsweep as knitsweep
 
 from knitsweep import service
 from knitsweep.config import InputError
@@ -33,12 +34,6 @@ from knitsweep.store.journal import (
     write_entry,
 )
 from knitsweep.store.read import iter_entries, read_entry, read_root
-
-
-def knitsweep(*args, timeout=600):
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "knitsweep", *map(str, args)],
-                          capture_output=True, text=True, timeout=timeout, env=env)  # fmt: skip
 
 
 def one_error_line(proc, fragment, code=2):

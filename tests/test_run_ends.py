@@ -9,16 +9,11 @@ import sys
 import h5py
 import pytest
 from conftest import TINY
+from conftest import run_knitsweep as knitsweep
 
 from knitsweep import service
 from knitsweep.config import InputError
 from knitsweep.service.master import EXIT_TASKS_FAILED
-
-
-def knitsweep(*args, timeout=600):
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "knitsweep", *map(str, args)],
-                          capture_output=True, text=True, timeout=timeout, env=env)  # fmt: skip
 
 
 def test_a_run_with_failed_tasks_exits_4_and_says_how_many(tmp_path):
