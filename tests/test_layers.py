@@ -62,9 +62,9 @@ MODULE_ORDER = {
     "studies": ["accuracy"],
     "service": ["signals", "grid", "jobs", "progress", "worker", "adaptive", "executors",
                 "slurm", "master", "runs", "recovery"],
-    "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "plotting", "fig_energy",
-               "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns", "figures", "html",
-               "tile", "render", "contact_volumes"],
+    "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "plotting",
+               "fig_energy", "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns",
+               "figures", "html", "tile", "render", "contact_volumes"],
     "service.executors": ["protocol", "local", "mpi"],
     "cli": ["common", "model_commands", "run_commands", "analysis_commands", "application"],
 }  # fmt: skip
