@@ -317,6 +317,33 @@ def test_relax_rough_keeps_the_lowest_converged_descent(monkeypatch, polished_en
     assert np.array_equal(starts[3][1], base.x + 0.25)
 
 
+def test_relax_rough_leaves_slsqp_minima_as_they_are_with_the_slsqp_solver(monkeypatch):
+    """With SLSQP as the chosen solver (the ``paper`` preset), its minimum is not relaxed
+    again by Newton."""
+    from dataclasses import replace
+
+    from knitsweep.config import CONVERGED, SolverSettings
+    from knitsweep.relax import continuation
+    from knitsweep.relax.relaxer import Relaxer
+
+    model = CellModel(StitchParams(stitch="rib", L_mm=11.6, k_mN_per_mm2=0.1))
+    x = model.stitch.start(1)
+    base = Relaxer().relax(model, x, None, SolverSettings(maxiter=1))
+    energies = [0.30, 0.25]
+    methods = []
+
+    def fake(self, model, x0, fixed=None, settings=None):
+        methods.append((settings or self.settings).method)
+        return replace(base, bending_energy=energies.pop(0), contact_energy=0.0,
+                       status=CONVERGED)  # fmt: skip
+
+    monkeypatch.setattr(Relaxer, "relax", fake)
+    slsqp = SolverSettings(method="slsqp")
+    got = continuation.relax_rough(Relaxer(slsqp), model, x, slsqp)
+    assert methods == ["slsqp", "slsqp"] and got.total_energy == 0.25
+    assert "Newton from there" not in got.message
+
+
 def test_rows_two_apart_do_not_count_in_the_interlocking(model):
     """Garter relaxed at L = 8.5 mm (k = 0.1) crosses the rows two above and below in
     projection as well: its word, as the patterns job found it, has 8 such crossings

@@ -156,9 +156,10 @@ def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
     (rib at 11.6 mm: 0.2510962 and 0.2510620 mJ), neither always lower. Kept: the lowest
     converged (else knittable, else any) result, with the iterations, evaluations and
     seconds of all; if it is not the relaxer's own, the relaxer's curvature is dropped
-    (it belongs to another point). A converged minimum that Newton did not end at
-    (SLSQP's) is relaxed once more by Newton, which is kept if it converges no higher:
-    SLSQP stops when E stops changing, Newton only where the state is stationary."""
+    (it belongs to another point). With the Newton solver, a converged minimum that
+    Newton did not end at (SLSQP's) is relaxed once more by Newton, which is kept if it
+    converges no higher: SLSQP stops when E stops changing, Newton only where the state
+    is stationary."""
     first = relaxer.relax(model, x, None, settings)
     slsqp = _slsqp(settings)
     tried = [first]
@@ -177,7 +178,8 @@ def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
     how = ", ".join(f"{r.total_energy:.7f} mJ ({r.status})" for r in tried)
     message = f"{best.message} [lowest of {len(tried)} descents: {how}]"
     anchor = relaxer.curvature.anchor if relaxer.curvature is not None else None
-    if best.status == CONVERGED and (anchor is None or not np.array_equal(anchor.x, best.x)):
+    newton_ended_there = anchor is not None and np.array_equal(anchor.x, best.x)
+    if settings.method == "newton" and best.status == CONVERGED and not newton_ended_there:
         # SLSQP stops on the change of E alone, short of a stationary point: Newton goes
         # on from its minimum, along the soft modes (joints sliding along the yarn)
         polisher = Relaxer(settings)
