@@ -30,6 +30,16 @@ def run_knitsweep(*args, mpi=0, timeout=600, **kw):
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, **kw)
 
 
+def one_error_line(proc, fragment, code=2):
+    """A command that failed as the CLI promises: exit ``code``, one line on stderr that
+    starts with "error: " and holds ``fragment``, no traceback."""
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == code, proc.stderr
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    assert fragment in lines[0], lines[0]
+    assert "Traceback" not in proc.stderr
+
+
 def golden_cases():
     return json.loads((DATA / "golden_energy.json").read_text())
 

@@ -15,7 +15,15 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import SHIPPED, TINY, assert_same_results, drop_tasks, stored, stored_meta
+from conftest import (
+    SHIPPED,
+    TINY,
+    assert_same_results,
+    drop_tasks,
+    one_error_line,
+    stored,
+    stored_meta,
+)
 from conftest import run_knitsweep as knitsweep
 
 from knitsweep import service
@@ -34,14 +42,6 @@ from knitsweep.store.journal import (
     write_entry,
 )
 from knitsweep.store.read import iter_entries, read_entry, read_root
-
-
-def one_error_line(proc, fragment, code=2):
-    lines = proc.stderr.strip().splitlines()
-    assert proc.returncode == code, proc.stderr
-    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
-    assert fragment in lines[0], lines[0]
-    assert "Traceback" not in proc.stderr
 
 
 @pytest.fixture

@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
-from conftest import TINY
+from conftest import TINY, one_error_line
 
 ROOT = Path(__file__).resolve().parents[1]
 INIT_1 = ROOT / "knitsweep" / "stitches" / "stockinette" / "data" / "Init_1.dat"
@@ -95,13 +95,6 @@ def untouched(victim: Path, vdir: Path) -> None:
     assert sorted(p.name for p in vdir.iterdir()) == ["keep.txt"]
 
 
-def one_line(proc, fragment):
-    lines = proc.stderr.strip().splitlines()
-    assert proc.returncode == 2, proc.stderr
-    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
-    assert fragment in lines[0], lines[0]
-
-
 @pytest.mark.parametrize("name, what", [
     ("n.h5.lock", "lock file"), (".n.h5.shadow", "shadow copy"), (".n.h5.spare", "spare copy"),
     ("n.h5.progress.json", "progress file"), ("n.h5", "results file"),
@@ -110,7 +103,7 @@ def test_run_refuses_a_link_beside_its_results_file(shared, user, name, what):
     d, victim, vdir = shared
     (d / name).symlink_to(victim)
     proc = as_user(user, "run", str(TINY), "--out", "n.h5", cwd=d)
-    one_line(proc, f"{what} ")
+    one_error_line(proc, f"{what} ")
     assert "symbolic link" in proc.stderr
     untouched(victim, vdir)
 
@@ -120,7 +113,7 @@ def test_a_linked_journal_is_never_cleaned_or_written(shared, user):
     (vdir / "junk.entry").write_text("not an entry")  # what a cleaner would delete
     os.chmod(vdir / "junk.entry", 0o666)
     (d / "t.h5.journal").symlink_to(vdir)
-    one_line(as_user(user, "run", str(TINY), "--out", "t.h5", cwd=d), "journal directory")
+    one_error_line(as_user(user, "run", str(TINY), "--out", "t.h5", cwd=d), "journal directory")
     merged = as_user(user, "merge", "m.h5", "t.h5", cwd=d)  # an input's: read, never through
     assert merged.returncode == 0 and "journal directory is a symbolic link" in merged.stderr
     status = as_user(user, "status", "t.h5", cwd=d)
