@@ -26,9 +26,11 @@ import numpy as np
 from ..config import Fidelity, StitchParams
 from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 
-PAIR_COLUMNS = tuple(f"pair_F_{c}_{a}_N" for c in CONTACT_CLASSES for a in "xyz")
-"""Columns of the pair forces by class (``CellModel.contact_pair_forces_by_class``,
-unweighted: the paper's Table S3 quantity), rows ``CONTACT_CLASSES``."""
+
+def pair_columns(classes: tuple[str, ...] = CONTACT_CLASSES) -> tuple[str, ...]:
+    """Columns of the pair forces by class (``CellModel.contact_pair_forces_by_class``,
+    unweighted: the paper's Table S3 quantity), rows ``classes`` (the stitch's)."""
+    return tuple(f"pair_F_{c}_{a}_N" for c in classes for a in "xyz")
 
 
 def fig6h_forces(f: np.ndarray) -> tuple[float, float, float | None]:
@@ -68,13 +70,15 @@ def force_columns(forces: Any, classes: tuple[str, ...] = CONTACT_CLASSES) -> di
 
 
 FIG6H_KEYS = ("pair_F_x_self_row_N", "pair_F_y_column_N", "force_ratio_xy")
-PAIR_KEYS = (*PAIR_COLUMNS, *FIG6H_KEYS)
-"""Stockinette's pair-force columns (``pair_keys`` of its classes)."""
 
 
 def pair_keys(classes: tuple[str, ...] = CONTACT_CLASSES) -> tuple[str, ...]:
     """The pair-force columns of a stitch whose contact classes are ``classes``."""
-    return (*(f"pair_F_{c}_{a}_N" for c in classes for a in "xyz"), *FIG6H_KEYS)
+    return (*pair_columns(classes), *FIG6H_KEYS)
+
+
+PAIR_KEYS = pair_keys()
+"""Stockinette's pair-force columns."""
 
 
 def pair_force_columns(state: np.ndarray | None, meta: Mapping[str, Any],
@@ -87,14 +91,12 @@ def pair_force_columns(state: np.ndarray | None, meta: Mapping[str, Any],
     contacts ... become larger than the NNN same-column and NN same-column contacts in
     the y-direction, shown in Fig. 6h"); None for a pattern's."""
     classes = contact_classes(meta)
-    keys = pair_keys(classes)
     if state is None:
-        return dict.fromkeys(keys)
+        return dict.fromkeys(pair_keys(classes))
     from ..model import CellModel  # numba: only for files that store the states
 
     f = CellModel(StitchParams.from_flat(meta), fidelity).contact_pair_forces_by_class(state)
-    columns = keys[: -len(FIG6H_KEYS)]
-    out: dict[str, Any] = dict(zip(columns, map(float, f.ravel()), strict=True))
+    out: dict[str, Any] = dict(zip(pair_columns(classes), map(float, f.ravel()), strict=True))
     if tuple(classes) != tuple(CONTACT_CLASSES):
         return out | dict.fromkeys(FIG6H_KEYS)
     fx, fy, ratio = fig6h_forces(f)

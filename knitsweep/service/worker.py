@@ -68,8 +68,7 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
     is only taken while the cache lacks the kernels: ranks that find them cached
     load them side by side. Returns the seconds spent compiling (0.0 when every
     kernel was cached)."""
-    from .. import kernels
-    from ..compilation import compile_kernels, kernel_entry_points
+    from ..compilation import compile_kernels
     from ..relax import single_threaded
     from ..stitches import get_stitch
 
@@ -85,10 +84,9 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
             notice(message)
 
     t0 = time.perf_counter()
-    entries = kernel_entry_points(job.stitches)
-    if not kernels.cached(entries):
+    if not kernels_cached(job):
         with compile_lock(notice):
-            if not kernels.cached(entries):  # nobody compiled them while this one waited
+            if not kernels_cached(job):  # nobody compiled them while this one waited
                 compile_kernels(job.fidelity, heard, job.stitches)
     compile_kernels(job.fidelity, heard, job.stitches)  # loads them (at once if just compiled)
     return time.perf_counter() - t0 if compiled else 0.0
