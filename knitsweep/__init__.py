@@ -25,9 +25,14 @@ def load(*paths: str | Path, threshold: float | None = None) -> Results:
     ``transitions`` and ``problems`` DataFrames and ``to_xarray()``.
 
     ``threshold``: the energy-gap threshold between jammed and unjammed (mJ;
-    default the paper's, ``knitsweep.analysis.transitions.GAP_THRESHOLD``).
+    default the paper's, ``knitsweep.analysis.transitions.GAP_THRESHOLD``). Damaged
+    tasks are skipped with a ``knitsweep.errors.DamagedResultsWarning`` naming how
+    many and the first ids (``res.problems`` lists them all, ``status`` "damaged").
     """
     from .analysis.transitions import GAP_THRESHOLD
     from .report.results import load as _load
+    from .report.results import warn_damaged
 
-    return _load(*paths, threshold=GAP_THRESHOLD if threshold is None else threshold)
+    res = _load(*paths, threshold=GAP_THRESHOLD if threshold is None else threshold, warn=False)
+    warn_damaged(res.reduction.roots)  # (stacklevel: the caller's line)
+    return res

@@ -48,8 +48,9 @@ def _frame(
     df = pd.DataFrame([{table_column(k): v for k, v in row.items()} for row in rows])
     if df.empty:
         return pd.DataFrame(columns=list(first))
-    if file_of is not None and "task_id" in df.columns:
-        df["file"] = df["task_id"].map(file_of)
+    if file_of is not None and "task_id" in df.columns:  # (a damaged row names its own)
+        given = df["file"] if "file" in df.columns else [None] * len(df)
+        df["file"] = [file_of.get(t, f) for t, f in zip(df["task_id"], given, strict=True)]
     lead = [c for c in first if c in df.columns]
     return df[lead + [c for c in df.columns if c not in lead]]
 
@@ -221,12 +222,16 @@ def _tidy(df: pd.DataFrame, where: dict[str, Any]) -> pd.DataFrame:
     return df.reset_index(drop=True)
 
 
-def load(*paths: str | Path, threshold: float = GAP_THRESHOLD) -> Results:
+def load(*paths: str | Path, threshold: float = GAP_THRESHOLD, warn: bool = True) -> Results:
     """Read one or several results files (also while a run writes them).
 
     Args:
         paths: HDF5 results files of ``knitsweep run`` (results schema 1 or 2).
         threshold: the energy-gap threshold between jammed and unjammed, mJ.
+
+        warn: a ``knitsweep.errors.DamagedResultsWarning`` per file whose damaged
+            tasks were skipped (naming how many and the first ids); the commands,
+            which print their own notes, pass False.
 
     Returns:
         :class:`Results` with ``points``, ``sweeps``, ``curves``, ``transitions``
@@ -237,4 +242,32 @@ def load(*paths: str | Path, threshold: float = GAP_THRESHOLD) -> Results:
     """
     if len(paths) == 1 and isinstance(paths[0], (list, tuple)):
         paths = tuple(paths[0])
-    return Results(reduce_results(list(paths), threshold))
+    reduction = reduce_results(list(paths), threshold)
+    if warn:
+        warn_damaged(reduction.roots)
+    return Results(reduction)
+
+
+SHOWN_IDS = 5
+"""How many ids of damaged tasks ``load``'s warning names."""
+
+
+def warn_damaged(roots: list[dict[str, Any]], stacklevel: int = 3) -> None:
+    """A ``DamagedResultsWarning`` per file whose damaged tasks (or tables) were
+    skipped: how many, the first ids, and how to rebuild the file."""
+    import warnings
+
+    from ..errors import DamagedResultsWarning
+
+    for r in roots:
+        check = r.get("check")
+        if check is None or not (check.damaged or check.structure):
+            continue
+        ids = [f"{kind[:-1]} {tid}" for kind, tid, _ in check.damaged]
+        what = []
+        if ids:
+            more = f" and {len(ids) - SHOWN_IDS} more" if len(ids) > SHOWN_IDS else ""
+            what.append(f"{len(ids)} damaged task(s) skipped ({', '.join(ids[:SHOWN_IDS])}{more})")
+        what += check.structure_lines()
+        warnings.warn(f"{r['file']}: {'; '.join(what)}: `knitsweep recover {r['file']}` rebuilds "
+                      "it from what is intact", DamagedResultsWarning, stacklevel=stacklevel)  # fmt: skip

@@ -369,6 +369,22 @@ def varying_parameters(job: JobSpec) -> tuple[str, ...]:
     return stitch + tuple(n for n, v in axes.items() if len(v) > 1) + tied
 
 
+def _on_disk(out: Path, master: _Master | None) -> int:
+    """How many of this run's tasks the disk holds after a write failed (the file and
+    its journal as read back now: results received but never made durable, or lost
+    with a journal deleted under the run, are not counted)."""
+    from ..store.read import iter_entries
+
+    if master is None:
+        return 0
+    ours = {POINTS: master.points, SWEEPS: master.sweeps}
+    try:
+        return len({(e.kind, e.task_id) for e in iter_entries(out)
+                    if e.task_id in ours.get(e.kind, ())})  # fmt: skip
+    except Exception:  # the file itself unreadable: nothing can be counted on
+        return 0
+
+
 def run_job(
     job: JobSpec,
     out: str | Path,
@@ -452,6 +468,7 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
             summary.compile_seconds = float(getattr(executor, "compile_seconds", 0.0))
     written = sum(summary.counts.values())
     if failure is not None:
+        written = _on_disk(out, master)
         summary.interrupted = True
         summary.storage_error = str(failure)
         print(f"error: {failure}; {written} of {summary.total} tasks are in {out} (with its "

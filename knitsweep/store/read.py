@@ -102,10 +102,10 @@ PARALLEL_FROM = 256
 
 
 def file_entries(f, with_data: bool, check: FileCheck | None = None,
-                 skip: set | frozenset = frozenset()) -> Iterator[Entry]:  # fmt: skip
+                 skip: set | frozenset = frozenset(), salvage: bool = False) -> Iterator[Entry]:  # fmt: skip
     """The verified tasks of an open file (damaged ones recorded in ``check`` and left
     out), but those in ``skip`` ((kind, task id) pairs): a table's rows (schema 3) or
-    task groups (schemas 1 and 2)."""
+    task groups (schemas 1 and 2); ``salvage``: see ``table.table_entries``."""
     groups = []
     for kind in KINDS:
         table = _table(f, kind, check)
@@ -114,7 +114,7 @@ def file_entries(f, with_data: bool, check: FileCheck | None = None,
             continue
         if table is False:  # its index is damaged: recorded in check
             continue
-        for e in table_entries(table, kind, check, skip):
+        for e in table_entries(table, kind, check, skip, salvage):
             if not with_data:
                 e.record = {}
             yield e

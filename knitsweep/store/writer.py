@@ -302,7 +302,7 @@ class ResultWriter:
         with _open(self.path) as f:
             self.stored = list(file_entries(f, False, self.check))
         if self.check.structure:
-            raise InputError(f"{self.path} is damaged ({'; '.join(self.check.structure)}): "
+            raise InputError(f"{self.path}: {'; '.join(self.check.structure_lines())}: "
                              f"`knitsweep recover {self.path}` rebuilds it from its intact "
                              "tasks, the spare copy and the journal")  # fmt: skip
 
@@ -428,6 +428,8 @@ class ResultWriter:
                 f.attrs[k] = v
             seal_root(f)
         _fsync_file(self._shadow)
+        if os.path.islink(self._shadow):  # swapped for a link since: never renamed into place
+            raise OSError(errno.ELOOP, "symbolic link", str(self._shadow))
         try:  # keep the version being replaced: it becomes the next shadow
             os.link(self.path, self._spare)
             spare = self._spare
