@@ -9,6 +9,7 @@ workers are released instead of left waiting.
 from __future__ import annotations
 
 import math
+import os
 import signal
 import time
 from pathlib import Path
@@ -89,8 +90,28 @@ def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
     out = Path(out) if out is not None else default_output(job, shard_t)
     check_grid_size(job, max_tasks)
     check_output(out)
+    adopt_empty(out)
     check_label(job, out, relabel)
     return job, shard_t, out
+
+
+def adopt_empty(out: Path) -> Path | None:
+    """A 0-byte results file holds no results: kept aside (``<file>.damaged``) so that
+    the run starts it anew, its journal folded in (nothing is lost). Not when a copy
+    beside it (shadow, spare) holds results that a writer would delete as stale:
+    ``recover`` is for that. Returns where the file is kept (None: not adopted)."""
+    import sys
+
+    from ..store.salvage import set_aside
+
+    copies = [out.with_name(f".{out.name}.{what}") for what in ("shadow", "spare")]
+    if (out.is_symlink() or not out.is_file() or out.stat().st_size or any(map(os.path.lexists, copies))
+            or writer_alive(lock_path(out))):  # fmt: skip
+        return None
+    kept = set_aside(out)
+    print(f"warning: {out} was empty (0 bytes, no results): kept as {kept}; this run starts "
+          "it anew", file=sys.stderr, flush=True)  # fmt: skip
+    return kept
 
 
 def check_label(job: JobSpec, out: Path, relabel: bool = False) -> None:

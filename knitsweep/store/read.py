@@ -90,9 +90,12 @@ def recover_hint(path: Path) -> str:
         head = b""
     beside = [p for p in (journal_dir(path), path.with_name(f".{path.name}.spare"),
                           path.with_name(f".{path.name}.shadow")) if p.exists()]  # fmt: skip
-    if head == SIGNATURE or beside or (path.exists() and path.stat().st_size == 0):
+    if head == SIGNATURE or beside:
         return (f"; if it is a damaged knitsweep results file, `knitsweep recover {path}` "
                 "rebuilds it from its intact tasks, the spare copy and the journal")  # fmt: skip
+    if path.exists():  # nothing of a results file in it, nor beside it
+        return (f"; if it should be a results file, `knitsweep recover {path} --job JOB.toml` "
+                f"starts it anew in place (this file kept as {path.name}.damaged)")  # fmt: skip
     return ""
 
 

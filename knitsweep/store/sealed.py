@@ -83,13 +83,8 @@ def _column(f, name: str):
 def _append(ds, frames: list[bytes]) -> None:
     n = len(ds)
     ds.resize((n + len(frames),))
-    cells = np.empty(len(frames), dtype=object)
-    for i, data in enumerate(frames):
-        cells[i] = np.frombuffer(data, dtype=np.uint8)
-    if len(frames) == 1:
-        ds[n] = cells[0]  # (h5py would broadcast a one-cell object array's array)
-    else:
-        ds[n:] = cells
+    # a list: h5py would read an object array of equal lengths as one 2-d array
+    ds[n:] = [np.frombuffer(data, dtype=np.uint8) for data in frames]
 
 
 def append_rows(f, entries: list[Entry], made: dict[int, tuple] | None = None) -> None:
