@@ -194,7 +194,7 @@ def test_recover_answers_signals_and_leaves_no_temporary_file(small, tmp_path, h
     size = small.stat().st_size
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     ended = []
-    for delay in (0.05, 0.3, 0.6, 0.9, 1.2, 1.5, 2.0):
+    for delay in (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0):  # (from when knitsweep handles them)
         d = tmp_path / f"{how}{delay}"
         d.mkdir()
         f = d / "x.h5"

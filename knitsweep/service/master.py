@@ -471,7 +471,7 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
         written = _on_disk(out, master)
         summary.interrupted = True
         summary.storage_error = str(failure)
-        print(f"error: {failure}; {written} of {summary.total} tasks are in {out} (with its "
+        print(f"error: {failure.strerror or failure}; {written} of {summary.total} tasks are in {out} (with its "
               f"journal); {remedy(failure)} and run the same command again to resume",
               file=sys.stderr, flush=True)  # fmt: skip
     elif summary.interrupted:

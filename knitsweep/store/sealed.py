@@ -5,8 +5,8 @@ metadata (``knitsweep recover`` of a file cut short; docs/crash-safety.md).
 HDF5 keeps a file's structure (its root group, the tables' indexes, the chunk
 B-trees) wherever it allocated it, often at the end: a file cut short loses it, and
 with it every row, though the rows' bytes lie before the cut. So each checkpoint also
-appends, to ``/sealed/rows`` (a column of byte strings, which HDF5 stores each in one
-piece), one frame per row it writes
+appends to ``/sealed/rows`` (a column of byte strings, which HDF5 stores each in one
+piece) one cell holding a frame per row it writes, end to end
 
     b"KSRW" | u64 length | a journal batch of that one row (``journal.encode_batch``:
     b"KSJB" | sha256 | payload)
@@ -81,10 +81,11 @@ def _column(f, name: str):
 
 
 def _append(ds, frames: list[bytes]) -> None:
+    """One more cell holding ``frames`` end to end (one object in HDF5's heap: a cell
+    per frame would cost a heap insertion per row)."""
     n = len(ds)
-    ds.resize((n + len(frames),))
-    # a list: h5py would read an object array of equal lengths as one 2-d array
-    ds[n:] = [np.frombuffer(data, dtype=np.uint8) for data in frames]
+    ds.resize((n + 1,))
+    ds[n] = np.frombuffer(b"".join(frames), dtype=np.uint8)
 
 
 def append_rows(f, entries: list[Entry], made: dict[int, tuple] | None = None) -> None:
@@ -111,7 +112,7 @@ def append_root(f) -> None:
     attrs = {k: v for k, v in f.attrs.items() if k not in DIGEST_ATTRS}
     data = root_frame(attrs, len(ds))
     if len(ds):
-        last = _root_of(bytes(ds[len(ds) - 1]), 0)
+        last = _root_of(ds[len(ds) - 1].tobytes(), 0)
         if last is not None and last[1] == _root_of(data, 0)[1]:
             return
     _append(ds, [data])
