@@ -70,8 +70,10 @@ def remove_stale_builds(path: Path) -> None:
     """What a killed ``recover`` left beside ``path`` (under ``path``'s lock)."""
     for stale in path.parent.glob(f".{path.name}.*.recover.tmp"):
         _remove_build(stale)
-    for stale in (*path.parent.glob(f".{path.name}.*.recover.tmp.*"),
-                  *path.parent.glob(f"..{path.name}.*.recover.tmp.*")):  # (killed as it began)
+    for stale in (
+        *path.parent.glob(f".{path.name}.*.recover.tmp.*"),
+        *path.parent.glob(f"..{path.name}.*.recover.tmp.*"),
+    ):  # (killed as it began)
         with contextlib.suppress(OSError):
             shutil.rmtree(stale) if stale.is_dir() and not stale.is_symlink() else stale.unlink()
 
