@@ -123,15 +123,13 @@ def compile_notice(stitches: tuple[str, ...] = (DEFAULT_STITCH,), what: str = "r
     load = os.getloadavg()[0]
     now = (f"; this one is busy now, load {load:.1f} on {cores} cores" if load > (cores or 1)
            else "")  # fmt: skip
-    return (
-        f"compiling the numerical kernels of {', '.join(stitches)} once for this "
-        f"checkout: usually ~{_duration(idle)} on an idle machine, ~{_duration(busy)} on "
-        f"a busy one{now} (cached in {kernels.numba.config.CACHE_DIR})"
-    )
+    return (f"compiling numerical kernels ({', '.join(stitches)}) once for this checkout: "
+            f"usually ~{_duration(idle)} on an idle machine, ~{_duration(busy)} or more on a "
+            f"busy one{now}; cached in {kernels.numba.config.CACHE_DIR}")  # fmt: skip
 
 
 def _duration(seconds: float) -> str:
-    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
 
 
 class CompileClock(event.Listener):

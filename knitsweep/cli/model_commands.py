@@ -117,7 +117,8 @@ def relax(
         "message": best.message, "iterations": best.iterations, "evaluations": best.evaluations,
         "min_zeta": best.min_zeta, "seconds": seconds - compiling.seconds,
         "compile_seconds": compiling.seconds,
-        "parameters": {**params.model_dump(), "L_over_r": params.L_mm / params.r_mm},
+        "parameters": {"stitch": params.stitch, **params.model_dump(),
+                       "L_over_r": params.L_mm / params.r_mm},
         "numerics": {"preset": n.preset, "fidelity": n.fidelity.model_dump(mode="json"),
                      "solver": n.solver.model_dump(mode="json"),
                      "starts": settings.model_dump(mode="json"), "seed": seed,
@@ -131,7 +132,7 @@ def relax(
             except OSError as e:  # the disk filled or the directory went away meanwhile
                 raise InputError(f"--out {out}: cannot write it ({e.strerror or e})") from None
         result["state_file"] = str(out)
-    _print_result(result, as_json, ENERGY_UNITS)
+    _print_result(result, as_json, RELAX_UNITS)
     if not best.converged:
         raise typer.Exit(1)
 

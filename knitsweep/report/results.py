@@ -299,9 +299,10 @@ def _no_column(column: str, known: set[str]) -> str:
     if meant is None:
         close = difflib.get_close_matches(column, sorted(known), n=1)
         meant = close[0] if close else None
-    hint = f"; did you mean {meant}?" if meant else ""
+    if meant:
+        return f"select: no column {column}; did you mean {meant}?"
     listing = ", ".join([*(p for p in PARAMETER_COLUMNS if p in known), "direction", "task_id"])
-    return f"select: no column {column}{hint} (parameters: {listing}; or any table's column)"
+    return f"select: no column {column} (parameters: {listing}; or any table's column)"
 
 
 def _no_value(column: str, value: Any, there: list) -> str:

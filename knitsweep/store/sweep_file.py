@@ -29,7 +29,7 @@ def sweep_inputs(params, direction: str, numerics, starts, seed: int) -> dict:
     (named with their units: ``L_mm``, ``k_mN_per_mm2``), and the numerics (preset,
     fidelity, solver, protocol, starts, seed)."""
     return {"direction": direction,
-            "parameters": {**params.model_dump(mode="json"),
+            "parameters": {"stitch": params.stitch, **params.model_dump(mode="json"),
                            "L_over_r": params.L_mm / params.r_mm},
             "numerics": {**numerics.model_dump(mode="json"),
                          "starts": starts.model_dump(mode="json"), "seed": seed}}  # fmt: skip
