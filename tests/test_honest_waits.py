@@ -123,6 +123,21 @@ def test_the_compile_clock_counts_compiling_only():
     assert again.seconds == 0.0
 
 
+def test_the_eta_does_not_count_the_compile_as_throughput():
+    """Two of four points took 1 s each, after 90 s of compiling and 2 s of work: 2 s of
+    work are left, at 1 s of work a second, so 2 s to go (not 94 s)."""
+    from knitsweep.service.progress import RunProgress
+
+    p = RunProgress(show=False)
+    p.add_tasks("point", 4)
+    p.finished("point", 1.0, "")
+    p.finished("point", 1.0, "")
+    p.t0 -= 92.0 - p.elapsed  # 92 s have passed
+    assert p.eta() == pytest.approx(92.0, rel=0.02)  # the compile counted as work time
+    p.setup_s = 90.0
+    assert p.eta() == pytest.approx(2.0, rel=0.05)
+
+
 def test_the_run_summary_splits_compile_from_compute():
     assert time_split(10.0, 0.0) == ""
     assert time_split(100.0, 94.0) == (" (94.0 s compiling the kernels, cached from now on; "
