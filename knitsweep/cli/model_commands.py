@@ -84,8 +84,9 @@ def relax(
                                        "state file (one number per line, as --state reads)",
                                        default="printed only")] = None,
 ) -> None:  # fmt: skip
-    """Relax the zero-force state at fixed yarn length (both periods free). ``seconds``:
-    the relaxation; ``compile_seconds``: compiling the kernels first (0 once cached)."""
+    """Relax the zero-force state at fixed yarn length (both periods free). Its seconds
+    are the relaxation's, compile_seconds those of compiling the kernels first (0 once
+    cached); --json also gives the parameters, numerics and units."""
     import time
 
     from ..compilation import compile_clock
