@@ -96,21 +96,26 @@ def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,),
 
 
 COMPILE_SECONDS = {
-    ("run", "translations"): (20, 90),
-    ("run", "glides"): (60, 180),
-    ("energy", "translations"): (10, 40),
-    ("energy", "glides"): (30, 90),
+    ("run", "translations"): 29,
+    ("run", "glides"): 53,
+    ("energy", "translations"): 17,
+    ("energy", "glides"): 20,
 }
-"""Usual seconds to compile the kernels once, (on an idle machine, on a busy one), of what
-a command calls (``run``: a task; ``energy``: one energy) for stitches of translations
-only or with a knit/purl pattern's glides: ``benchmarks/bench_compile.py`` on the 2-core
-project VM (``--jobs 2``, an empty cache; idle: load < 1; busy: load 6-9)."""
+"""About how long compiling the kernels takes once on an idle machine, s: of what a
+command calls (``run``: a task; ``energy``: one energy) for stitches of translations
+only (stockinette) or with a knit/purl pattern's glides (garter, rib, seed). Measured
+with ``benchmarks/bench_compile.py --jobs 1 --what run|energy --stitch
+stockinette|garter`` (an empty cache, one process) on the 2-core project VM
+(2026-12-04): the CPU seconds of the compiling process, which are its wall time on an
+idle core. On a busy machine the wall time grows with the load: the same runs took
+143-304 s (stockinette, load 7.5-10) and 447-526 s (garter, load 14-17), 0.7-2.1 times
+the CPU seconds scaled by load/cores (``compile_notice``'s estimate)."""
 
 
 def compile_notice(stitches: tuple[str, ...] = (DEFAULT_STITCH,), what: str = "run") -> str | None:
     """What to tell a user before the first call compiles the kernels of ``what`` for
     these ``stitches`` (None if numba's cache holds them for this checkout): how long
-    that usually takes, and that a busy machine takes longer."""
+    that usually takes, and, on a busy machine, how much longer it will take now."""
     import os
 
     from . import kernels
@@ -118,18 +123,19 @@ def compile_notice(stitches: tuple[str, ...] = (DEFAULT_STITCH,), what: str = "r
     if kernels.cached(kernel_entry_points(stitches, what)):
         return None
     images = "glides" if any(get_stitch(s).images == "glides" for s in stitches) else "translations"
-    idle, busy = COMPILE_SECONDS[("energy" if what == "energy" else "run", images)]
+    idle = COMPILE_SECONDS[("energy" if what == "energy" else "run", images)]
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = cores or 1
     load = os.getloadavg()[0]
-    now = (f"; this one is busy now, load {load:.1f} on {cores} cores" if load > (cores or 1)
-           else "")  # fmt: skip
+    now = (f": this one is, load {load:.1f} on {cores} cores, so expect "
+           f"~{_duration(idle * load / cores)} or more" if load > 1.5 * cores else "")  # fmt: skip
     return (f"compiling numerical kernels ({', '.join(stitches)}) once for this checkout: "
-            f"usually ~{_duration(idle)} on an idle machine, ~{_duration(busy)} or more on a "
-            f"busy one{now}; cached in {kernels.numba.config.CACHE_DIR}")  # fmt: skip
+            f"~{_duration(idle)} on an idle machine, longer on a busy one{now}; cached in "
+            f"{kernels.numba.config.CACHE_DIR}")  # fmt: skip
 
 
 def _duration(seconds: float) -> str:
-    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
 
 
 class CompileClock(event.Listener):
