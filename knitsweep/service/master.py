@@ -285,6 +285,7 @@ class _Master:
                 if not queue:
                     break
                 self.executor.submit(*queue.popleft())
+            self.progress.setup_s = float(getattr(self.executor, "compile_seconds", 0.0))
             reply = self.executor.next_reply(timeout=0.25, idle=self._commit)
             if reply is not None:
                 self._handle(reply)
