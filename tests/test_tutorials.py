@@ -1,6 +1,7 @@
-"""Integration tier: every tutorial's commands, as a reader would paste them.
+"""Integration tier: every tutorial's commands, and the README's recipes, as a reader
+would paste them.
 
-Each fenced ``bash`` or ``python`` block of docs/tutorials/*.md is marked either
+Each fenced ``bash`` or ``python`` block of docs/tutorials/*.md and README.md is marked either
 ``<!-- runnable -->`` or ``<!-- not run: why -->`` on the line before it. This test runs
 the runnable ones of each tutorial in order, in a fresh directory, where ``jobs/`` holds
 small copies of the jobs they name (tests/data/jobs/tutorials/, same names, so the same
@@ -18,6 +19,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 TUTORIALS = sorted((ROOT / "docs" / "tutorials").glob("*.md"))
+PAGES = [*TUTORIALS, ROOT / "README.md"]
 SMALL_JOBS = Path(__file__).parent / "data" / "jobs" / "tutorials"
 BLOCK = re.compile(
     r"^(<!-- (runnable|not run: [^>]+) -->\n)?```(\w+)[^\n]*\n(.*?)^```$", re.M | re.S
@@ -37,11 +39,11 @@ def runnable(path: Path) -> list[tuple[str, str]]:
 def test_there_are_tutorials_with_runnable_commands():
     names = {p.stem for p in TUTORIALS}
     assert {"first-study", "patterns", "slurm", "results-in-python"} <= names
-    for path in TUTORIALS:
+    for path in PAGES:
         assert runnable(path), f"{path.name} has no runnable block"
 
 
-@pytest.mark.parametrize("path", TUTORIALS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", PAGES, ids=lambda p: p.stem)
 def test_every_command_block_says_whether_it_runs(path):
     unmarked = [code.splitlines()[0] for mark, lang, code in blocks(path)
                 if lang in ("bash", "python", "sh") and mark is None]  # fmt: skip
@@ -50,7 +52,7 @@ def test_every_command_block_says_whether_it_runs(path):
     )
 
 
-@pytest.mark.parametrize("path", TUTORIALS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", PAGES, ids=lambda p: p.stem)
 def test_every_job_a_tutorial_runs_has_a_small_copy(path):
     for _, code in runnable(path):
         for name in JOB.findall(code):
@@ -80,7 +82,7 @@ def _name(job: Path) -> str:
 @pytest.mark.slow
 @pytest.mark.mpi
 @pytest.mark.timeout(600)
-@pytest.mark.parametrize("path", TUTORIALS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", PAGES, ids=lambda p: p.stem)
 def test_tutorial_commands_run(path, tmp_path):
     (tmp_path / "jobs").mkdir()
     for job in SMALL_JOBS.glob("*.toml"):
