@@ -208,11 +208,12 @@ def test_the_old_readme_had_its_sections():
 def test_no_section_of_the_old_readme_is_lost(heading):
     """Each section of the README before the documentation site stands, nearly word for
     word, in README.md or a page of docs/ (or slurm/README.md, which the site includes).
-    Edited since: up to a tenth of a section's sentences may differ."""
+    Edited since: a fifth of a section's sentences (at least one) may differ, so that the
+    docs can be kept up to date; a section moved away and lost fails."""
     corpus = " ".join(normalised(d.read_text()) for d in DOCS)
     wanted = pieces(OLD_SECTIONS[heading])
     missing = [p for p in wanted if p not in corpus and p not in REWRITTEN]
-    assert len(missing) <= len(wanted) // 10, (
+    assert len(missing) <= max(1, len(wanted) // 5), (
         f"{len(missing)} of {len(wanted)} sentences of the old README's section "
         f"{heading!r} are nowhere in README.md or docs/:\n" + "\n".join(missing)
     )
