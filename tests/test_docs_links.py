@@ -113,6 +113,31 @@ def test_the_generated_cli_page_links_resolve(generated):
     assert not bad, "\n".join(bad)
 
 
+def test_the_cli_page_has_every_command_and_option(generated):
+    """The generated reference holds every command of the CLI, nested groups included,
+    and every option of each as ``-h`` shows it."""
+    hook = cli_reference()
+    text = next(iter(generated.values())).read_text()
+    root = hook.root_command()
+    ctx = hook._click().Context(root, info_name="knitsweep")
+
+    def walk(cmd, ctx):
+        yield cmd, ctx
+        for name in getattr(cmd, "list_commands", lambda ctx: [])(ctx):
+            sub = cmd.get_command(ctx, name)
+            yield from walk(sub, hook._click().Context(sub, info_name=name, parent=ctx))
+
+    commands = list(walk(root, ctx))
+    assert len(commands) >= 14  # 13 commands and the slurm group's render
+    for cmd, ctx in commands:
+        heading = f"# {ctx.command_path}\n"
+        assert heading in text, f"no section for {ctx.command_path}"
+        section = text.split(heading, 1)[1].split("\n#", 1)[0]
+        for param in cmd.get_params(ctx):
+            for opt in param.opts if param.param_type_name == "option" else []:
+                assert f"{opt}" in section, f"{ctx.command_path}: {opt} missing"
+
+
 def broken_links(doc: Path, at: Path, generated: dict[Path, Path]) -> list[str]:
     """The relative links of ``doc`` (read as if it stood at ``at``) that point nowhere."""
     bad = []
