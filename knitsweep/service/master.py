@@ -47,7 +47,7 @@ COMMIT_AGE_S = 0.2
 arriving (the master commits at once when it has nothing else to do)."""
 
 EXIT_TASKS_FAILED = 4
-"""Exit code of a run that finished but whose file holds failed tasks (README)."""
+"""Exit code of a run that finished but whose file holds failed tasks (docs/how-to/runs.md)."""
 
 
 @dataclass

@@ -31,7 +31,7 @@ if TYPE_CHECKING:
     from .executors import ExecutorKind
 
 LARGE_GRID_TASKS = 20_000
-"""Jobs with more tasks (points and sweeps) than this need ``--max-tasks`` (README)."""
+"""Jobs with more tasks (points and sweeps) than this need ``--max-tasks`` (docs/input-validation.md)."""
 
 
 def default_output(job: JobSpec, shard: tuple[int, int] | None) -> Path:
