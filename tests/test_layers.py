@@ -1,4 +1,4 @@
-"""Unit tier: the package's layers, read from its imports (README "How it is built").
+"""Unit tier: the package's layers, read from its imports (docs/architecture.md, "How it is built").
 
 Each module may import only from its own layer or the layers below it, lazy imports
 inside functions included; the light commands and the config floor load neither

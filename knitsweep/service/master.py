@@ -47,7 +47,7 @@ COMMIT_AGE_S = 0.2
 arriving (the master commits at once when it has nothing else to do)."""
 
 EXIT_TASKS_FAILED = 4
-"""Exit code of a run that finished but whose file holds failed tasks (README)."""
+"""Exit code of a run that finished but whose file holds failed tasks (docs/how-to/runs.md)."""
 
 
 @dataclass
@@ -285,6 +285,7 @@ class _Master:
                 if not queue:
                     break
                 self.executor.submit(*queue.popleft())
+            self.progress.setup_s = float(getattr(self.executor, "compile_seconds", 0.0))
             reply = self.executor.next_reply(timeout=0.25, idle=self._commit)
             if reply is not None:
                 self._handle(reply)
