@@ -62,7 +62,7 @@ MODULE_ORDER = {
     "studies": ["accuracy"],
     "service": ["signals", "grid", "jobs", "progress", "worker", "adaptive", "executors",
                 "slurm", "master", "runs", "recovery"],
-    "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "plotting",
+    "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "declutter", "plotting",
                "fig_energy", "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns",
                "figures", "html", "tile", "sources", "tube_mesh", "raster", "export3d", "render",
                "contact_volumes"],
