@@ -436,7 +436,11 @@ def _regime_strip(ax: Any, red: Reduction, key: tuple, by_key: dict, lim: tuple)
     if not (np.isnan(tx) or np.isnan(ty)):
         low, high = np.clip(min(tx, ty), *lim), np.clip(max(tx, ty), *lim)
         mid = "jammed_y_only" if tx <= ty else "jammed_x_only"
-        for name, a, b in (("jammed_xy", lim[0], low), (mid, low, high), ("unjammed", high, lim[1])):
+        for name, a, b in (
+            ("jammed_xy", lim[0], low),
+            (mid, low, high),
+            ("unjammed", high, lim[1]),
+        ):
             if b > a:
                 ax.axvspan(a, b, color=REGIME_FILL[name], lw=0)
                 shown.add(name)

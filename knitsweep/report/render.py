@@ -33,7 +33,7 @@ import numpy as np
 from ..config import StitchParams
 from ..errors import InputError
 from ..formats import check_writable, replace_file
-from .sources import drawn, stitch_from_results, stitch_from_state, stitch_to_draw, title
+from .sources import FROM_FILE, drawn, stitch_from_results, stitch_from_state, stitch_to_draw, title
 from .tile import ROW_COLOURS, Stitch, cell_path, copy_mirrored, row_path, unit_cell
 
 __all__ = ["ROW_COLOURS", "cell_path", "copy_mirrored", "drawn", "render", "row_path", "stitch_from_results",
@@ -238,7 +238,7 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int | tuple[int, int] | 
     image = shade_tile(stitch, (nx, ny), r, view, box, width_px, highlight)
     out = Path(out)
     width = 7.0  # inches at 160 dpi: the picture is shown 1120 px wide whatever width_px is
-    height = width * image.shape[0] / image.shape[1] + 0.95
+    height = width * image.shape[0] / image.shape[1] + 0.75
     with matplotlib.rc_context({"font.size": 11, "font.family": "DejaVu Sans"}):
         fig = Figure(figsize=(width + 0.3, height), layout="constrained")
         FigureCanvasAgg(fig)
@@ -253,6 +253,8 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int | tuple[int, int] | 
         what = "cores (r_core)" if core and radius is None else "yarn"
         note = (f"{nx} × {ny} stitches, {side} side; {what} drawn at radius {r:.3g} mm; "
                 "one colour per row") + ("; saturated: one unit cell" if highlight else "")  # fmt: skip
+        if stitch.label.startswith(FROM_FILE):
+            note = f"{stitch.label}: {note}"
         ax.text(1.0, -0.01, note, transform=ax.transAxes, ha="right", va="top", fontsize=10,
                 color="0.35")  # fmt: skip
         buf = io.BytesIO()

@@ -23,9 +23,15 @@ def parameters_line(params: StitchParams) -> str:
             f"r_core = {params.r_core_mm:g} mm")  # fmt: skip
 
 
+FROM_FILE = "state of "
+"""How a state file's stitch is labelled ("state of garter.dat"): said under the
+picture, not in its title, which names what is drawn rather than where it was read."""
+
+
 def title(stitch: Stitch) -> str:
     """Two lines: the stitch pattern and the state drawn, then its parameters."""
-    head = f"{stitch.name}: {stitch.label}" if stitch.label else stitch.name
+    shown = stitch.label and not stitch.label.startswith(FROM_FILE)
+    head = f"{stitch.name}: {stitch.label}" if shown else stitch.name
     return head if stitch.params is None else f"{head}\n{parameters_line(stitch.params)}"
 
 
@@ -146,4 +152,4 @@ def stitch_to_draw(
     from ..formats import read_state
 
     return stitch_from_state(read_state(state, params.stitch), params,
-                             f"state of {Path(state).name}")  # fmt: skip
+                             f"{FROM_FILE}{Path(state).name}")  # fmt: skip
