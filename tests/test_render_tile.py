@@ -257,3 +257,16 @@ def test_render_out_mesh_from_the_cli(tmp_path):
     assert out.returncode == 2
     assert out.stderr.strip() == (f"error: out = '{tmp_path / 'x.stl'}': must end in .png, .pdf, "
                                   ".svg, .vtp, .vtu, .ply, .obj")  # fmt: skip
+
+
+@pytest.mark.parametrize("note", ["3 × 4 stitches, face side", "state of a.dat\n3 × 3 stitches"])
+def test_picture_texts_fit(note):
+    """The title's two lines and the note fit in the figure (none clipped, none over
+    another) for a wide and a tall picture."""
+    from test_figure_layout import layout_problems
+
+    stitch = shipped("seed")
+    for shape in ((40, 100, 3), (110, 100, 3)):
+        fig = rd.stitch_figure(np.zeros(shape), np.array([0.0, 10.0, 0.0, 10.0 * shape[0] / 100]),
+                               rd.title(stitch), note)  # fmt: skip
+        assert not layout_problems(fig), layout_problems(fig)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import io
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -226,8 +227,6 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int | tuple[int, int] | 
         core: draw the incompressible cores (radius r_core) instead of the yarn.
     """
     import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
 
     if side not in SIDES:
         raise InputError(f"side = {side!r}: must be one of {', '.join(SIDES)}")
@@ -236,30 +235,41 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int | tuple[int, int] | 
     view = _view_matrix(elevation_deg, azimuth_deg, side)
     box = window(stitch, (nx, ny), view)
     image = shade_tile(stitch, (nx, ny), r, view, box, width_px, highlight)
+    what = "cores (r_core)" if core and radius is None else "yarn"
+    note = (f"{nx} × {ny} stitches, {side} side; {what} drawn at radius {r:.3g} mm; "
+            "one colour per row") + ("; saturated: one unit cell" if highlight else "")  # fmt: skip
+    if stitch.label.startswith(FROM_FILE):
+        note = f"{stitch.label}\n{note}"
     out = Path(out)
-    width = 7.0  # inches at 160 dpi: the picture is shown 1120 px wide whatever width_px is
-    height = width * image.shape[0] / image.shape[1] + 0.75
     with matplotlib.rc_context({"font.size": 11, "font.family": "DejaVu Sans"}):
-        fig = Figure(figsize=(width + 0.3, height), layout="constrained")
-        FigureCanvasAgg(fig)
-        ax = fig.subplots()
-        ax.imshow(image, extent=tuple(box), interpolation="antialiased")
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
-        for spine in ax.spines.values():
-            spine.set_color("0.6")
-        ax.set_title(title(stitch), fontsize=11)
-        what = "cores (r_core)" if core and radius is None else "yarn"
-        note = (f"{nx} × {ny} stitches, {side} side; {what} drawn at radius {r:.3g} mm; "
-                "one colour per row") + ("; saturated: one unit cell" if highlight else "")  # fmt: skip
-        if stitch.label.startswith(FROM_FILE):
-            note = f"{stitch.label}: {note}"
-        ax.text(1.0, -0.01, note, transform=ax.transAxes, ha="right", va="top", fontsize=10,
-                color="0.35")  # fmt: skip
+        fig = stitch_figure(image, box, title(stitch), note)
         buf = io.BytesIO()
         fig.savefig(buf, format=Path(out).suffix.lstrip(".").lower(), dpi=160, facecolor="white")
     return replace_file(out, buf.getvalue())  # never through a symbolic link
+
+
+def stitch_figure(image: np.ndarray, box: np.ndarray, head: str, note: str) -> Any:
+    """The picture ``image`` (H, W, 3) of the screen box ``box`` in a figure 7.3 inches
+    wide (1168 px at 160 dpi, whatever the image's resolution), ``head`` above it and
+    ``note`` below, the figure as tall as they need."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    width = 7.0
+    lines = head.count("\n") + 1 + note.count("\n") + 1
+    height = width * image.shape[0] / image.shape[1] + 0.25 + 0.21 * lines
+    fig = Figure(figsize=(width + 0.3, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.imshow(image, extent=tuple(box), interpolation="antialiased")
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    for spine in ax.spines.values():
+        spine.set_color("0.6")
+    ax.set_title(head, fontsize=11)
+    ax.set_xlabel(note, fontsize=10, color="0.35", loc="right")  # in the layout, not over it
+    return fig
 
 
 def tube_radius(stitch: Stitch, radius: float | None, core: bool) -> float:
