@@ -205,7 +205,7 @@ def test_render_state_file(tmp_path):
         (["--preset", "nosuch"], "preset"),
         (["--results", "R"], "--results needs --task"),
         (["--state", "S", "--strain-step", "2"], "--strain-step applies to a sweep"),
-        (["--results", "R", "--task", "p", "--L", "11"], "apply to --state"),
+        (["--results", "R", "--task", "p", "--L", "11"], "a results file holds its own parameters"),
         (["--state", "S", "--radius", "0"], "radius = 0.0: must be > 0"),
         (["--state", "S", "--side", "left"], "side = 'left'"),
         (["--state", "S", "--k", "-1"], "k_mN_per_mm2 = -1.0"),

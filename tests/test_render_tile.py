@@ -119,7 +119,7 @@ def test_defaults_two_repeats_yarn_radius_and_title(tmp_path):
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == f"wrote {tmp_path / 'r.png'}: rib, state of rib_state.dat"
     for bad, fragment in ((["--cells", "3y"], "cells = '3y': give N or NxM"),
-                          (["--cells", "13"], "cells = (13, 13): must be in 1..12"),
+                          (["--cells", "13"], "cells = 13: must be in 1..12"),
                           (["--preset", "draft"], "--preset and --starts apply to a relaxation")):  # fmt: skip
         out = knitsweep("render", "--state", str(state), "--out", str(tmp_path / "x.png"), *bad)
         assert out.returncode == 2 and out.stderr.startswith("error: ") and fragment in out.stderr, (

@@ -316,7 +316,9 @@ def render(
     if suffix not in OUT_SUFFIXES + MESH_SUFFIXES:
         raise InputError(f"out = '{out}': must end in {', '.join(OUT_SUFFIXES + MESH_SUFFIXES)}")
     if cells is not None and not all(1 <= c <= MAX_CELLS for c in _cells(cells)):
-        raise InputError(f"cells = {cells}: must be in 1..{MAX_CELLS} (each way)")
+        nx, ny = _cells(cells)
+        given = f"{nx}" if nx == ny else f"{nx}x{ny}"
+        raise InputError(f"cells = {given}: must be in 1..{MAX_CELLS} (each way)")
     if radius is not None and not radius > 0.0:
         raise InputError(f"radius = {radius}: must be > 0 (mm)")
     if radius is not None and radius > MAX_RADIUS:
