@@ -388,6 +388,9 @@ def stitch_to_draw(
 
     if step is not None:
         raise InputError("--strain-step applies to a sweep of a results file, not to --state")
+    from ..model import CellModel
+
     params = params or StitchParams()
-    return stitch_from_state(read_state(state, params.stitch), params,
-                             f"state {Path(state).name}")  # fmt: skip
+    x = read_state(state, params.stitch)
+    CellModel(params).check_start(x, f"state file {state}")  # before anything is drawn
+    return stitch_from_state(x, params, f"state {Path(state).name}")
