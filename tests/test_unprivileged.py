@@ -9,6 +9,7 @@ import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 import tempfile
 from pathlib import Path
 
@@ -21,17 +22,46 @@ VENV_BIN = Path(sys.executable).parent
 pytestmark = [pytest.mark.unprivileged, pytest.mark.mpi]
 
 
+SITE = Path(sysconfig.get_paths()["purelib"])  # this venv's packages
+ENV: dict[str, str] = {}  # what nobody's commands need beyond PATH and HOME (the fixture)
+
+
+def _open_to_others(path: Path) -> bool:
+    return all(p.stat().st_mode & 0o005 == 0o005 for p in (path, *path.parents))
+
+
 @pytest.fixture(scope="module")
 def home():
-    """A fresh home directory owned by nobody (mode 700), with the repository's jobs/."""
+    """A fresh home directory owned by nobody (mode 700), with the repository's jobs/ and,
+    where this venv's interpreter lies where nobody cannot reach it (a pyenv under
+    /root), ``~/bin/knitsweep`` on the system python with this checkout and the venv's
+    packages (as an administrator's shared install would be)."""
     if os.geteuid() != 0:
         pytest.fail("the unprivileged-user tests need root to switch to nobody; run as root")
-    for path in (ROOT, VENV_BIN):
-        if not all(p.stat().st_mode & 0o005 == 0o005 for p in (path, *path.parents)):
+    for path in (ROOT, VENV_BIN, SITE):
+        if not _open_to_others(path):
             pytest.fail(f"nobody cannot read {path}: put the checkout and venv where others can")
     d = Path(tempfile.mkdtemp(prefix="knitsweep-nobody-"))
     shutil.copytree(ROOT / "jobs", d / "jobs")
     shutil.copy(TINY, d / "tiny.toml")
+    ENV.clear()
+    if not _open_to_others(Path(sys.executable).resolve()):
+        system = Path("/usr/bin/python3")
+        same = subprocess.run([system, "-c", "import sys; print(sys.version_info[:2])"],
+                              capture_output=True, text=True).stdout.strip()  # fmt: skip
+        if same != str(sys.version_info[:2]):
+            pytest.fail(f"nobody cannot run {Path(sys.executable).resolve()}, and {system} is "
+                        f"{same or 'missing'}, not {sys.version_info[:2]}")  # fmt: skip
+        (d / "bin").mkdir()
+        (d / "bin" / "knitsweep").write_text(
+            "#!/usr/bin/python3\nfrom knitsweep.cli import main\nmain()\n"
+        )
+        (d / "bin" / "knitsweep").chmod(0o755)
+        ENV.update(
+            PYTHONPATH=f"{ROOT}:{SITE}",
+            PATH=f"{d / 'bin'}:{VENV_BIN}:/usr/bin:/bin",
+            LD_LIBRARY_PATH=str(VENV_BIN.parent / "lib"),
+        )  # the mpich wheel's libmpi
     subprocess.run(["chown", "-R", "nobody:nogroup", str(d)], check=True)
     d.chmod(0o700)
     yield d
@@ -40,7 +70,7 @@ def home():
 
 def as_nobody(home: Path, *cmd, extra_env=None, timeout=900) -> subprocess.CompletedProcess:
     env = {"PATH": f"{VENV_BIN}:/usr/bin:/bin", "HOME": str(home), "OPENBLAS_NUM_THREADS": "1",
-           "LANG": "C.UTF-8", **(extra_env or {})}  # fmt: skip
+           "LANG": "C.UTF-8", **ENV, **(extra_env or {})}  # fmt: skip
     return subprocess.run(["setpriv", "--reuid", "nobody", "--regid", "nogroup", "--clear-groups",
                            *map(str, cmd)], cwd=home, env=env, capture_output=True, text=True,
                           timeout=timeout)  # fmt: skip
