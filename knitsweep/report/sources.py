@@ -150,6 +150,8 @@ def stitch_to_draw(
     if state is None:
         return relaxed_stitch(params, preset, starts)
     from ..formats import read_state
+    from ..model import CellModel
 
-    return stitch_from_state(read_state(state, params.stitch), params,
-                             f"{FROM_FILE}{Path(state).name}")  # fmt: skip
+    x = read_state(state, params.stitch)
+    CellModel(params).check_start(x, f"state file {state}")  # before anything is drawn
+    return stitch_from_state(x, params, f"{FROM_FILE}{Path(state).name}")
