@@ -5,7 +5,7 @@ fabric plane (glide reflections: z -> -z plus one wale period), so the fabric is
 at m t_c + n t_w, mirrored when n is odd. a_x and a_y are the per-stitch course and wale
 spacings, as stockinette's.
 
-* ``layout``: the 80 entries (the free yarn's shape, z0, the periods), bounds, starts;
+* ``layout``: the 88 entries (the free yarn's shape, z0, the periods), bounds, starts;
 * ``geometry``: state -> control points with their exact Jacobian (numba).
 """
 

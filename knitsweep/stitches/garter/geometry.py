@@ -1,7 +1,7 @@
 """Garter state -> the 8 segments' control points with the exact Jacobian (docs/model.md
 §11): the free yarn's kernel on the shape entries and periods, lifted by z0.
 
-``x`` (80,) as in ``layout``; ``cp`` (8, 6, 3) mm; ``jac`` (8, 6, 3, 80).
+``x`` (88,) as in ``layout``; ``cp`` (8, 6, 3) mm; ``jac`` (8, 6, 3, 88).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from .layout import IDX_Z0, N_FREE_SHAPE
 
 @njit(cache=True)
 def state_to_control_points(x, cp, jac):
-    """Fill ``cp`` (8, 6, 3) and ``jac`` (8, 6, 3, 80) from the garter state ``x``."""
+    """Fill ``cp`` (8, 6, 3) and ``jac`` (8, 6, 3, 88) from the garter state ``x``."""
     nf = N_FREE_SHAPE
     xf = np.empty(nf + 2)
     xf[:nf] = x[:nf]

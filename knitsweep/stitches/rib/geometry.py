@@ -8,7 +8,7 @@ t_c = (a_x, 0, 0), with joint 0's tangent and curvature vector mirrored: G2 into
 mirrored continuation by construction, for any joint-0 frame (the junction need not be
 level; it must lie in the mirror plane, which pinning joint 0 at the origin does).
 
-``x`` (79,) as ``stockinette_free.layout``; ``cp`` (8, 6, 3) mm; ``jac`` (8, 6, 3, 79).
+``x`` (87,) as ``stockinette_free.layout``; ``cp`` (8, 6, 3) mm; ``jac`` (8, 6, 3, 87).
 """
 
 from __future__ import annotations
@@ -21,6 +21,6 @@ from ..stockinette_free.geometry import closed_control_points
 
 @njit(cache=True)
 def state_to_control_points(x, cp, jac):
-    """Fill ``cp`` (8, 6, 3) and ``jac`` (8, 6, 3, 79) from the state ``x`` (79,):
+    """Fill ``cp`` (8, 6, 3) and ``jac`` (8, 6, 3, 87) from the state ``x`` (87,):
     segment 7 ends at M joint 0 + t_c with joint 0's frame mirrored, M = diag(1, 1, -1)."""
     closed_control_points(x, cp, jac, True)

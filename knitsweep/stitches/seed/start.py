@@ -80,9 +80,8 @@ def seed_start(cp: np.ndarray, a_x: float, a_y: float, **change: float) -> np.nd
     (``SEED_MAP``, or the entries given in ``change``); pieces 2..8 become segments 1..7
     and the first two pieces (the half sinker and the first segment) segment 0, a
     quintic fitted to them by least squares with its ends held. The free state is read
-    off these segments with its joints at equal fractions of the arclength
-    (``ansatz.to_free`` without its fit, ``evenly_jointed``: the fit turns the lopsided
-    first segment back on itself), and the rib geometry closes it through the glide. On the
+    off these segments (``ansatz.to_free``: each joint's frame from the segment leaving
+    it, so every joint is G2), and the rib geometry closes it through the glide. On the
     seven Init files at L = 11 mm this has seed's crossing signs and order with min ζ
     >= 0.1 and a yarn length of 15.15–15.19 mm (tests)."""
     par = {**SEED_MAP, **change}
@@ -98,5 +97,4 @@ def seed_start(cp: np.ndarray, a_x: float, a_y: float, **change: float) -> np.nd
     out[0, 0], out[0, 5] = mapped[0, 0], mapped[2, 0]
     rhs = target - np.outer(b[:, 0], out[0, 0]) - np.outer(b[:, 5], out[0, 5])
     out[0, 1:5] = np.linalg.lstsq(b[:, 1:5], rhs, rcond=None)[0]
-    return to_free(out, par["stretch_x"] * a_x, par["stretch_y"] * a_y, glide=True,
-                   fit=False)
+    return to_free(out, par["stretch_x"] * a_x, par["stretch_y"] * a_y)

@@ -4,7 +4,7 @@ Every control point of the cell's 8 quintic segments is free, subject only to G2
 every joint (continuity by construction) and the yarn length; it contains the paper's
 ansatz exactly (``ansatz.to_free``) and measures how much that ansatz restricts.
 
-* ``layout``: the 79 entries, bounds, bending weights (all 1), starts;
+* ``layout``: the 87 entries, bounds, bending weights (all 1), starts;
 * ``geometry``: state -> control points with their exact Jacobian (numba);
 * ``ansatz``: a stockinette state's control points -> the free state.
 """

@@ -8,17 +8,15 @@ tangent t and curvature vector cv, the segment that leaves it has
 
 and the segment that reaches it, with σ = −1 in place of +1,
 
-    P5 = p,   P4 = p − (α/5) t,   P3 = p − (α/5 + β1) t + (α²/20) cv,
+    P5 = p,   P4 = p − (α1/5) t,   P3 = p − (α1/5 + β1) t + (α1²/20) cv,
 
 so both leave or reach p with tangent t and curvature vector cv: G2 by construction.
-Both use the joint's one speed α (``layout``: the gauge of the joints sliding along the
-yarn); the offsets β0, β1 are the segment's own.
 t = (sin θ cos φ, sin θ sin φ, cos θ), cv = k1 e_θ + k2 e_φ with e_θ = ∂t/∂θ,
 e_φ = (−sin φ, cos φ, 0); their derivatives (∂e_θ/∂θ = −t, ∂e_θ/∂φ = cos θ e_φ,
 ∂e_φ/∂φ = −sin θ t − cos θ e_θ) are written out, so the Jacobian is exact.
 
-Conventions: state ``x`` (79,) as in ``layout``; ``cp`` (8, 6, 3) mm in path order;
-``jac`` (8, 6, 3, 79), ``jac[s, i, c, k] = d cp[s, i, c] / d x[k]``.
+Conventions: state ``x`` (87,) as in ``layout``; ``cp`` (8, 6, 3) mm in path order;
+``jac`` (8, 6, 3, 87), ``jac[s, i, c, k] = d cp[s, i, c] / d x[k]``.
 """
 
 from __future__ import annotations
@@ -34,8 +32,7 @@ from .layout import IDX_AX, JOINT0, N_JOINTS, N_SEGMENTS, PER_JOINT, PER_SEGMENT
 def _joint_frame(x, j, fr):
     """Joint j's frame into ``fr`` (8, 3): rows p, t, cv, dt/dθ, dt/dφ, dcv/dθ,
     dcv/dφ, e_φ (e_θ = dt/dθ is row 3); returns the column of its first angle θ and
-    the column of its point (−1 for joint 0, pinned at the origin); its speed α is
-    column θ + 4."""
+    the column of its point (−1 for joint 0, pinned at the origin)."""
     if j == 0:
         ip, ia = -1, 0
         fr[0, :] = 0.0
@@ -63,12 +60,11 @@ def _joint_frame(x, j, fr):
 @njit(cache=True)
 def _half(x, fr, ia, ip, ib, sigma, slots, cp, jac):
     """Control points ``slots`` (3,) = (on the joint, first, second) of one segment end,
-    from the joint frame ``fr`` (``_joint_frame``), the joint's speed α (column
-    ``ia + 4``) and the end's offset β at column ``ib``; ``sigma`` +1 where the segment
-    leaves the joint, −1 where it reaches it. Writes cp[slot] (3,) and jac[slot] (3, n)
-    (columns of this end only: the caller zeroes jac first)."""
-    iv = ia + 4
-    a, b = x[iv], x[ib]
+    from the joint frame ``fr`` (``_joint_frame``) and the end's (α, β) at columns
+    ``ib``, ``ib + 1``; ``sigma`` +1 where the segment leaves the joint, −1 where it
+    reaches it. Writes cp[slot] (3,) and jac[slot] (3, n) (columns of this end only:
+    the caller zeroes jac first)."""
+    a, b = x[ib], x[ib + 1]
     c1 = sigma * a / 5.0  # P1 - p = c1 t
     c2 = sigma * (a / 5.0 + b)  # P2 - p = c2 t + q cv
     q = a * a / 20.0
@@ -88,15 +84,15 @@ def _half(x, fr, ia, ip, ib, sigma, slots, cp, jac):
         jac[s2, c, ia + 1] = c2 * fr[4, c] + q * fr[6, c]
         jac[s2, c, ia + 2] = q * fr[3, c]
         jac[s2, c, ia + 3] = q * fr[7, c]
-        # the joint's speed and this end's offset
-        jac[s1, c, iv] = sigma * t / 5.0
-        jac[s2, c, iv] = sigma * t / 5.0 + (a / 10.0) * cv
-        jac[s2, c, ib] = sigma * t
+        # this end's speed and offset
+        jac[s1, c, ib] = sigma * t / 5.0
+        jac[s2, c, ib] = sigma * t / 5.0 + (a / 10.0) * cv
+        jac[s2, c, ib + 1] = sigma * t
 
 
 @njit(cache=True)
 def state_to_control_points(x, cp, jac):
-    """Fill ``cp`` (8, 6, 3) and ``jac`` (8, 6, 3, 79) from the free state ``x`` (79,)
+    """Fill ``cp`` (8, 6, 3) and ``jac`` (8, 6, 3, 87) from the free state ``x`` (87,)
     (docs/model.md §11); segment 7 ends at joint 0 shifted by t_c = (a_x, 0, 0)."""
     closed_control_points(x, cp, jac, False)
 
@@ -116,7 +112,7 @@ def closed_control_points(x, cp, jac, mirrored):
         s_out = j  # the segment leaving joint j
         s_in = (j - 1) % N_SEGMENTS  # the segment reaching it
         b_out = SEG0 + PER_SEGMENT * s_out
-        b_in = SEG0 + PER_SEGMENT * s_in + 1
+        b_in = SEG0 + PER_SEGMENT * s_in + 2
         _half(x, fr, ia, ip, b_out, 1.0, start_slots, cp[s_out], jac[s_out])
         if j == 0 and mirrored:  # the mirrored frame: M t, M cv and their derivatives
             for row in range(1, 8):

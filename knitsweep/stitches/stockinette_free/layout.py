@@ -4,19 +4,14 @@ The yarn of one stitch cell is 8 quintic Bézier segments in the stockinette pat
 (docs/model.md §4), with nothing tied to crossovers: each of the 8 joints (joint j is
 where segment j starts; segment 7 ends at joint 0 shifted by t_c) carries its point p,
 its unit tangent t(θ, φ) and its curvature vector cv = k1 e_θ + k2 e_φ, normal to t by
-construction, and its speed α, the same for both segments that meet there; each segment
-end carries its own offset β. The control-point rule of §3 then makes every joint G2
-whatever the state. One speed per joint (the parametrisation's speed continuous along
-the yarn) fixes the gauge of the joints sliding along the yarn: a G2 chain of quintics
-with a speed of its own at each segment end can move a joint along the curve with the
-curve nearly unchanged (eight near-flat modes, docs/model.md §11), and equal speeds on
-both sides pin each joint where the segments beside it are parametrised alike, so the
-contact samples (at fixed curve parameters, §6) stay as dense on one side of a joint as
-on the other. Joint 0 sits at the origin (the energy does not change under a
-translation of the yarn; pinning it removes the three flat modes), so a state is
+construction; each segment end carries its own speed α and offset β. The control-point
+rule of §3 then makes every joint G2 whatever the state, and every G2 chain of quintics
+with positive end speeds is one state. Joint 0 sits at the origin (the energy does not
+change under a translation of the yarn; pinning it removes the three flat modes), so a
+state is
 
-    x = (θ0, φ0, k1_0, k2_0, α_0,  [p_j (3), θ_j, φ_j, k1_j, k2_j, α_j] for j = 1..7,
-         [β0_s, β1_s] for s = 0..7,  a_x, a_y)                        shape (79,)
+    x = (θ0, φ0, k1_0, k2_0,  [p_j (3), θ_j, φ_j, k1_j, k2_j] for j = 1..7,
+         [α0_s, β0_s, α1_s, β1_s] for s = 0..7,  a_x, a_y)           shape (87,)
 
 in mm and rad (k in 1/mm). The tangent angles are spherical about z:
 t = (sin θ cos φ, sin θ sin φ, cos θ); stockinette's tangents stay within 21° of the
@@ -31,16 +26,16 @@ N_JOINTS = 8
 """Joints of the cell's path (joint j starts segment j)."""
 N_SEGMENTS = 8
 """Quintic Bézier segments of the cell (stockinette's path order, docs/model.md §4)."""
-JOINT0 = 5
-"""Entries of joint 0 (its point is pinned at the origin): θ, φ, k1, k2, α."""
-PER_JOINT = 8
-"""Entries of joints 1..7: p (3), θ, φ, k1, k2, α."""
-PER_SEGMENT = 2
-"""Entries of a segment: β0 (at its start), β1 (at its end)."""
+JOINT0 = 4
+"""Entries of joint 0 (its point is pinned at the origin): θ, φ, k1, k2."""
+PER_JOINT = 7
+"""Entries of joints 1..7: p (3), θ, φ, k1, k2."""
+PER_SEGMENT = 4
+"""Entries of a segment: α0, β0 (at its start), α1, β1 (at its end)."""
 SEG0 = JOINT0 + PER_JOINT * (N_JOINTS - 1)
-"""First segment entry (61)."""
+"""First segment entry (53)."""
 N_STATE = SEG0 + PER_SEGMENT * N_SEGMENTS + 2
-"""Entries of a state vector (79)."""
+"""Entries of a state vector (87)."""
 IDX_AX = N_STATE - 2
 IDX_AY = N_STATE - 1
 
@@ -50,18 +45,12 @@ def joint_start(j: int) -> int:
     return 0 if j == 0 else JOINT0 + PER_JOINT * (j - 1)
 
 
-def speed_index(j: int) -> int:
-    """Index of joint j's speed α."""
-    return joint_start(j) + (4 if j == 0 else 7)
-
-
 def _names() -> tuple[str, ...]:
-    names = ["theta0", "phi0", "k1_0", "k2_0", "alpha_0"]
+    names = ["theta0", "phi0", "k1_0", "k2_0"]
     for j in range(1, N_JOINTS):
-        names += [f"px{j}", f"py{j}", f"pz{j}", f"theta{j}", f"phi{j}", f"k1_{j}", f"k2_{j}",
-                  f"alpha_{j}"]  # fmt: skip
+        names += [f"px{j}", f"py{j}", f"pz{j}", f"theta{j}", f"phi{j}", f"k1_{j}", f"k2_{j}"]
     for s in range(N_SEGMENTS):
-        names += [f"beta0_{s}", f"beta1_{s}"]
+        names += [f"alpha0_{s}", f"beta0_{s}", f"alpha1_{s}", f"beta1_{s}"]
     return (*names, "a_x", "a_y")
 
 
@@ -78,18 +67,22 @@ STARTS = tuple(f"Init_{i}.dat" for i in range(1, 8))
 """The authors' seven starting states mapped into the free yarn (``ansatz.to_free``)."""
 
 
-SPEED_BOUNDS = (1e-3, 1.0)
-"""Joint speeds α in units of the yarn length L: positive (a regular curve) and at most
-the yarn's length. Neither binds at a relaxed state: with one speed per joint the
-segments beside a joint are parametrised alike, and no box is needed to keep the
-samples dense (the box [0.05, 0.3] L of earlier versions bound at every pattern minimum,
-docs/model.md §11, "Resolution")."""
+SPEED_BOUNDS = (0.05, 0.3)
+"""End speeds α of a segment, in units of the yarn length L (an eighth of the yarn per
+segment is 0.125 L). The contact samples sit at fixed curve parameters (docs/model.md
+§6), so a segment's samples are as far apart as its speed makes them: with speeds down to
+10⁻³ L a relaxation shortens some segments to ~0.02 mm and stretches others, and the
+sparse samples let hard cores pass between them (docs/model.md §11, "Resolution")."""
+OFFSET_BOUND = 0.125
+"""|β| <= 0.125 L: the second control point's offset along the tangent, within an eighth
+of the yarn (as far as one segment's share)."""
 
 
 def state_bounds(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
-    """Generous bounds (lower, upper), each (79,), for yarn length L and radius r (mm);
-    ±inf where free (angles, offsets β): speeds in ``SPEED_BOUNDS`` × L, curvature
-    components within 10/r, joint points within L of joint 0, periods in [r/2, L]."""
+    """Generous physical bounds (lower, upper), each (87,), for yarn length L and radius
+    r (mm); ±inf where free (angles). As stockinette's (§2): speeds in [1e-3 L, L/2],
+    curvature components within 10/r, offsets within L/4, joint points within L of
+    joint 0, periods in [r/2, L]."""
     lo = np.full(N_STATE, -np.inf)
     hi = np.full(N_STATE, np.inf)
     for j in range(N_JOINTS):
@@ -98,7 +91,12 @@ def state_bounds(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
             lo[s : s + 3], hi[s : s + 3] = -L, L
             s += 3
         lo[s + 2 : s + 4], hi[s + 2 : s + 4] = -10.0 / r, 10.0 / r
-        lo[s + 4], hi[s + 4] = SPEED_BOUNDS[0] * L, SPEED_BOUNDS[1] * L
+    for s in range(N_SEGMENTS):
+        b = SEG0 + PER_SEGMENT * s
+        for i in (b, b + 2):
+            lo[i], hi[i] = SPEED_BOUNDS[0] * L, SPEED_BOUNDS[1] * L
+        for i in (b + 1, b + 3):
+            lo[i], hi[i] = -OFFSET_BOUND * L, OFFSET_BOUND * L
     lo[IDX_AX] = lo[IDX_AY] = 0.5 * r
     hi[IDX_AX] = hi[IDX_AY] = L
     return lo, hi
