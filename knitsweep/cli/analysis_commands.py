@@ -22,6 +22,7 @@ from .common import (
     app,
     check_range,
     compile_notice,
+    flag,
     option,
     stitch_inputs,
     user_errors,
@@ -49,7 +50,7 @@ def phase_diagram(
                default="<first results>_phase_diagram"),
     ] = None,
     threshold: ThresholdOpt = None,
-    no_figures: Annotated[bool, typer.Option("--no-figures", help="write the tables only")] = False,
+    figures: Annotated[bool, flag("--figures", help="the figures as well as the tables")] = True,
     formats: Annotated[
         str, typer.Option("--format", help="figure formats, comma-separated: png, pdf, svg")
     ] = "png",
@@ -57,7 +58,7 @@ def phase_diagram(
         str, typer.Option("--width", help="figure width: auto, column (3.4 in) or page "
                           "(7.0 in), journal widths with 7-8 pt fonts")
     ] = "auto",
-    no_title: Annotated[bool, typer.Option("--no-title", help="figures without titles")] = False,
+    title: Annotated[bool, flag("--title", help="figures with titles")] = True,
     style: Annotated[
         str | None, option("--style", help="matplotlib style (name or file), or knitsweep",
                            default="your matplotlibrc")
@@ -77,11 +78,11 @@ def phase_diagram(
         if out is not None:
             check_output_dir(out, "--out")
         options = FigureOptions(tuple(f.strip() for f in formats.split(",") if f.strip()), width,
-                                not no_title, style)  # fmt: skip
+                                title, style)  # fmt: skip
         # as JSON: the object alone on stdout, each file on stderr as it is written
         progress = (lambda line: line.startswith("wrote ") and typer.echo(line, err=True)
                     ) if as_json else typer.echo  # fmt: skip
-        report = make_phase_diagram(results, out, threshold, figures=not no_figures,
+        report = make_phase_diagram(results, out, threshold, figures=figures,
                                     options=options, progress=progress)  # fmt: skip
     if as_json:
         red = report.reduction
@@ -118,7 +119,9 @@ def report(
 
 @app.command()
 def render(
-    out: Annotated[Path, typer.Option("--out", help="image to write: .png, .pdf or .svg")],
+    out: Annotated[Path, typer.Option("--out", help="file to write: a picture (.png, .pdf, "
+                                      ".svg) or the tile's yarn in 3D (.vtp, .vtu for "
+                                      "ParaView; .ply, .obj for Blender)")],
     results: Annotated[
         Path | None, typer.Option("--results", help="results file written by knitsweep run")
     ] = None,
@@ -130,63 +133,99 @@ def render(
                            "index)", default="0, the zero-force state")
     ] = None,
     state: Annotated[
-        Path | None, typer.Option("--state", help="a state (Init) file instead")
+        Path | None, option("--state", help="a state (Init) file instead",
+                            default="without --results: the stitch relaxed at the parameters")
     ] = None,
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
     r_core: RcOpt = None, stitch: StitchOpt = None, config: ConfigOpt = None,
+    preset: Annotated[str | None, option("--preset", help="relaxing (no --state, no "
+                                         "--results): the fidelity preset",
+                                         default="converged")] = None,
+    starts: Annotated[int, typer.Option("--starts", help="relaxing: shipped starts to relax "
+                                        "from, the lowest energy kept")] = 1,
     radius: Annotated[
         float | None,
-        option("--radius", help="tube radius to draw (mm)",
-               default="0.68 r, the paper's 0.5 mm for r = 0.74 mm"),
+        option("--radius", help="tube radius to draw (mm)", default="the yarn radius r"),
     ] = None,
-    cells: Annotated[int, typer.Option("--cells", help="stitches per side of the picture")] = 3,
+    core: Annotated[bool, typer.Option("--core", help="draw the incompressible cores (radius "
+                                       "r_core) instead of the yarn")] = False,
+    cells: Annotated[str | None, option(
+        "--cells", help="stitches across and rows: N or NxM",
+        default="two repeats of the pattern each way, at least 3")] = None,
     side: Annotated[str, typer.Option("--side", help="face (knit side) or back (purl side)")] = "face",
     elevation: Annotated[
         float, typer.Option("--elevation", help="view angle above the fabric plane (°)")
     ] = 72.0,
     width: Annotated[int, typer.Option("--pixels", help="image width (pixels)")] = 1100,
-    highlight: Annotated[bool, typer.Option("--highlight", help="wash out all stitches but the "
+    highlight: Annotated[bool, flag("--highlight", help="wash out all stitches but the "
                                             "unit cell")] = False,
-    contact_volumes: Annotated[bool, typer.Option(
+    contact_volumes: Annotated[bool, flag(
         "--contact-volumes", help="draw the stitch's contact volumes by class instead (paper "
         "Fig. 6a-e)")] = False,
     volume_points: Annotated[int, typer.Option(
         "--volume-points", help="--contact-volumes: tube points, a power of 2")] = 1 << 15,
 ) -> None:  # fmt: skip
     """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a, or with
-    --contact-volumes their contact volumes (Fig. 6a-e): a task of a results file (point,
-    or sweep at --strain-step) or a state file."""
+    --contact-volumes their contact volumes (Fig. 6a-e), or write the tile's yarn as a 3D
+    file: a task of a results file (point, or sweep at --strain-step), a state file, or
+    the stitch relaxed at the parameters given (--stitch, --L, ...)."""
     from ..errors import InputError
     from ..report import render as rendering
 
     with user_errors():
         params = None
         flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core, "stitch": stitch}
-        if state is not None:
+        given = [f"--{n.replace('_', '-')}" for n, v in {**flags, "config": config}.items()
+                 if v is not None]  # fmt: skip
+        if results is not None and given:
+            raise InputError(f"{', '.join(given)}: a results file holds its own parameters; "
+                             "drop them to draw --results, or draw a --state or a relaxation "
+                             "(neither --results nor --state) with them")  # fmt: skip
+        if results is None:
             params, _ = stitch_inputs(config, **flags)
-        elif config is not None or any(v is not None for v in flags.values()):
-            raise InputError("--L, --B, --k, --p, --r, --r-core, --stitch and --config apply to "
-                             "--state; "
-                             "a results file holds its own parameters")  # fmt: skip
+        if results is not None or state is not None:
+            if preset is not None or starts != 1:
+                raise InputError("--preset and --starts apply to a relaxation (neither "
+                                 "--results nor --state)")  # fmt: skip
+        else:
+            from ..presets import check_preset
+
+            if preset is not None:
+                check_preset(preset)
+            check_range("starts", starts, 1, 64)
+        grid = parse_cells(cells)
+        if results is None and state is None:
+            compile_notice(params.stitch if params is not None else None)
         if contact_volumes:
             from ..report.contact_volumes import render_contact_volumes
 
-            path, stitch = render_contact_volumes(
-                out,
-                results=results,
-                task=task,
-                step=step,
-                state=state,
-                params=params,
-                samples=volume_points,
-            )
-        else:
-            path, stitch = rendering.render(
+            path, drawn = render_contact_volumes(
                 out, results=results, task=task, step=step, state=state, params=params,
-                radius=radius, cells=cells, side=side, elevation_deg=elevation, width_px=width,
-                highlight=highlight,
+                samples=volume_points, preset=preset, starts=starts,
             )  # fmt: skip
-    typer.echo(f"wrote {path}: {stitch.label}")
+        else:
+            path, drawn = rendering.render(
+                out, results=results, task=task, step=step, state=state, params=params,
+                radius=radius, cells=grid, side=side, elevation_deg=elevation, width_px=width,
+                highlight=highlight, core=core, preset=preset, starts=starts,
+            )  # fmt: skip
+    typer.echo(f"wrote {path}: {drawn.name}, {drawn.label}")
+
+
+def parse_cells(cells: str | None) -> tuple[int, int] | None:
+    """``--cells``: "N" (N × N) or "NxM" (N across, M rows)."""
+    from ..errors import InputError
+
+    if cells is None:
+        return None
+    parts = cells.lower().replace("×", "x").split("x")
+    try:
+        values = [int(v) for v in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 2):
+        raise InputError(f"cells = {cells!r}: give N or NxM (stitches across x rows)")
+    return (values[0], values[-1])
 
 
 @app.command()
