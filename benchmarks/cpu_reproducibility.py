@@ -49,7 +49,7 @@ def series(path: Path) -> tuple[dict, int]:
 
     res = ks.load(path)
     rows = {(r.stitch, r.direction): r for r in res.transitions.itertuples()}
-    return rows, len(res.problems)
+    return rows, int(res.problems["status"].isin(["failed", "damaged"]).sum())
 
 
 def main() -> int:
