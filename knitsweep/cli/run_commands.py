@@ -59,9 +59,11 @@ def run(
     seconds = summary.seconds  # (the compile, on a cold install, inside it)
     compiled = (f" ({summary.compile_seconds:.1f} s of it compiling the kernels, cached from now "
                 "on)" if summary.compile_seconds else "")  # fmt: skip
+    redone = (f"; {summary.redone} sweeps computed again from a lower zero-force state that "
+              "another sweep of their point found" if summary.redone else "")  # fmt: skip
     typer.echo(f"{summary.out}: {c['done']} done, {c['failed']} failed, {c['not_knittable']} not "
-               f"knittable of {summary.total} tasks ({summary.skipped} already finished) in "
-               f"{seconds:.1f} s{compiled}", err=True)  # fmt: skip
+               f"knittable of {summary.total} tasks ({summary.skipped} already finished{redone}) "
+               f"in {seconds:.1f} s{compiled}", err=True)  # fmt: skip
     for line in summary.failures[:10]:
         typer.echo(f"  failed: {line}", err=True)
     if summary.exit_code == EXIT_TASKS_FAILED:

@@ -40,7 +40,7 @@ from .adaptive import Refiner
 from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, series_key, sweep_task
 from .progress import RunProgress, task_line
 from .signals import EXIT_INTERRUPTED, Interrupted
-from .worker import Reply
+from .worker import REST_POINT, Reply
 
 COMMIT_AGE_S = 0.2
 """A result waits at most about this long for its batch's commit while replies keep
@@ -61,6 +61,7 @@ class RunSummary:
     failures: list[str] = field(default_factory=list)
     storage_error: str = ""
     compile_seconds: float = 0.0  # compiling the kernels before the run (a cold install)
+    redone: int = 0  # sweeps computed again from a lower zero-force state a sweep found
 
     @property
     def exit_code(self) -> int:
@@ -130,6 +131,12 @@ class _Master:
         for e in writer.entries():
             if str(e.meta.get("status")) != FAILED or not retry_failed or e.kind == SERIES:
                 self.finished[e.kind][e.task_id] = e.meta
+        self._redone: set[str] = set()  # sweeps to compute again: their point's rest moved
+        for tid, meta in list(self.finished[SWEEPS].items()):
+            point = self.finished[POINTS].get(str(meta.get("point_id")))
+            if point is not None and self._stale(meta, point):
+                del self.finished[SWEEPS][tid]  # pulled from a zero-force state since replaced
+                self._redone.add(tid)
         self.refiner = Refiner(job) if job.mode == "adaptive" else None
         for p in points:
             self._request(p, job.directions)
@@ -231,8 +238,48 @@ class _Master:
         self.finished[SWEEPS][s.task_id] = meta
         self._count(str(meta["status"]))
         if self.refiner is not None:
+            if s.task_id in self._redone:  # its series' stored bracket may have used the old gap
+                params = self.points[s.point_id].params
+                self.finished[SERIES].pop(self.refiner.key(params, s.direction), None)
             self.refiner.observe(meta)
             self._refine()
+        self._redone.discard(s.task_id)
+
+    # -- a lower zero-force state found by a sweep (strain_sweep: "no hidden branch")
+    def _stale(self, sweep_meta: dict[str, Any], point_meta: dict[str, Any]) -> bool:
+        """Whether a sweep was pulled from a zero-force state higher (by more than the
+        protocol's rest tolerance) than its point's present one."""
+        pulled, rest = sweep_meta.get("rest_energy"), point_meta.get("rest_energy")
+        if pulled is None or rest is None:  # written before sweeps checked their rest
+            return False
+        return float(pulled) > float(rest) + self.job.protocol.rest_tolerance_mJ
+
+    def _new_rest(self, pid: str, record: dict[str, Any], found_by: SweepTask) -> None:
+        """A sweep of point ``pid`` found a lower zero-force state and started over from
+        it: ``record`` becomes the point's record (flagged ``rest_found_by``), and the
+        point's other sweeps already recorded are computed again from it (those still
+        running are when they come back, ``_handle``)."""
+        record = dict(record)
+        status, message = record.pop("status"), record.pop("message")
+        arrays, scalars = split_record(record)
+        meta = {**self.finished[POINTS][pid], "status": status, "message": message, **scalars}
+        self.writer.add(POINTS, pid, arrays, meta)
+        self.finished[POINTS][pid] = meta
+        self.zero[pid] = {**arrays, **meta}
+        for s in [s for s in self.sweeps.values() if s.point_id == pid and s is not found_by]:
+            if s.task_id in self.finished[SWEEPS] and self._stale(self.finished[SWEEPS][s.task_id],
+                                                                   meta):  # fmt: skip
+                del self.finished[SWEEPS][s.task_id]
+                self._redo(s)
+
+    def _redo(self, s: SweepTask) -> None:
+        """Compute sweep ``s`` again (from its point's present zero-force state): one
+        more task for the counts and the display."""
+        self._redone.add(s.task_id)
+        self.summary.redone += 1
+        self.summary.total += 1
+        self.progress.add_tasks("sweep")
+        self.ready_sweeps.append((s, self._payload(s.point_id)))
 
     def _refine(self) -> None:
         for key, state in self.refiner.states():
@@ -284,7 +331,10 @@ class _Master:
                 queue = self.ready_sweeps or self.ready_points
                 if not queue:
                     break
-                self.executor.submit(*queue.popleft())
+                task, payload = queue.popleft()
+                if isinstance(task, SweepTask):  # its point's zero-force state as it is now
+                    payload = self._payload(task.point_id)
+                self.executor.submit(task, payload)
             reply = self.executor.next_reply(timeout=0.25, idle=self._commit)
             if reply is not None:
                 self._handle(reply)
@@ -307,6 +357,13 @@ class _Master:
             else:
                 self.ready_sweeps.appendleft((task, self._payload(task.point_id)))
             return
+        if reply.error is None and isinstance(task, SweepTask):
+            point = self.finished[POINTS].get(task.point_id, {})
+            if REST_POINT not in reply.record and self._stale(reply.record, point):
+                # pulled from a zero-force state that another sweep of the point has since
+                # replaced by a lower one: not a result; compute it again from that one
+                self.ready_sweeps.append((task, self._payload(task.point_id)))
+                return
         if reply.error is not None:
             status = FAILED
             message = f"failed: {reply.error['kind']}: {reply.error['message']}"
@@ -318,6 +375,9 @@ class _Master:
             record = dict(reply.record)
             status = record.pop("status")
             message = record.pop("message")
+            rest = record.pop(REST_POINT, None)
+            if rest is not None:
+                self._new_rest(task.point_id, rest, task)
         record, scalars = split_record(record)
         meta = self._meta(task, status, message, reply) | scalars
         kind = "sweep" if isinstance(task, SweepTask) else "point"
