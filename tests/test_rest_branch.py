@@ -140,3 +140,29 @@ def test_a_lower_rest_found_by_one_sweep_is_the_points_and_the_other_is_pulled_a
         e = np.asarray(s.record["total_energy"])
         assert e[0] == rest and np.all(e >= rest - TOL)
         assert np.array_equal(s.record["states"][0], point.record["x"][w])
+
+
+def test_a_lower_minimum_with_other_crossings_is_not_the_points_rest(monkeypatch):
+    """A free yarn pulled far comes apart (stockinette_free at 12.2 mm, k = 0.5 mN/mm²,
+    pulled in x: at strain 0.93 its relaxation at zero force ends as the yarn pulled
+    straight, E = 0): a lower minimum whose rows cross otherwise is another fabric, and
+    the sweep keeps its zero-force state. Here the relaxation's state is given its rows
+    pulled apart (a_y tripled), which changes its crossings at no cost of compute."""
+    import knitsweep.strain_sweep.sweep as sweep_module
+
+    params = StitchParams(stitch="stockinette_free", L_mm=11.6, k_mN_per_mm2=0.1)
+    zf = zero_force(params, NUM.fidelity, NUM.solver, StartSettings(count=1), 2025)
+    higher = _held_off(params, zf, "x", 0.99)
+    real = sweep_module.relax_at_rest
+
+    def apart(model, x, solver=None):
+        r = real(model, x, solver)
+        y = r.x.copy()
+        y[-1] *= 3.0
+        return dataclasses.replace(r, x=y)
+
+    monkeypatch.setattr(sweep_module, "relax_at_rest", apart)
+    sweep = strain_sweep(params, higher, "x", NUM.protocol, NUM.fidelity, NUM.solver)
+    assert sweep.rest_restarts == 0 and sweep.rest is None
+    assert "other crossings" in sweep.rest_found and "kept the first" in sweep.rest_found
+    assert sweep.total_energy[0] == higher.best.total_energy

@@ -35,6 +35,7 @@ from ..config import (
 )
 from ..model import CellModel
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
+from ..stitches.topology import topology_word
 from ..zero_force import ZeroForce, pick_lowest, relax_at_rest, zero_force
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
@@ -210,9 +211,20 @@ def _lower_rest(model, zero, start, step, direction, strain, fall, solver, toler
     if lower.status != CONVERGED or not rest - lower.total_energy > tolerance:
         return None, (f"{where}; relaxed again at zero force from there: "
                       f"{lower.total_energy:.7f} mJ ({lower.status}), kept the first")  # fmt: skip
+    if _crossings(model, lower.x) != _crossings(model, zero.best.x):
+        # another fabric (a free yarn pulled straight, rows apart): not this point's rest
+        return None, (f"{where}; relaxed again at zero force from there: "
+                      f"{lower.total_energy:.7f} mJ with other crossings than the zero-force "
+                      "state's (another fabric), kept the first")  # fmt: skip
     note = (f"{where}; relaxed again at zero force from there: {lower.total_energy:.7f} mJ, "
             "the zero-force state from then on")  # fmt: skip
     return zero.with_lower_minimum(start, lower, note), note
+
+
+def _crossings(model: CellModel, x: np.ndarray) -> tuple:
+    """How the rows of state ``x`` cross one another in projection (``topology_word``: the
+    word a relaxation of a pattern must keep), for any stitch."""
+    return topology_word(model.control_points(x), x[-2], x[-1], model.stitch.mirror_parity)
 
 
 def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettings) -> list[Chain]:
