@@ -114,6 +114,8 @@ def status(
             typer.echo(f"  {name} = {value}: {listing}")
     for line in s["failures"][:20]:
         typer.echo(f"  failed {line}")
+    for line in s["failed_series"]:
+        typer.echo(f"  failed series {line}")
     for line in s["journal_problems"]:
         typer.echo(f"  malformed journal entry {line}: its task is recomputed on resume")
     for line in s["check"]:

@@ -172,7 +172,8 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
             group = groups.setdefault(plain_value(value), {})
             group[s] = group.get(s, 0) + 1
         if s == FAILED:
-            failures.append(f"{e.kind[:-1]} {e.task_id}: {e.meta.get('message', '')}")
+            failures.append(f"{e.kind[:-1]} {e.task_id} ({_where(e.meta)}): "
+                            f"{e.meta.get('message', '')}")  # fmt: skip
     live = read_progress(path)
     fresh = (
         live is not None
@@ -217,7 +218,22 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
             "done": sum(m.get("status") == "done" for m in series),
             "total": len(series),
         },
+        "failed_series": [
+            f"{_where(m)}: {m.get('message', '')}" for m in series if m.get("status") == FAILED
+        ],
     }
+
+
+def _where(meta: dict[str, Any]) -> str:
+    """'x, L = 9.3 mm, stitch = seed, k = 0.1': a task's or a series' direction and the
+    parameters that tell it from its neighbours in a study."""
+    parts = [str(meta["direction"])] if meta.get("direction") else []
+    if meta.get("L_mm") is not None:
+        parts.append(f"L = {plain_value(meta['L_mm']):g} mm")
+    parts.append(f"stitch = {meta.get('stitch', DEFAULT_STITCH)}")
+    if meta.get("k_mN_per_mm2") is not None:
+        parts.append(f"k = {plain_value(meta['k_mN_per_mm2']):g}")
+    return ", ".join(parts)
 
 
 def _wall_seconds(root: dict[str, Any]) -> float:
