@@ -125,3 +125,25 @@ def test_the_refiner_names_the_failed_point_of_a_series(data_dir):
     message = refiner.series_meta(key, state)["message"]
     assert message.startswith("failed: point L=")
     assert "(zero-force state: no start converged)" in message
+
+
+def test_patterns_are_quoted_against_the_free_stockinette_yarn(tmp_path):
+    """Every transition row carries its shift against the free stockinette yarn and the
+    ansatz of the same series (the synthetic stitches share their data: shifts 0); the
+    text table shows them; without a free yarn there is nothing to quote against."""
+    from pathlib import Path
+
+    from knitsweep.report.tables import transitions_text
+    from knitsweep.service.jobs import load_job
+
+    red = reduce_results(write_results(tmp_path / "p.h5", ks=(0.1,),
+                                       stitches=("stockinette", "stockinette_free", "rib")))  # fmt: skip
+    assert {t["stitch"] for t in red.transitions} == {"stockinette", "stockinette_free", "rib"}
+    for t in red.transitions:
+        assert t["shift_vs_free"] == 0.0 and t["shift_vs_ansatz"] == 0.0
+    assert "vs free" in transitions_text(red) and "vs ansatz" in transitions_text(red)
+    alone = reduce_results(write_results(tmp_path / "a.h5", ks=(0.1,), stitches=("rib",)))
+    assert all(t["shift_vs_free"] is None for t in alone.transitions)
+    assert "vs free" not in transitions_text(alone)
+    job = load_job(Path(__file__).parents[1] / "jobs" / "patterns_k0.1.toml")
+    assert {"stockinette", "stockinette_free"} <= set(job.stitches)
