@@ -72,7 +72,7 @@ def mechanics_table(red: Reduction) -> tuple[list[str], dict[str, list[float]]]:
     rows = {(r["stitch"], r["k_mN_per_mm2"], r["L_mm"], r["direction"]): r for r in red.sweeps}
     keys = sorted({(k, L, d) for _, k, L, d in rows})
     out = ["| k (mN/mm²) | L (mm) | pulled | Y_sec ansatz (N/mm) | Y_sec free | free ÷ ansatz | "
-           "σ0 ansatz (N/mm) | σ0 free | jammed (ansatz, free) |",
+           "σ0 ansatz (N/mm) | σ0 free | jammed over the whole curve (ansatz, free) |",
            "|---:|---:|---|---:|---:|---:|---:|---:|---|"]  # fmt: skip
     ratios: dict[str, list[float]] = {"x": [], "y": []}
     for k, L, d in keys:
