@@ -26,7 +26,6 @@ import socket
 import sys
 import time
 from collections import deque
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -37,69 +36,15 @@ from ..store.journal import StorageError, atomic_write_bytes
 from ..store.writer import ResultWriter
 from . import signals
 from .adaptive import Refiner
-from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, series_key, sweep_task
+from .jobs import JobSpec, PointTask, SweepTask, point_task, series_key, sweep_task
 from .progress import RunProgress, task_line
-from .signals import EXIT_INTERRUPTED, Interrupted
+from .run_plan import RunSummary, shard_tasks, varying_parameters
+from .signals import Interrupted
 from .worker import REST_POINT, Reply
 
 COMMIT_AGE_S = 0.2
 """A result waits at most about this long for its batch's commit while replies keep
 arriving (the master commits at once when it has nothing else to do)."""
-
-EXIT_TASKS_FAILED = 4
-"""Exit code of a run that finished but whose file holds failed tasks (README)."""
-
-
-@dataclass
-class RunSummary:
-    out: Path
-    total: int
-    counts: dict[str, int] = field(default_factory=lambda: {DONE: 0, FAILED: 0, "not_knittable": 0})
-    skipped: int = 0
-    interrupted: bool = False
-    seconds: float = 0.0
-    failures: list[str] = field(default_factory=list)
-    storage_error: str = ""
-    compile_seconds: float = 0.0  # compiling the kernels before the run (a cold install)
-    redone: int = 0  # sweeps computed again from a lower zero-force state a sweep found
-
-    @property
-    def exit_code(self) -> int:
-        """3 if interrupted, 4 if any task of the file failed (this run's or an earlier
-        one's not retried), else 0; a not-knittable point is a result, not a failure."""
-        if self.interrupted:
-            return EXIT_INTERRUPTED
-        return EXIT_TASKS_FAILED if self.counts.get(FAILED, 0) else 0
-
-
-def parse_shard(text: str | None) -> tuple[int, int] | None:
-    """'i/N' -> (i, N) with 0 <= i < N."""
-    if text is None:
-        return None
-    try:
-        i, n = (int(v) for v in text.split("/"))
-    except ValueError:
-        raise InputError(f"shard = {text!r}: must be i/N with integers, e.g. 0/4") from None
-    if not (n >= 1 and 0 <= i < n):
-        raise InputError(f"shard = {text!r}: need N >= 1 and 0 <= i < N")
-    return i, n
-
-
-def shard_tasks(job: JobSpec, shard: tuple[int, int] | None):
-    """The job's tasks, or one shard of them (points i, i+N, …, with their sweeps;
-    with ``[starts] carry`` series i, i+N, …, whose points carry from one another)."""
-    points, sweeps = plan(job)
-    if shard is None:
-        return points, sweeps
-    i, n = shard
-    if job.starts.carry:
-        series = list(dict.fromkeys(series_key(p.params) for p in points))
-        mine = set(series[i::n])
-        points = [p for p in points if series_key(p.params) in mine]
-    else:
-        points = [p for k, p in enumerate(points) if k % n == i]
-    keep = {p.task_id for p in points}
-    return points, [s for s in sweeps if s.point_id in keep]
 
 
 class _Master:
@@ -335,6 +280,7 @@ class _Master:
                 if isinstance(task, SweepTask):  # its point's zero-force state as it is now
                     payload = self._payload(task.point_id)
                 self.executor.submit(task, payload)
+            self.progress.setup_s = float(getattr(self.executor, "compile_seconds", 0.0))
             reply = self.executor.next_reply(timeout=0.25, idle=self._commit)
             if reply is not None:
                 self._handle(reply)
@@ -421,12 +367,20 @@ class _Master:
         self.progress.summary(counts, force=force)
 
 
-def varying_parameters(job: JobSpec) -> tuple[str, ...]:
-    """The grid parameters that take more than one value (ties and the stitch included)."""
-    axes = job.grid.axes()
-    tied = tuple(n for n, tie in job.grid.ties().items() if len(axes.get(tie.to, ())) > 1)
-    stitch = ("stitch",) if len(job.stitches) > 1 else ()
-    return stitch + tuple(n for n, v in axes.items() if len(v) > 1) + tied
+def _on_disk(out: Path, master: _Master | None) -> int:
+    """How many of this run's tasks the disk holds after a write failed (the file and
+    its journal as read back now: results received but never made durable, or lost
+    with a journal deleted under the run, are not counted)."""
+    from ..store.read import iter_entries
+
+    if master is None:
+        return 0
+    ours = {POINTS: master.points, SWEEPS: master.sweeps}
+    try:
+        return len({(e.kind, e.task_id) for e in iter_entries(out)
+                    if e.task_id in ours.get(e.kind, ())})  # fmt: skip
+    except Exception:  # the file itself unreadable: nothing can be counted on
+        return 0
 
 
 def run_job(
@@ -512,9 +466,10 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
             summary.compile_seconds = float(getattr(executor, "compile_seconds", 0.0))
     written = sum(summary.counts.values())
     if failure is not None:
+        written = _on_disk(out, master)
         summary.interrupted = True
         summary.storage_error = str(failure)
-        print(f"error: {failure}; {written} of {summary.total} tasks are in {out} (with its "
+        print(f"error: {failure.strerror or failure}; {written} of {summary.total} tasks are in {out} (with its "
               f"journal); {remedy(failure)} and run the same command again to resume",
               file=sys.stderr, flush=True)  # fmt: skip
     elif summary.interrupted:
