@@ -280,6 +280,12 @@ the sweep: needs the whole curve); the energy gaps (both energy components back 
 their zero-force values, so that their minima along the sweep are known)."""
 
 
+REST_TOLERANCE_MJ = 5e-6
+"""How far (mJ) a sweep's energy may fall below its zero-force energy before the sweep
+takes the lower state as the point's zero-force state (``SweepProtocol.rest_tolerance_mJ``):
+a tenth of the paper's energy-gap threshold."""
+
+
 class SweepProtocol(BaseModel):
     """The strain schedule; defaults are the authors' (docs/model.md §8)."""
 
@@ -336,6 +342,25 @@ class SweepProtocol(BaseModel):
         description="chains whose energies differ by at most this (mJ) and whose states differ "
         "only along soft modes (energy cost 1/2 dx.H.dx at most this) merge; 0: never",
     )
+
+    rest_tolerance_mJ: float = Field(
+        REST_TOLERANCE_MJ,
+        ge=0.0,
+        le=1.0,
+        description="a sweep whose energy falls more than this (mJ) below its zero-force "
+        "energy relaxes again at zero force from there and starts over from that lower "
+        "minimum, the point's zero-force state from then on (default a tenth of the paper's "
+        "gap threshold; 1 mJ turns it off)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _rest_tolerance_as_before(self, handler) -> dict[str, Any]:
+        # the default is left out of every dump (task ids, the job's hash), so that jobs
+        # from before sweeps checked their zero-force state keep them
+        out = handler(self)
+        if out.get("rest_tolerance_mJ") == REST_TOLERANCE_MJ:
+            del out["rest_tolerance_mJ"]
+        return out
 
     @field_validator("observables", mode="before")
     @classmethod

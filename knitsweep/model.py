@@ -9,11 +9,11 @@ are numpy arrays of shape (n,), laid out as the stitch says (stockinette: n = 30
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
+from .analysis.volumes.geometry import fabric_depth
 from .config import Fidelity, InternalParams, StitchParams
 from .kernels.bezier import basis_tables, gauss_legendre, midpoints
 from .kernels.cell import cell_energy, cell_energy_listed
@@ -312,18 +312,12 @@ class CellModel:
         return as_state(x, self.stitch)
 
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
-        """Cell thickness dz = z_max - z_min + 2r of the centre-line (paper SI S4), mm."""
-        cp = self.control_points(x)
-        z = np.einsum("ti,si->st", _thickness_basis(samples), cp[:, :, 2])
-        return float(z.max() - z.min() + 2.0 * self.ip.r)
-
-
-@functools.lru_cache(maxsize=8)
-def _thickness_basis(samples: int) -> np.ndarray:
-    """Bernstein basis (samples, 6) at evenly spaced parameters in [0, 1], made once."""
-    b = basis_tables(np.linspace(0.0, 1.0, samples))[0]
-    b.setflags(write=False)
-    return b
+        """The fabric's thickness dz = z_max - z_min + 2r of the centre-line over the
+        cell and all its images (paper SI S4; ``analysis.volumes.fabric_depth``: the
+        cell's own z-range for a fabric of translations, that of the cell and its mirror
+        image for a pattern with purl stitches), mm."""
+        return fabric_depth(self.control_points(x), self.ip.r, self.stitch.mirror_parity,
+                            samples)  # fmt: skip
 
 
 def as_state(x: np.ndarray, stitch: Stitch) -> np.ndarray:

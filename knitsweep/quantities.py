@@ -166,7 +166,7 @@ STEP_QUANTITIES = dict(
         _shared("bending_energy"),
         _shared("contact_energy"),
         _q("total_energy", "mJ", "total energy E = E_b + E_c"),
-        _q("thickness", "mm", "thickness z_max - z_min + 2r of the centre-line"),
+        _q("thickness", "mm", "fabric thickness z_max - z_min + 2r, all images"),
         _q("winner", "1", "start (chain) whose relaxation has the lowest energy"),
         _q("converged", "1", "the winning relaxation converged"),
         _shared("iterations"),

@@ -13,7 +13,7 @@ from conftest import run_knitsweep as knitsweep
 
 from knitsweep import service
 from knitsweep.config import InputError
-from knitsweep.service.master import EXIT_TASKS_FAILED
+from knitsweep.service.run_plan import EXIT_TASKS_FAILED
 
 
 def test_a_run_with_failed_tasks_exits_4_and_says_how_many(tmp_path):

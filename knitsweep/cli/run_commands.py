@@ -45,7 +45,7 @@ def run(
     3 interrupted (run it again to resume); 4 finished, but some tasks failed."""
     from .. import service
     from ..errors import InputError
-    from ..service.master import EXIT_TASKS_FAILED
+    from ..service.run_plan import EXIT_TASKS_FAILED
 
     with user_errors():
         if executor not in ("auto", "serial", "processes", "mpi"):
@@ -58,9 +58,11 @@ def run(
     if summary.storage_error:  # the one line is printed; the run stopped as interrupted
         raise typer.Exit(summary.exit_code)
     c = summary.counts
+    redone = (f"; {summary.redone} sweeps computed again from a lower zero-force state that "
+              "another sweep of their point found" if summary.redone else "")  # fmt: skip
     typer.echo(f"{summary.out}: {c['done']} done, {c['failed']} failed, {c['not_knittable']} not "
-               f"knittable of {summary.total} tasks ({summary.skipped} already finished) in "
-               f"{summary.seconds:.1f} s{time_split(summary.seconds, summary.compile_seconds)}",
+               f"knittable of {summary.total} tasks ({summary.skipped} already finished{redone}) "
+               f"in {summary.seconds:.1f} s{time_split(summary.seconds, summary.compile_seconds)}",
                err=True)  # fmt: skip
     for line in summary.failures[:10]:
         typer.echo(f"  failed: {line}", err=True)
@@ -123,6 +125,8 @@ def status(
             typer.echo(f"  {name} = {value}: {listing}")
     for line in s["failures"][:20]:
         typer.echo(f"  failed {line}")
+    for line in s["failed_series"]:
+        typer.echo(f"  failed series {line}")
     for line in s["journal_problems"]:
         typer.echo(f"  malformed journal entry {line}: its task is recomputed on resume")
     for line in s["check"]:

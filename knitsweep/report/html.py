@@ -20,6 +20,7 @@ from typing import Any
 
 from .._version import __version__
 from ..analysis.transitions import GAP_THRESHOLD
+from ..config import FAILED
 from ..errors import InputError
 from ..formats import check_writable, replace_file
 from ..plain import plain_value
@@ -67,7 +68,8 @@ _SWEEP_COLUMNS = ("direction", "L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "
                   "delta_E_c_mJ", "jammed", "regime", "n_steps", "max_strain")  # fmt: skip
 _POINT_COLUMNS = ("L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm",
                   "status", "a_x0_mm", "a_y0_mm", "aspect_ratio", "E_b_rest_mJ",
-                  "E_c_rest_mJ", "thickness0_mm", "regime")  # fmt: skip
+                  "E_c_rest_mJ", "thickness0_mm", "rest_found_by", "rest_fall_mJ",
+                  "regime")  # fmt: skip
 _PROBLEM_COLUMNS = ("kind", "status", "direction", "L_mm", "k_mN_per_mm2", "message", "task_id")
 _PROVENANCE = ("job_name", "run_status", "started_at", "finished_at", "run_seconds",
                "knitsweep_version", "git_commit", "host", "slurm_job_id", "python_version",
@@ -171,6 +173,26 @@ def _figures(
     return blocks, skipped
 
 
+def _headline(red: Any) -> str:
+    """Whether the results are partial, and how many tasks failed and how many series
+    they leave without a transition: a complete run can hold failed tasks."""
+    failed = [p for p in red.problems if p["status"] == FAILED]
+    series = [t for t in red.transitions if str(t["status"]).startswith("failed")]
+    counts = ""
+    if failed or series:
+        counts = (f"{len(failed)} of {red.n_found} tasks failed and {len(series)} of "
+                  f"{len(red.transitions)} series have no transition because of a failure "
+                  "(<a href='#transitions'>Transitions</a>, <a href='#problems'>Failed and "
+                  "not knittable</a>)")  # fmt: skip
+    if red.partial:
+        tail = f"; {counts}" if counts else ""
+        return (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}"
+                f"{tail}.</p>")  # fmt: skip
+    if counts:
+        return f"<p class='partial'>Every run is complete, but {counts}.</p>"
+    return "<p>All planned tasks are present; every run is complete; no task failed.</p>"
+
+
 def report_html(
     results: Results, title: str | None = None, progress: Callable[[str], None] | None = None
 ) -> str:
@@ -182,8 +204,7 @@ def report_html(
     options = FigureOptions(formats=("png",), style="knitsweep")
     blocks, skipped = _figures(results, options, progress)
     roots = red.roots
-    status = (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}</p>"
-              if red.partial else "<p>All planned tasks are present; every run is complete.</p>")  # fmt: skip
+    status = _headline(red)
     files = "".join(f"<li><code>{html.escape(str(p))}</code></li>" for p in results.paths)
     jobs = "".join(
         f"<h3>{html.escape(r.get('job_name', ''))} (<code>{html.escape(r['file'])}</code>)</h3>"

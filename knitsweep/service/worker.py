@@ -213,16 +213,25 @@ def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dic
     """The zero-force record of one point (``ZeroForce.to_record`` plus the task
     status, the winner's thickness and, if stored, its contact forces). ``carried``
     (``[starts] carry``): the state ``x`` and ``params`` of the point it starts from."""
-    from ..model import CellModel
     from ..zero_force import zero_force
 
     start = None if carried is None else (np.asarray(carried["x"]), carried["params"])
     zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed, carried=start)
+    return point_record(job, task.params, zf)
+
+
+def point_record(job: JobSpec, params: Any, zf: Any) -> dict[str, Any]:
+    """A point's record from its zero-force state ``zf`` (``ZeroForce``): its
+    ``to_record`` plus the task status, the winner's energy (``rest_energy``, mJ) and
+    thickness and, if stored, its contact forces and the packing fractions."""
+    from ..model import CellModel
+
     record = zf.to_record()
     record["status"] = _STATUS.get(zf.status, FAILED)
     best = zf.best
-    model = CellModel(task.params, job.fidelity)
+    model = CellModel(params, job.fidelity)
     if np.all(np.isfinite(best.x)):
+        record["rest_energy"] = best.total_energy
         record["thickness"] = model.thickness(best.x)
         if job.store.contact_forces:
             record["contact_forces"] = model.contact_forces_by_class(best.x)
@@ -253,6 +262,10 @@ def _packing_fractions(model: Any, states: Any) -> dict[str, np.ndarray]:
 
 # ---- sweeps ---------------------------------------------------------------------
 
+REST_POINT = "rest_point"
+"""Key of a sweep record that holds its point's new record: the sweep found a lower
+zero-force state and started over from it (``strain_sweep``)."""
+
 _SWEEP_STATUS = {"done": DONE, "incomplete": DONE, "not_knittable": NOT_KNITTABLE}
 """Task status of a sweep: an 'incomplete' sweep (step limit) still holds valid
 steps; its ``sweep_status`` says so."""
@@ -270,6 +283,13 @@ def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, 
     result = strain_sweep(params, zf, task.direction, job.protocol, job.fidelity, job.solver)
     record = result.to_record()
     record["status"] = _SWEEP_STATUS.get(result.status, FAILED)
+    if result.rest is not None:  # the point's zero-force state from now on (master)
+        record[REST_POINT] = point_record(job, params, result.rest) | {
+            "rest_found_by": f"{task.direction} sweep",
+            "rest_fall_mJ": zf.best.total_energy - result.rest.best.total_energy,
+        }
+        record["message"] += (f"; started over {result.rest_restarts}x from a lower "
+                              "zero-force state")  # fmt: skip
     states = record.pop("states")
     if job.store.states:
         record["states"] = states

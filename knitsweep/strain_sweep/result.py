@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.metrics import EnergyGaps, energy_gaps
+from ..zero_force import ZeroForce
 
 
 def first_grid_value(a0: float, h: float, sign: float) -> float:
@@ -44,7 +45,10 @@ class SweepResult:
     ``stopped_by`` says which rule ended it: ``stop_stress``, ``max_strain``,
     ``observables`` (everything the protocol asked for was determined),
     ``not_knittable``, ``max_steps`` or ``no_finite_relaxation``; ``stop_reason`` says it
-    in words.
+    in words. ``rest_restarts``: how often the sweep fell below its zero-force energy by
+    more than the protocol's ``rest_tolerance_mJ`` and started over from the lower
+    minimum relaxed from there; ``rest`` is then that zero-force state (step 0, the
+    point's zero-force state from then on) and ``rest_found`` says where each was found.
     """
 
     direction: str
@@ -75,6 +79,9 @@ class SweepResult:
     relaxations: int = 0
     evaluations_total: int = 0
     wall_seconds: float = 0.0
+    rest_restarts: int = 0
+    rest_found: str = ""
+    rest: ZeroForce | None = None
 
     @property
     def total_energy(self) -> np.ndarray:
@@ -106,6 +113,9 @@ class SweepResult:
             "relaxations": self.relaxations,
             "evaluations_total": self.evaluations_total,
             "wall_seconds": self.wall_seconds,
+            "rest_energy": float(self.total_energy[0]),
+            "rest_restarts": self.rest_restarts,
+            "rest_found": self.rest_found,
             "delta_E_b": gaps.delta_E_b,
             "delta_E_c": gaps.delta_E_c,
             "jamming_gap": gaps.jamming_gap(self.direction),
@@ -122,7 +132,9 @@ class SweepResult:
                    stop_reason=str(rec["message"]), stopped_by=str(rec.get("stopped_by", "")),
                    relaxations=int(rec["relaxations"]),
                    evaluations_total=int(rec.get("evaluations_total", 0)),
-                   wall_seconds=float(rec["wall_seconds"]))  # fmt: skip
+                   wall_seconds=float(rec["wall_seconds"]),
+                   rest_restarts=int(rec.get("rest_restarts", 0)),
+                   rest_found=str(rec.get("rest_found", "")))  # fmt: skip
 
 
 _STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "bending_energy",

@@ -95,16 +95,29 @@ def arc_length(cp: np.ndarray, nodes: int = 32) -> float:
     return float(np.sum(speed @ w))
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=8)
 def _thickness_basis(samples: int) -> np.ndarray:
-    return basis_tables(np.linspace(0.0, 1.0, samples))[0]
+    """Bernstein basis (samples, 6) at evenly spaced parameters in [0, 1], made once."""
+    b = basis_tables(np.linspace(0.0, 1.0, samples))[0]
+    b.setflags(write=False)
+    return b
 
 
-def cell_depth(cp: np.ndarray, r: float, samples: int = 64) -> float:
-    """The cell's depth Δz = z_max − z_min + 2r of the centre-line (paper SI "Contact
-    Volumes"; the same sampling as ``CellModel.thickness``: 64 per segment), mm."""
+def fabric_depth(cp: np.ndarray, r: float, parity: tuple[int, int] = (0, 0),
+                 samples: int = 64) -> float:  # fmt: skip
+    """The fabric's thickness Δz = z_max − z_min + 2r of the centre-line over the cell
+    and all its images (paper SI S4 and "Contact Volumes"; docs/model.md §9, §11), from
+    ``samples`` evenly spaced points of each segment, mm.
+
+    A translated image keeps the cell's z, so for a fabric of translations alone
+    (stockinette, ``parity`` (0, 0)) this is the cell's own z-range; where some images
+    are mirrored through the fabric plane (z -> -z, ``image_points``: garter, rib, seed)
+    the fabric spans the cell's z-range and its mirror image's."""
     z = np.einsum("ti,si->st", _thickness_basis(samples), np.asarray(cp, dtype=float)[:, :, 2])
-    return float(z.max() - z.min() + 2.0 * r)
+    hi, lo = z.max(), z.min()
+    if any(parity):  # some image (m, n) has pm m + pn n odd: a mirrored copy of the cell
+        hi, lo = max(hi, -lo), min(lo, -hi)
+    return float(hi - lo + 2.0 * r)
 
 
 def build_pieces(cp: np.ndarray, a_x: float, a_y: float, r: float, spacing: float = 0.01,
