@@ -11,6 +11,8 @@ from typing import Annotated
 import typer
 from pydantic import ValidationError
 
+from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
+
 HELP = {"help_option_names": ["-h", "--help"]}
 """Every command takes -h as well as --help."""
 
@@ -67,9 +69,8 @@ NodesOpt = Annotated[int | None, option("--quadrature-nodes", help="Gauss–Lege
                                         "segment", default="32")]  # fmt: skip
 ImagesOpt = Annotated[str | None, option("--images", help="periodic images: cutoff (all that "
                                          "touch) or reference", default="cutoff")]  # fmt: skip
-StitchOpt = Annotated[str | None, option("--stitch", help="stitch pattern (one of "
-                                         "knitsweep.stitches.STITCH_NAMES)",
-                                         default="stockinette")]  # fmt: skip
+StitchOpt = Annotated[str | None, option("--stitch", help=f"stitch pattern: one of {STITCH_CHOICES}",
+                                         default=DEFAULT_STITCH)]  # fmt: skip
 ConfigOpt = Annotated[
     Path | None,
     typer.Option("--config", help="an authors' *key value config file (jammed-knits format)"),

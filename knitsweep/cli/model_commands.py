@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ..config import SOLVERS
 from .common import (
     ENERGY_UNITS,
     BOpt,
@@ -64,9 +65,12 @@ StartsOpt = Annotated[int | None, option("--starts", help="starts per point", de
 SeedOpt = Annotated[int, typer.Option("--seed", help="seed of the perturbed starts")]
 PresetOpt = Annotated[str | None, option("--preset", help="fidelity preset: draft, paper, "
                                          "converged or fine", default="converged")]  # fmt: skip
-FtolOpt = Annotated[float | None, option("--ftol", help="precision goal on the energy (mJ): "
-                                         "the Newton decrement, or SLSQP's ftol with the "
-                                         "paper preset", default="the preset's")]  # fmt: skip
+FtolOpt = Annotated[float | None, option("--ftol", help="precision goal on the energy (mJ) of "
+                                         "the preset's minimiser (the paper preset's is "
+                                         "slsqp, the others' newton): " + "; ".join(
+                                             f"{s.name}: {s.energy_goal}"
+                                             for s in SOLVERS.values()),
+                                         default="the preset's")]  # fmt: skip
 
 
 @app.command()
@@ -85,7 +89,7 @@ def relax(
     """Relax the zero-force state at fixed yarn length (both periods free)."""
     import time
 
-    from ..config import StartSettings
+    from ..config import StartSettings, zero_force_solvers
     from ..errors import InputError, check_seed
     from ..formats import check_writable, read_state, write_state
     from ..presets import Numerics
@@ -101,6 +105,9 @@ def relax(
                                  quadrature_nodes=quadrature_nodes, images=images)  # fmt: skip
         settings = StartSettings() if starts is None else StartSettings(count=starts)
         x0 = None if state is None else read_state(state, params.stitch)
+        note = zero_force_solvers(params.stitch, n.solver.method)
+        if note:
+            typer.echo(f"note: {note}", err=True)
         compile_notice()
         t0 = time.perf_counter()
         best = zero_force(params, n.fidelity, n.solver, settings, seed, initial=x0).best

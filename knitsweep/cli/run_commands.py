@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from ..stitches import DEFAULT_STITCH, STITCH_CHOICES, check_stitch_name
 from .common import (
     HELP,
     JsonOpt,
@@ -227,8 +228,8 @@ def compile_(
                          "~/.cache/knitsweep")] = None,
     jobs: Annotated[int | None, option("--jobs", help="processes compiling side by side",
                     default="as many as idle cores, at most 3")] = None,
-    stitch: Annotated[list[str] | None, option("--stitch", help="stitch pattern (one of "
-                      "knitsweep.stitches.STITCH_NAMES)", default="stockinette")] = None,
+    stitch: Annotated[list[str] | None, option("--stitch", help="stitch pattern: one of "
+                      f"{STITCH_CHOICES}", default=DEFAULT_STITCH)] = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
     """Compile every kernel a `run` uses (and the pair forces `report` computes) into
@@ -248,12 +249,7 @@ def compile_(
                 raise InputError(f"cache_dir = {cache_dir}: set before the kernels are imported")
             cache_dir.mkdir(parents=True, exist_ok=True)
             os.environ["NUMBA_CACHE_DIR"] = str(cache_dir.resolve())
-        from ..stitches import DEFAULT_STITCH, STITCH_NAMES
-
-        stitches = tuple(stitch or (DEFAULT_STITCH,))
-        for name in stitches:
-            if name not in STITCH_NAMES:
-                raise InputError(f"stitch = {name!r}: one of {', '.join(STITCH_NAMES)}")
+        stitches = tuple(check_stitch_name(name) for name in stitch or (DEFAULT_STITCH,))
         from .. import kernels
         from ..compilation import KERNEL_GROUPS, compile_kernels
 

@@ -39,11 +39,12 @@ from ..config import (
     StitchName,
     StitchParams,
     SweepProtocol,
+    zero_force_solvers,
 )
 from ..errors import MAX_SEED, describe_validation_error
 from ..formats import read_text
 from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
-from ..stitches import DEFAULT_STITCH, STITCH_NAMES
+from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
 from .grid import MAX_POINTS, Grid
 
 if sys.version_info >= (3, 11):
@@ -154,7 +155,7 @@ class JobSpec(BaseModel):
     preset: str = DEFAULT_PRESET
     stitch: StitchName = Field(
         DEFAULT_STITCH,
-        description=f"stitch pattern of every point: one of {', '.join(STITCH_NAMES)} "
+        description=f"stitch pattern of every point: one of {STITCH_CHOICES} "
         "(several: the grid axis grid.stitch)",
     )
     mode: Literal["grid", "adaptive"] = Field(
@@ -262,6 +263,13 @@ class JobSpec(BaseModel):
         """The stitches every grid point is computed for: ``grid.stitch``, else the
         one ``stitch``."""
         return self.grid.stitch if self.grid.stitch is not None else (self.stitch,)
+
+    def solver_notes(self) -> list[str]:
+        """Where the job's minimiser does not relax a stitch's zero-force states alone,
+        which ones do and why (``config.zero_force_solvers``), one line a stitch: what a
+        run says before it computes."""
+        notes = (zero_force_solvers(name, self.solver.method) for name in self.stitches)
+        return [note for note in notes if note]
 
     def points(self) -> list[StitchParams]:
         """Every grid point, in a fixed order (stitch, k, B, r_core, r, p, reg, then L)."""
