@@ -306,6 +306,24 @@ class CellModel:
         z = np.einsum("ti,si->st", _thickness_basis(samples), cp[:, :, 2])
         return float(z.max() - z.min() + 2.0 * self.ip.r)
 
+    def max_curvature(self, x: np.ndarray, samples: int = 64) -> float:
+        """Largest curvature |r' x r''| / |r'|^3 of the centre-line (1/mm), sampled at
+        ``samples`` evenly spaced parameters of every segment (ends included); above
+        1/r the yarn's tube folds on itself."""
+        cp = self.control_points(x)
+        d1, d2 = np.einsum("dti,sic->dstc", _curvature_basis(samples), cp)
+        speed = np.linalg.norm(d1, axis=-1)
+        return float(np.max(np.linalg.norm(np.cross(d1, d2), axis=-1) / speed**3))
+
+
+@functools.lru_cache(maxsize=8)
+def _curvature_basis(samples: int) -> np.ndarray:
+    """First and second t-derivatives of the Bernstein basis, (2, samples, 6), at evenly
+    spaced parameters in [0, 1], made once."""
+    b = basis_tables(np.linspace(0.0, 1.0, samples))[1:3].copy()
+    b.setflags(write=False)
+    return b
+
 
 @functools.lru_cache(maxsize=8)
 def _thickness_basis(samples: int) -> np.ndarray:

@@ -119,6 +119,14 @@ OBSERVABLE_REGISTRY: tuple[Observable, ...] = (
                label="thickness at rest", table_name="thickness0"),
     Observable("thickness", "step", "mm", "thickness z_max - z_min + 2r of the centre-line",
                "thickness"),
+    Observable("max_curvature", "point", "1/mm", "largest curvature of the yarn centre-line "
+               "at zero force (above 1/r the tube folds on itself)", "max_curvature",
+               label="largest curvature at rest", table_name="max_curvature0"),
+    Observable("max_curvature", "step", "1/mm", "largest curvature of the yarn centre-line "
+               "(above 1/r the tube folds on itself)", "max_curvature"),
+    Observable("peak_curvature", "sweep", "1/mm", "largest curvature of the yarn centre-line "
+               "along the sweep", from_steps=lambda a: np.max(a["max_curvature"]),
+               label="largest curvature"),
 )  # fmt: skip
 """The observable registry: every observable computed from a state or a sweep, one entry
 each (adding one is an entry here and, for a new computation, a ``CellModel`` method)."""
