@@ -8,18 +8,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-import numpy as np
-
 from .config import Fidelity, StitchParams
-from .kernels.cell import cell_energy_listed
-from .kernels.checks import compile_checks
-from .kernels.contact import find_contacts
-from .kernels.forces import N_CLASSES
-from .kernels.forces import contact_forces_by_class as _forces_by_class
-from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
-from .kernels.mirrored import mirrored_forces_by_class, mirrored_pair_forces_by_class
-from .kernels.neighbours import NO_LIST, build_neighbour_list
-from .kernels.pattern_cell import pattern_cell_energy
 from .model import CellModel
 from .stitches import DEFAULT_STITCH, get_stitch
 
@@ -79,11 +68,13 @@ def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,)) -> tuple[
     pattern's energy and the large states' KKT step where a stitch needs them."""
     from .kernels import ENTRY_POINTS
     from .kernels.kkt import ROWS_FROM
+    from .stitches.images import image_group
 
     chosen = [get_stitch(name) for name in stitches]
-    extra = (("pattern_cell.pattern_cell_energy-",) * any(s.images == "glides" for s in chosen)
-             + ("kkt_rows.kkt_step_rows-",) * any(s.n_state >= ROWS_FROM for s in chosen))  # fmt: skip
-    return ENTRY_POINTS + extra
+    extra = list(dict.fromkeys(e for s in chosen for e in image_group(s).entry_points))
+    if any(s.n_state >= ROWS_FROM for s in chosen):
+        extra.append("kkt_rows.kkt_step_rows-")
+    return ENTRY_POINTS + tuple(extra)
 
 
 def compile_group(
@@ -116,45 +107,9 @@ def compile_group(
 
 
 def _compile_contact(model: CellModel, what: str) -> None:
-    import numba
-
-    def sig(args: tuple) -> tuple:
-        return tuple(numba.typeof(a) for a in args)
-
-    x = model.stitch.start(1)
-    cp, jac = model.stitch.buffers()
-    ip, tab, mode = model.ip, model._ctab, model._mode
-    if model.stitch.images == "glides":  # a knit/purl pattern: its own kernels too
-        pattern_cell_energy.compile(sig((cp, jac, x[-2], x[-1], model._qtab, model._qw, tab,
-                                         model._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
-                                         *model.stitch.mirror_parity, True, model._grad_e,
-                                         model._grad_l)))  # fmt: skip
-        if what != "energy":
-            compile_checks()  # the checks after every relaxation
-            forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
-            mirrored_forces_by_class.compile(sig((cp, np.ascontiguousarray(jac[..., -2:]), tab,
-                                                  x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
-                                                  *model.stitch.mirror_parity, forces,
-                                                  energies)))  # fmt: skip
-            if what == "all":  # the post-processing's pair forces
-                mirrored_pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k,
-                                                           ip.p, *model.stitch.mirror_parity,
-                                                           False, forces)))  # fmt: skip
-    # the translations' kernels as well: ``kernels.cached`` looks for them, so a cache
-    # filled by a job of patterns alone must hold them too
-    # with or without a neighbour list (cell_energy is this kernel with NO_LIST)
-    cell_energy_listed.compile(sig(model._energy_args(cp, jac, x, True) + NO_LIST))
-    if what == "energy":
-        return
-    build_neighbour_list.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode, 0.1)))
-    find_contacts.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode)))  # under min_zeta
-    dcp = np.ascontiguousarray(jac[..., -2:])
-    forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
-    _forces_by_class.compile(sig((cp, dcp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
-                                  forces, energies)))  # fmt: skip
-    if what == "all":  # the post-processing's pair forces: no task calls them
-        _pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
-                                           False, forces)))  # fmt: skip
+    """The contact kernels of ``model``'s image group (``stitches.images``), compiled for
+    the argument types of its calls."""
+    model.image_group.compile(model, what)
 
 
 def idle_cores() -> int:

@@ -120,6 +120,9 @@ class Stitch:
                              f"{self.n_segments} segments")  # fmt: skip
         if self.state_names[-2:] != ("a_x", "a_y"):
             raise ValueError(f"{self.name}: a state must end with the periods a_x, a_y")
+        if self.images == "translations" and any(self.mirror_parity):
+            raise ValueError(f"{self.name}: a fabric of translations mirrors no image "
+                             f"(mirror_parity {self.mirror_parity})")  # fmt: skip
         if not self.path_order:
             object.__setattr__(self, "path_order", tuple(range(self.n_segments)))
 
