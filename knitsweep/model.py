@@ -9,13 +9,12 @@ are numpy arrays of shape (n,), laid out as the stitch says (stockinette: n = 30
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from .config import Fidelity, InternalParams, StitchParams
-from .kernels.bezier import basis_tables, gauss_legendre, midpoints
+from .kernels.bezier import basis_tables, even_tables, gauss_legendre, midpoints
 from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE
 from .kernels.forces import N_CLASSES
 from .kernels.neighbours import build_neighbour_list
@@ -252,7 +251,7 @@ class CellModel:
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
         """Cell thickness dz = z_max - z_min + 2r of the centre-line (paper SI S4), mm."""
         cp = self.control_points(x)
-        z = np.einsum("ti,si->st", _thickness_basis(samples), cp[:, :, 2])
+        z = np.einsum("ti,si->st", even_tables(samples)[0], cp[:, :, 2])
         return float(z.max() - z.min() + 2.0 * self.ip.r)
 
     def max_curvature(self, x: np.ndarray, samples: int = 64) -> float:
@@ -260,26 +259,9 @@ class CellModel:
         ``samples`` evenly spaced parameters of every segment (ends included); above
         1/r the yarn's tube folds on itself."""
         cp = self.control_points(x)
-        d1, d2 = np.einsum("dti,sic->dstc", _curvature_basis(samples), cp)
+        d1, d2 = np.einsum("dti,sic->dstc", even_tables(samples)[1:3], cp)
         speed = np.linalg.norm(d1, axis=-1)
         return float(np.max(np.linalg.norm(np.cross(d1, d2), axis=-1) / speed**3))
-
-
-@functools.lru_cache(maxsize=8)
-def _curvature_basis(samples: int) -> np.ndarray:
-    """First and second t-derivatives of the Bernstein basis, (2, samples, 6), at evenly
-    spaced parameters in [0, 1], made once."""
-    b = basis_tables(np.linspace(0.0, 1.0, samples))[1:3].copy()
-    b.setflags(write=False)
-    return b
-
-
-@functools.lru_cache(maxsize=8)
-def _thickness_basis(samples: int) -> np.ndarray:
-    """Bernstein basis (samples, 6) at evenly spaced parameters in [0, 1], made once."""
-    b = basis_tables(np.linspace(0.0, 1.0, samples))[0]
-    b.setflags(write=False)
-    return b
 
 
 def as_state(x: np.ndarray, stitch: Stitch) -> np.ndarray:

@@ -14,12 +14,11 @@ told from a different part of the yarn by arc length, as the contact energy does
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...kernels.bezier import basis_tables, gauss_legendre
+from ...kernels.bezier import basis_tables, even_tables, gauss_legendre
 from ...stitches.base import image_points
 
 CHUNK = 16
@@ -95,15 +94,10 @@ def arc_length(cp: np.ndarray, nodes: int = 32) -> float:
     return float(np.sum(speed @ w))
 
 
-@functools.lru_cache(maxsize=4)
-def _thickness_basis(samples: int) -> np.ndarray:
-    return basis_tables(np.linspace(0.0, 1.0, samples))[0]
-
-
 def cell_depth(cp: np.ndarray, r: float, samples: int = 64) -> float:
     """The cell's depth Δz = z_max − z_min + 2r of the centre-line (paper SI "Contact
     Volumes"; the same sampling as ``CellModel.thickness``: 64 per segment), mm."""
-    z = np.einsum("ti,si->st", _thickness_basis(samples), np.asarray(cp, dtype=float)[:, :, 2])
+    z = np.einsum("ti,si->st", even_tables(samples)[0], np.asarray(cp, dtype=float)[:, :, 2])
     return float(z.max() - z.min() + 2.0 * r)
 
 
