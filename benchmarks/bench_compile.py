@@ -1,7 +1,7 @@
 """Compile time of the numba kernels: per kernel, cold and warm.
 
 Run: ``python benchmarks/bench_compile.py [--repeats 1] [--src DIR ...] [--what run|energy]
-[--jobs 1]``
+[--jobs 1] [--stitch stockinette]``
 
 Each measurement runs in a fresh Python process with ``NUMBA_CACHE_DIR`` pointed at a
 new, empty temporary directory (cold: every kernel compiles), then again in a fresh
@@ -75,11 +75,11 @@ try:
 except ImportError:  # older trees: in knitsweep.model
     compile_kernels = model.compile_kernels
 t0, c0 = time.perf_counter(), time.process_time()
-what, jobs = sys.argv[1], int(sys.argv[2])
+what, jobs, stitches = sys.argv[1], int(sys.argv[2]), tuple(sys.argv[3].split(","))
 new_api = "jobs" in compile_kernels.__code__.co_varnames  # older trees: no jobs, no what
 with event.install_listener("numba:compile", Listener()):
     if new_api:
-        compile_kernels(jobs=jobs, what=what)
+        compile_kernels(jobs=jobs, what=what, stitches=stitches)
     elif what == "run":
         compile_kernels()
     else:  # what `knitsweep energy` calls
@@ -91,11 +91,12 @@ print(json.dumps({"wall": wall, "cpu": cpu, "import": t0 - t_import, "rows": row
 """
 
 
-def measure(src: Path, what: str, cache: str, jobs: int) -> dict:
+def measure(src: Path, what: str, cache: str, jobs: int, stitches: str = "stockinette") -> dict:
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(src))
-    out = subprocess.run([sys.executable, "-c", _CHILD, what, str(jobs)], env=env, cwd=src, check=True,
+    load = os.getloadavg()[0]  # the 1-minute load as the measurement starts
+    out = subprocess.run([sys.executable, "-c", _CHILD, what, str(jobs), stitches], env=env, cwd=src, check=True,
                          capture_output=True, text=True).stdout  # fmt: skip
-    return json.loads(out.strip().splitlines()[-1])
+    return {**json.loads(out.strip().splitlines()[-1]), "load": load}
 
 
 def main() -> None:
@@ -111,6 +112,12 @@ def main() -> None:
         "compile_kernels(jobs=...); 1: in the measuring process, where the events are "
         "seen; a loaded machine's scheduler favours more processes, so compare at 1)",
     )
+    ap.add_argument(
+        "--stitch",
+        default="stockinette",
+        help="stitches whose kernels compile, "
+        "comma-separated (e.g. garter: a knit/purl pattern's own kernels too)",
+    )
     ap.add_argument("--top", type=int, default=25, help="rows of the per-kernel table")
     ap.add_argument("--json", type=Path, help="also write the raw figures here")
     args = ap.parse_args()
@@ -119,10 +126,11 @@ def main() -> None:
     for _ in range(args.repeats):
         for tree in trees:  # alternate trees run by run: same load for each
             with tempfile.TemporaryDirectory(prefix="ks-numba-cache-") as cache:
-                cold = measure(tree, args.what, cache, args.jobs)
-                warm = measure(tree, args.what, cache, args.jobs)
+                cold = measure(tree, args.what, cache, args.jobs, args.stitch)
+                warm = measure(tree, args.what, cache, args.jobs, args.stitch)
             runs[tree].append((cold, warm))
-    print(f"compile of what `{args.what}` needs, jobs={args.jobs}, {args.repeats} run(s) per tree, medians; "
+    print(f"compile of what `{args.what}` of {args.stitch} needs, jobs={args.jobs}, "
+          f"{args.repeats} run(s) per tree, medians; "
           f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")  # fmt: skip
     summary = {}
     for tree in trees:
@@ -142,7 +150,7 @@ def main() -> None:
         cold_cpu = statistics.median(c["cpu"] for c in colds)
         warm_wall = statistics.median(w["wall"] for w in warms)
         print(f"  {len(names)} functions, {n_spec:.0f} specialisations compiled")
-        walls = ", ".join(f"{c['wall']:.1f}" for c in colds)
+        walls = ", ".join(f"{c['wall']:.1f} (load {c['load']:.1f})" for c in colds)
         print(
             f"  cold: {cold_wall:7.2f} s wall, {cold_cpu:7.2f} s CPU of this process   (runs: {walls})"
         )

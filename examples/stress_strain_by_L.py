@@ -1,4 +1,5 @@
-"""Plot one stress–strain curve per yarn length L from a results file.
+"""Plot one stress–strain curve per yarn length L from a results file, a row of panels per
+stitch (a patterns file holds several) and one per direction.
 
     python examples/stress_strain_by_L.py demo.h5 --out stress_strain.png
 
@@ -27,20 +28,31 @@ def main() -> None:
     res = knitsweep.load(*args.results)
     ds = res.to_xarray()  # over (direction, L_mm, …, step); strain is a coordinate
     directions = list(ds.direction.values)
-    fig, axes = plt.subplots(1, len(directions), figsize=(3.4 * len(directions), 2.8),
-                             squeeze=False, layout="constrained")  # fmt: skip
-    for ax, direction in zip(axes[0], directions, strict=True):
-        # one stress-strain curve per L, in one line (other parameters: their first value)
-        stress = ds.stress_N_per_mm.sel(direction=direction)
-        stress = stress.isel({d: 0 for d in stress.dims if d not in ("L_mm", "step")})
-        stress.plot.line(x="strain", hue="L_mm", ax=ax, add_legend=len(ds.L_mm) <= 8)
-        ax.set_xlabel(f"strain in {direction}")
-        ax.set_ylabel("stress (N/mm)")
-        ax.set_title(f"pulled in {direction}", fontsize=9)
+    # one row of panels per stitch (a patterns file holds several), one per direction
+    stitches = list(ds.stitch.values) if "stitch" in ds.dims else [str(ds.stitch.values)]
+    fig, axes = plt.subplots(len(stitches), len(directions), squeeze=False,
+                             figsize=(3.4 * len(directions), 2.8 * len(stitches)),
+                             layout="constrained")  # fmt: skip
+    for row, stitch in zip(axes, stitches, strict=True):
+        for ax, direction in zip(row, directions, strict=True):
+            stress = ds.stress_N_per_mm.sel(direction=direction)
+            if "stitch" in stress.dims:
+                stress = stress.sel(stitch=stitch)
+            # one curve per L; any other parameter that varies: its first value, said so
+            others = [d for d in stress.dims if d not in ("L_mm", "step")]
+            fixed = ", ".join(f"{d} = {stress[d].values[0]:g}" for d in others)
+            stress = stress.isel({d: 0 for d in others})
+            stress = stress.dropna("L_mm", how="all")  # the L values of this stitch
+            stress.plot.line(x="strain", hue="L_mm", ax=ax, add_legend=len(stress.L_mm) <= 8)
+            ax.set_xlabel(f"strain in {direction}")
+            ax.set_ylabel("stress (N/mm)")
+            ax.set_title(f"{stitch}, pulled in {direction}" + (f"\n({fixed})" if fixed else ""),
+                         fontsize=9)  # fmt: skip
     fig.savefig(args.out, dpi=200)
 
     # the sweep metrics, one row per sweep
-    print(res.sweeps[["direction", "L_mm", "Y_sec_N_per_mm", "delta_E_c_mJ", "delta_E_b_mJ"]])
+    print(res.sweeps[["stitch", "direction", "L_mm", "Y_sec_N_per_mm", "delta_E_c_mJ",
+                      "delta_E_b_mJ"]])  # fmt: skip
     print(f"wrote {args.out}")
 
 

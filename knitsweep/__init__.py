@@ -1,4 +1,4 @@
-"""knitsweep: fast simulations of jammed stockinette knitted fabric.
+"""knitsweep: fast simulations of jammed knitted fabric (stockinette and knit/purl patterns).
 
 Importing the package does no work: no MPI, no numba compilation, no file access.
 ``knitsweep.load(*paths)`` reads results files into pandas DataFrames and an
@@ -19,15 +19,27 @@ from ._version import __version__
 __all__ = ["__version__", "load"]
 
 
-def load(*paths: str | Path, threshold: float | None = None) -> Results:
+def load(*paths: str | Path, threshold: float | None = None, all_columns: bool = False) -> Results:
     """Read one or several results files (also while a run writes them) into
     :class:`knitsweep.report.results.Results`: ``points``, ``sweeps``, ``curves``,
     ``transitions`` and ``problems`` DataFrames and ``to_xarray()``.
 
     ``threshold``: the energy-gap threshold between jammed and unjammed (mJ;
-    default the paper's, ``knitsweep.analysis.transitions.GAP_THRESHOLD``).
+    default the paper's, ``knitsweep.analysis.transitions.GAP_THRESHOLD``);
+    ``all_columns``: keep the columns that no task of the files stored (contact forces,
+    packing fractions: all NaN), which are left out by default. Damaged
+    tasks are skipped with a ``knitsweep.errors.DamagedResultsWarning`` naming how
+    many and the first ids (``res.problems`` lists them all, ``status`` "damaged").
     """
     from .analysis.transitions import GAP_THRESHOLD
     from .report.results import load as _load
+    from .report.results import warn_damaged
 
-    return _load(*paths, threshold=GAP_THRESHOLD if threshold is None else threshold)
+    res = _load(
+        *paths,
+        threshold=GAP_THRESHOLD if threshold is None else threshold,
+        all_columns=all_columns,
+        warn=False,
+    )
+    warn_damaged(res.reduction.roots)  # (stacklevel: the caller's line)
+    return res

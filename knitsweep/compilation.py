@@ -5,12 +5,16 @@ the cache is cold and cores are idle, each filling numba's shared on-disk cache.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
+
+from numba.core import event
 
 from .config import Fidelity, StitchParams
 from .model import CellModel
 from .stitches import DEFAULT_STITCH, get_stitch
+from .stitches.images import Glides, Translations, image_group
 
 KERNEL_GROUPS = {
     "geometry": "the stitch's state -> control points + Jacobian kernel (knitsweep.stitches)",
@@ -34,7 +38,7 @@ def compile_kernels(
     """Compile (or load from numba's cache) every kernel a task of these ``stitches``
     uses, once, before work fans out to other processes; returns the seconds per
     group (``KERNEL_GROUPS``). ``notice`` is told first when the kernels are not
-    cached yet, so that a user knows why the first run waits.
+    cached yet (``compile_notice``), so that a user knows why the first run waits.
 
     ``what``: ``"run"`` (every kernel of a task), ``"all"`` (those and the ones only the
     post-processing calls: the pair forces by class of ``report``; what ``knitsweep
@@ -44,16 +48,12 @@ def compile_kernels(
     idle cores, at most one a group; 1: all here). Each fills the shared on-disk
     cache; this process then loads the kernels from it.
     """
-    from . import kernels
-
-    entries = kernel_entry_points(stitches)
-    cold = not kernels.cached(entries)
-    message = kernels.compile_notice(entries) if notice is not None else None
-    if message:
+    message = compile_notice(stitches, what)
+    if message and notice is not None:
         notice(message)
     groups = ("geometry", "contact") if what == "energy" else tuple(KERNEL_GROUPS)
     seconds: dict[str, float] = {}
-    if cold:
+    if message:  # a cold cache
         seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs, what))
     for group in groups:
         t0 = time.perf_counter()
@@ -62,19 +62,91 @@ def compile_kernels(
     return seconds
 
 
-def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,)) -> tuple[str, ...]:
-    """The kernels whose place in numba's cache says that a task of these ``stitches``
-    finds its kernels compiled (``kernels.cached``): every task's, and a knit/purl
-    pattern's energy and the large states' KKT step where a stitch needs them."""
+def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,),
+                        what: str = "run") -> tuple[str, ...]:  # fmt: skip
+    """The kernels (``kernels.kernel`` names) whose compiled versions in numba's cache
+    say that a task of these ``stitches`` finds its kernels compiled (``kernels.cached``):
+    each stitch's geometry kernel, and every task's kernels, a knit/purl pattern's energy
+    and the large states' KKT step where a stitch needs them (``what="energy"``: the
+    geometry and the energy only, what ``knitsweep energy`` calls)."""
     from .kernels import ENTRY_POINTS
     from .kernels.kkt import ROWS_FROM
-    from .stitches.images import image_group
 
     chosen = [get_stitch(name) for name in stitches]
-    extra = list(dict.fromkeys(e for s in chosen for e in image_group(s).entry_points))
-    if any(s.n_state >= ROWS_FROM for s in chosen):
-        extra.append("kkt_rows.kkt_step_rows-")
-    return ENTRY_POINTS + tuple(extra)
+    geometry = tuple(dict.fromkeys(f"{s.geometry_module}.state_to_control_points"
+                                   for s in chosen))  # fmt: skip
+    groups = [image_group(s) for s in chosen]
+    if what == "energy":  # each group's energy kernel
+        return geometry + tuple(dict.fromkeys(e for g in groups for e in g.energy_entry_points))
+    own = tuple(dict.fromkeys(e for g in groups for e in g.entry_points))
+    rows = ("knitsweep.kernels.kkt_rows.kkt_step_rows",) * any(s.n_state >= ROWS_FROM
+                                                               for s in chosen)  # fmt: skip
+    return geometry + ENTRY_POINTS + own + rows
+
+
+COMPILE_SECONDS = {(what, group.name): seconds for group in (Translations, Glides)
+                   for what, seconds in group.compile_seconds.items()}  # fmt: skip
+"""(what, image group) -> about how long compiling the kernels takes once on an idle machine, s: of what a
+command calls (``run``: a task; ``energy``: one energy) for stitches of translations
+only (stockinette) or with a knit/purl pattern's glides (garter, rib, seed). Measured
+with ``benchmarks/bench_compile.py --jobs 1 --what run|energy --stitch
+stockinette|garter`` (an empty cache, one process) on the 2-core project VM
+(2026-12-04): the CPU seconds of the compiling process, which are its wall time on an
+idle core. On a busy machine the wall time grows with the load: the same runs took
+143-304 s (stockinette, load 7.5-10) and 447-526 s (garter, load 14-17), 0.7-2.1 times
+the CPU seconds scaled by load/cores (``compile_notice``'s estimate)."""
+
+
+def compile_notice(stitches: tuple[str, ...] = (DEFAULT_STITCH,), what: str = "run") -> str | None:
+    """What to tell a user before the first call compiles the kernels of ``what`` for
+    these ``stitches`` (None if numba's cache holds them for this checkout): how long
+    that usually takes, and, on a busy machine, how much longer it will take now."""
+    import os
+
+    from . import kernels
+
+    if kernels.cached(kernel_entry_points(stitches, what)):
+        return None
+    kind = "energy" if what == "energy" else "run"
+    idle = max(image_group(get_stitch(s)).compile_seconds[kind] for s in stitches)
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = cores or 1
+    load = os.getloadavg()[0]
+    now = (f": this one is, load {load:.1f} on {cores} cores, so expect "
+           f"~{_duration(idle * load / cores)} or more" if load > 1.5 * cores else "")  # fmt: skip
+    return (f"compiling numerical kernels ({', '.join(stitches)}) once for this checkout: "
+            f"~{_duration(idle)} on an idle machine, longer on a busy one{now}; cached in "
+            f"{kernels.numba.config.CACHE_DIR}")  # fmt: skip
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
+
+
+class CompileClock(event.Listener):
+    """Seconds numba spent compiling in this process (``seconds``) while a ``with
+    compile_clock()`` block ran: the outermost ``numba:compile`` events (a kernel's
+    callees compile inside its event; loading from the cache fires none)."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self._started: list[float] = []
+
+    def on_start(self, ev) -> None:
+        self._started.append(time.perf_counter())
+
+    def on_end(self, ev) -> None:
+        t0 = self._started.pop()
+        if not self._started:
+            self.seconds += time.perf_counter() - t0
+
+
+@contextlib.contextmanager
+def compile_clock():
+    """A ``CompileClock`` listening to numba's compile events while the block runs."""
+    clock = CompileClock()
+    with event.install_listener("numba:compile", clock):
+        yield clock
 
 
 def compile_group(

@@ -17,14 +17,23 @@ class InputError(ValueError):
     """Bad user input, reported as one line naming the field and the allowed range."""
 
 
+class DamagedResultsWarning(UserWarning):
+    """A results file was read without some of its tasks: they are damaged (the
+    message names how many, the first ids, and ``knitsweep recover``)."""
+
+
 class StorageError(OSError):
     """A results file, journal entry or output could not be written (disk full,
     read-only or missing directory, permissions): one line for the user."""
 
 
 def storage_error(what: Any, e: BaseException) -> StorageError:
-    """A one-line StorageError for a failed write of ``what``."""
+    """A one-line StorageError for a failed write of ``what``; a symbolic link found in
+    place of another file than ``what`` (a shadow or journal swapped for one) is named
+    itself, so that the message names the path that is the link."""
     code = getattr(e, "errno", None)
+    if code == errno.ELOOP and getattr(e, "filename", None):
+        what = e.filename
     text = str(e)
     if code == errno.ENOSPC or "No space left" in text:
         reason = "the disk is full"

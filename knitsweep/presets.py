@@ -46,7 +46,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     },
 }
 """Named fidelity presets: the numerical knobs of every layer in one word, chosen
-from the measured speed/accuracy front (README, ``knitsweep accuracy``).
+from the measured speed/accuracy front (docs/how-to/presets.md, ``knitsweep accuracy``).
 
 * ``draft``: what a survey needs: the same contact sampling (fewer samples err by
   several per cent in the energy gaps) and quadrature, a looser Newton tolerance
@@ -54,7 +54,7 @@ from the measured speed/accuracy front (README, ``knitsweep accuracy``).
   and sweeps that stop once Y_sec and the energy gaps (to 1e-6 mJ, so the transition)
   are known: within 1 % of ``converged`` on those over the k = 0.1 series around the
   transition, 4.9x cheaper per point with 4 starts, 9.4x with one
-  (benchmarks/bench_draft.py, README "Choosing a preset"); no offset stress.
+  (benchmarks/bench_draft.py, docs/how-to/presets.md); no offset stress.
 * ``paper``: the authors' numerical settings exactly (10 samples per segment, SLSQP
   with the SciPy default tolerance 1e-6 that their script ends up using, 0.001 mm
   steps), with exact quadrature: their numbers, noise included.

@@ -5,7 +5,7 @@ use the base name and carry ``units`` and ``long_name`` attributes; tables (CSV 
 pandas DataFrames) append the unit to the name: ``bending_energy_mJ``,
 ``stress_N_per_mm``, ``thickness_mm``. Dimensionless quantities have unit "1" and no
 suffix. The stitch parameters keep their job-file names, which carry their units
-already (``L_mm``, ``k_mN_per_mm2``). The README's table of names is this module's.
+already (``L_mm``, ``k_mN_per_mm2``). The table of names in docs/units.md is this module's.
 """
 
 from __future__ import annotations

@@ -87,3 +87,44 @@ def test_help_shows_defaults_one_way():
     assert "yarn length per stitch L (mm) [default: 11.6]" in text
     assert "[default: 0]" in text  # a real default, as typer shows it
     assert "[default: curve, with any preset]" in text
+
+
+def test_help_says_what_the_tool_is_and_names_the_stitches():
+    from knitsweep.stitches import STITCH_NAMES
+
+    top = re.sub(r"\s+", " ", knitsweep("-h").stdout.replace("│", " "))
+    assert "knitted fabric" in top and "knit/purl patterns" in top
+    assert "Simulate jammed stockinette fabric" not in top
+    assert f"stitches: {', '.join(STITCH_NAMES)}" in top
+    for path, p in _options():
+        if p.opts[0] == "--stitch":
+            assert p.help.startswith(f"stitch pattern: {', '.join(STITCH_NAMES)}"), path
+            assert "knitsweep.stitches" not in p.help, path
+
+
+@pytest.mark.parametrize("command", ["run", "status", "phase-diagram", "render", "sweep"])
+def test_flags_show_as_flag_and_no_flag_without_a_type(command):
+    out = knitsweep(*command.split(), "-h")
+    assert out.returncode == 0, out.stderr
+    assert "<bool>" not in out.stdout
+    flags = [p for path, p in _options() if path == command and p.is_flag
+             and p.opts[0] not in ("--help", "-h")]  # fmt: skip
+    assert flags
+    for p in flags:
+        name = p.opts[0]
+        assert p.secondary_opts == [f"--no-{name[2:]}"], name
+        assert re.search(rf"{re.escape(name)}\s+--no-{re.escape(name[2:])}", out.stdout), name
+
+
+def test_render_says_which_flags_a_results_file_overrides(tmp_path):
+    out = knitsweep("render", "--results", str(tmp_path / "r.h5"), "--task", "abc",
+                    "--stitch", "rib", "--L", "11", "--out", str(tmp_path / "a.png"))  # fmt: skip
+    assert out.returncode == 2
+    assert out.stderr.strip() == ("error: --L, --stitch: a results file holds its own "
+                                  "parameters; drop them to draw --results, or draw a --state "
+                                  "with them")  # fmt: skip
+    # without a results file, the parameters are not refused for one (the bad --cells
+    # stops the command before anything is drawn)
+    alone = knitsweep("render", "--stitch", "rib", "--cells", "0", "--out", str(tmp_path / "a.png"))
+    assert alone.returncode == 2 and "cells = 0" in alone.stderr, alone.stderr
+    assert "a results file holds its own parameters" not in alone.stderr

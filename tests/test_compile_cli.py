@@ -77,21 +77,30 @@ def test_compile_fills_an_empty_cache_that_a_task_then_uses(tmp_path, jobs):
 
 
 def test_a_runs_cache_check_names_the_kernels_its_stitches_need():
-    """``kernels.cached`` of a job looks for the kernels its stitches call (a knit/purl
-    pattern's energy, the large states' KKT step) under the names numba gives their cache
-    indexes, so a pattern run after a stockinette run compiles its own kernels once."""
+    """``kernels.cached`` of a job looks for the kernels its stitches call (each stitch's
+    geometry, a knit/purl pattern's energy, the large states' KKT step), so a pattern run
+    after a stockinette run compiles its own kernels once, with the notice."""
     from knitsweep.compilation import kernel_entry_points
-    from knitsweep.kernels import ENTRY_POINTS
+    from knitsweep.kernels import ENTRY_POINTS, kernel
     from knitsweep.kernels.kkt_rows import kkt_step_rows
     from knitsweep.kernels.pattern_cell import pattern_cell_energy
+    from knitsweep.stitches import get_stitch
 
-    def index_prefix(dispatcher) -> str:
-        f = dispatcher.py_func
-        return f"{Path(f.__code__.co_filename).stem}.{f.__qualname__}-"
+    def geometry(name):
+        return get_stitch(name).control_points
 
-    assert kernel_entry_points(("stockinette",)) == ENTRY_POINTS
-    both = kernel_entry_points(("stockinette", "rib"))
-    assert set(both) - set(ENTRY_POINTS) == {index_prefix(pattern_cell_energy),
-                                             index_prefix(kkt_step_rows)}  # fmt: skip
-    free = kernel_entry_points(("stockinette_free",))
-    assert set(free) - set(ENTRY_POINTS) == {index_prefix(kkt_step_rows)}
+    def kernels_of(*stitches, what="run"):
+        return {kernel(name) for name in kernel_entry_points(stitches, what)}
+
+    every_task = {kernel(name) for name in ENTRY_POINTS}
+    assert kernels_of("stockinette") == every_task | {geometry("stockinette")}
+    assert kernels_of("stockinette", "rib") - every_task == {
+        geometry("stockinette"),
+        geometry("rib"),
+        pattern_cell_energy,
+        kkt_step_rows,
+    }
+    assert kernels_of("stockinette_free") - every_task == {geometry("stockinette_free"),
+                                                           kkt_step_rows}  # fmt: skip
+    energy = kernels_of("garter", what="energy")
+    assert energy == {geometry("garter"), pattern_cell_energy}

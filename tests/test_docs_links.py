@@ -1,13 +1,40 @@
-"""Unit tier: every relative link and anchor in README.md and docs/*.md points somewhere
-(a file of the repository; a heading of the target, by GitHub's anchor rule)."""
+"""Unit tier: every relative link and anchor in README.md and the documentation site's
+pages (docs/, the generated CLI reference included) points somewhere (a file of the
+repository; a heading of the target, by GitHub's anchor rule), and no section of the
+README as it was before the site (tests/data/readme_before_site.md) was lost in the move."""
 
+import importlib.util
 import re
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), ROOT / "slurm" / "README.md"]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), ROOT / "slurm" / "README.md"]
+OLD_README = Path(__file__).parent / "data" / "readme_before_site.md"
+
+
+def cli_reference():
+    """docs/hooks/cli_reference.py, the MkDocs hook that generates the CLI page."""
+    spec = importlib.util.spec_from_file_location(
+        "cli_reference", ROOT / "docs/hooks/cli_reference.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory):
+    """The pages the site generates at build time, written out as the site has them."""
+    hook = cli_reference()
+    page = ROOT / "docs" / hook.PAGE
+    assert not page.exists(), f"{page} is generated at build time and must not be committed"
+    out = tmp_path_factory.mktemp("generated") / hook.PAGE
+    out.write_text(hook.render())
+    return {page: out}
+
+
 LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 FENCE = re.compile(r"^(```|~~~)")
 
@@ -32,10 +59,19 @@ def slug(heading: str) -> str:
     return text.replace(" ", "-")
 
 
+SNIPPET = re.compile(r'^--8<-- "([^"]+)"$', re.M)
+
+
+def page_text(path: Path) -> str:
+    """A page as the site has it: the files it includes (``--8<-- "path"``, paths from
+    the repository's root, as mkdocs.yml's snippets base_path says) in their place."""
+    return SNIPPET.sub(lambda m: (ROOT / m.group(1)).read_text(), path.read_text())
+
+
 def anchors(path: Path) -> set[str]:
     seen: dict[str, int] = {}
     out = set()
-    for line in _prose(path.read_text()).splitlines():
+    for line in _prose(page_text(path)).splitlines():
         m = re.match(r"^#{1,6}\s+(.*?)\s*#*\s*$", line)
         if not m:
             continue
@@ -65,13 +101,52 @@ def test_slug_rule():
 @pytest.mark.parametrize(
     "doc", [d for d in DOCS if d.exists()], ids=lambda p: str(p.relative_to(ROOT))
 )
-def test_links_and_anchors_resolve(doc):
+def test_links_and_anchors_resolve(doc, generated):
+    bad = broken_links(doc, doc, generated)
+    assert not bad, "\n".join(bad)
+
+
+def test_the_generated_cli_page_links_resolve(generated):
+    ((page, text),) = generated.items()
+    assert "### knitsweep run" in text.read_text()
+    bad = broken_links(text, page, generated)
+    assert not bad, "\n".join(bad)
+
+
+def test_the_cli_page_has_every_command_and_option(generated):
+    """The generated reference holds every command of the CLI, nested groups included,
+    and every option of each as ``-h`` shows it."""
+    hook = cli_reference()
+    text = next(iter(generated.values())).read_text()
+    root = hook.root_command()
+    ctx = hook._click().Context(root, info_name="knitsweep")
+
+    def walk(cmd, ctx):
+        yield cmd, ctx
+        for name in getattr(cmd, "list_commands", lambda ctx: [])(ctx):
+            sub = cmd.get_command(ctx, name)
+            yield from walk(sub, hook._click().Context(sub, info_name=name, parent=ctx))
+
+    commands = list(walk(root, ctx))
+    assert len(commands) >= 14  # 13 commands and the slurm group's render
+    for cmd, ctx in commands:
+        heading = f"# {ctx.command_path}\n"
+        assert heading in text, f"no section for {ctx.command_path}"
+        section = text.split(heading, 1)[1].split("\n#", 1)[0]
+        for param in cmd.get_params(ctx):
+            for opt in param.opts if param.param_type_name == "option" else []:
+                assert f"{opt}" in section, f"{ctx.command_path}: {opt} missing"
+
+
+def broken_links(doc: Path, at: Path, generated: dict[Path, Path]) -> list[str]:
+    """The relative links of ``doc`` (read as if it stood at ``at``) that point nowhere."""
     bad = []
     for target in links(doc):
         if re.match(r"^[a-z][a-z0-9+.-]*:", target):  # http:, https:, mailto:
             continue
         file, _, anchor = target.partition("#")
-        dest = (doc.parent / file).resolve() if file else doc
+        dest = (at.parent / file).resolve() if file else at
+        dest = generated.get(dest, dest)
         if not dest.exists():
             bad.append(
                 f"{target}: no file {dest.relative_to(ROOT) if dest.is_relative_to(ROOT) else dest}"
@@ -79,7 +154,7 @@ def test_links_and_anchors_resolve(doc):
             continue
         if anchor and dest.suffix == ".md" and anchor not in anchors(dest):
             bad.append(f"{target}: no heading with anchor #{anchor} in {dest.name}")
-    assert not bad, "\n".join(bad)
+    return bad
 
 
 def test_the_check_fails_on_a_broken_link(tmp_path):
@@ -89,3 +164,98 @@ def test_the_check_fails_on_a_broken_link(tmp_path):
     )
     assert links(doc) == ["#title", "#nowhere", "missing.md"]
     assert anchors(doc) == {"title"}
+
+
+# ---- nothing of the old README lost --------------------------------------------------
+def normalised(text: str) -> str:
+    """Markdown reduced to what a reader reads: links to their text, emphasis marks,
+    table pipes and line breaks gone, whitespace collapsed."""
+    text = re.sub(r"!?\[((?:[^\]\[]|\[[^\]]*\])*)\]\([^)]*\)", r"\1", text)
+    text = re.sub(r"\*\*|(?<!\w)\*(?=\S)|(?<=\S)\*(?!\w)", "", text)
+    text = text.replace("|", " ")
+    return " ".join(text.split())
+
+
+def sections(text: str) -> dict[str, str]:
+    """The text under each heading (outside code fences), by heading."""
+    out: dict[str, list[str]] = {}
+    current, fenced = "", False
+    for line in text.splitlines():
+        if FENCE.match(line.strip()):
+            fenced = not fenced
+        m = None if fenced else re.match(r"^#{1,6}\s+(.*?)\s*$", line)
+        if m:
+            current = m.group(1)
+            out[current] = []
+        elif current:
+            out[current].append(line)
+    return {k: "\n".join(v) for k, v in out.items()}
+
+
+def pieces(section: str) -> list[str]:
+    """A section's sentences, table rows and code lines, normalised, of 30 characters
+    or more (shorter ones, such as a table's rule, say nothing on their own)."""
+    out = []
+    for block in re.split(r"\n\s*\n", section):
+        if block.lstrip().startswith(("|", "```")):
+            out += [normalised(line) for line in block.splitlines()]
+        else:
+            out += re.split(r"(?<=[.;])\s+(?=[A-Z(`*])", normalised(block))
+    return [p for p in out if len(p) >= 30 and not set(p) <= set("-: `")]
+
+
+OLD_SECTIONS = sections(OLD_README.read_text())
+
+# Sentences of the old README rewritten on purpose in the move, and where what they said
+# went (each must still be a sentence of its section: a stale entry fails).
+REWRITTEN = {
+    (
+        "Install and run the main job (a small example: 4 s on 2 cores, plus ~15–30 s to "
+        "compile the kernels the first time), then draw its figures:"
+    ): "README.md, set-up: the run and compile times as measured again (issue 38)",
+    (
+        "`.ci/run` (what CI runs) installs everything as above, also starts a two-node "
+        "cluster for the `multihost` tests (below), and runs exactly that (the `multihost` "
+        "tests start that cluster themselves, as root, if it is not up, and remove it "
+        "afterwards)."
+    ): "docs/how-to/tests.md, with 'below' a link to docs/multi-node.md",
+}
+
+
+def test_the_old_readme_had_its_sections():
+    assert len(OLD_SECTIONS) == 20
+    assert "Crash safety, the journal and checkpoints" in OLD_SECTIONS
+    every = {p for text in OLD_SECTIONS.values() for p in pieces(text)}
+    assert set(REWRITTEN) <= every, set(REWRITTEN) - every
+
+
+@pytest.mark.parametrize("heading", list(OLD_SECTIONS))
+def test_no_section_of_the_old_readme_is_lost(heading):
+    """Each section of the README before the documentation site stands, nearly word for
+    word, in README.md or a page of docs/ (or slurm/README.md, which the site includes).
+    Edited since: a fifth of a section's sentences (at least one) may differ, so that the
+    docs can be kept up to date; a section moved away and lost fails."""
+    corpus = " ".join(normalised(d.read_text()) for d in DOCS)
+    wanted = pieces(OLD_SECTIONS[heading])
+    missing = [p for p in wanted if p not in corpus and p not in REWRITTEN]
+    assert len(missing) <= max(1, len(wanted) // 5), (
+        f"{len(missing)} of {len(wanted)} sentences of the old README's section "
+        f"{heading!r} are nowhere in README.md or docs/:\n" + "\n".join(missing)
+    )
+
+
+def test_the_lost_section_check_fails_on_a_missing_sentence():
+    section = "A sentence that stands here, long enough. Another one, thirty characters long."
+    assert pieces(section) == [
+        "A sentence that stands here, long enough.",
+        "Another one, thirty characters long.",
+    ]
+    assert normalised("[a **link**](x.md) | `code` |") == "a link `code`"
+
+
+def test_the_readme_quotes_the_ci_test_command():
+    """.ci/run runs the test command that README.md's set-up quotes (its comment says so)."""
+    ci = (ROOT / ".ci" / "run").read_text()
+    (command,) = re.findall(r"^run_tests\(\) \{ (.+); \}$", ci, re.M)
+    readme = (ROOT / "README.md").read_text()
+    assert f"&& {command}\n```" in readme and f"`{command}`" in readme

@@ -285,11 +285,12 @@ def test_full_disk_mid_run_stops_cleanly_and_resumes(tmpfs, tmp_path, six_stored
     assert len(errors) == 1 and "the disk is full" in errors[0], proc.stderr
     assert "Traceback" not in proc.stderr
     assert leftovers(full) == [], "temporary files left on a full disk"
-    with h5py.File(out) as f:
-        written = len(f["points/task"]) + len(f["sweeps/task"])
-    kept = written + len(list(journal_dir(out).glob("*.entry")))
-    print(f"full disk ({size}) landed mid-run: {int(0 < kept < 18)} of 1 ({kept} of 18 tasks kept)")
+    kept = len({(e.kind, e.task_id) for e in iter_entries(out)})  # the file and its journal
+    said = int(errors[0].split("; ")[1].split(" of ")[0])
+    print(f"full disk ({size}) landed mid-run: {int(0 < kept < 18)} of 1 ({kept} of 18 tasks "
+          f"kept, {said} said)")  # fmt: skip
     assert kept < 18
+    assert said == kept, errors[0]  # the last line counts what is on disk
     roomy = tmp_path / "roomy"
     roomy.mkdir()
     shutil.copy(out, roomy / "r.h5")

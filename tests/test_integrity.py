@@ -19,7 +19,7 @@ from conftest import DATA, TINY, VOLATILE, assert_same_results, stored_meta
 
 import knitsweep
 from knitsweep import service
-from knitsweep.errors import InputError
+from knitsweep.errors import DamagedResultsWarning, InputError
 from knitsweep.store.checksum import GROUP_DIGEST, ROOT_DIGEST, FileCheck, seal_root
 from knitsweep.store.format import journal_dir
 from knitsweep.store.journal import MAGIC, Malformed, decode
@@ -106,9 +106,11 @@ def test_flipped_bytes_are_found_by_every_reader_and_recomputed(damaged, tiny_re
     shown = knitsweep_cli("status", out)
     assert shown.returncode == 0 and f"damaged sweep {tid}" in shown.stdout
     assert "knitsweep recover" in shown.stdout
-    res = knitsweep.load(out)
+    with pytest.warns(DamagedResultsWarning, match=rf"1 damaged task\(s\) skipped \(sweep {tid}\)"):
+        res = knitsweep.load(out)
     assert res.partial and tid not in set(res.sweeps["task_id"])
-    assert list(res.problems.query("status == 'damaged'")["task_id"]) == [tid]
+    damaged_rows = res.problems.query("status == 'damaged'")
+    assert list(damaged_rows["task_id"]) == [tid] and list(damaged_rows["file"]) == [str(out)]
     pd = knitsweep_cli("phase-diagram", out, "--out", tmp_path / "pd", "--no-figures")
     assert pd.returncode == 0 and f"damaged: sweep {tid}" in pd.stdout, pd.stdout + pd.stderr
     merged = knitsweep_cli("merge", tmp_path / "m.h5", out)
@@ -299,11 +301,28 @@ def test_recover_an_intact_file_changes_nothing(tiny_reference, tmp_path):
     assert out.read_bytes() == before
 
 
+def test_recover_takes_a_damaged_root_from_its_sealed_frame(tiny_reference, tmp_path):
+    out = tmp_path / "j.h5"
+    shutil.copy(tiny_reference, out)
+    with h5py.File(out, "a") as f:
+        f.attrs["job_json"] = "{}"
+    r = service.recover(out)
+    assert r["recovered"] == 6 and "root attributes from its sealed frame" in r["sources"][str(out)]
+    assert read_root(out)["job_json"] == read_root(tiny_reference)["job_json"]
+    assert service.status(out)["done"] == 6
+
+
 def test_recover_needs_the_job_when_no_root_is_intact(tiny_reference, tmp_path):
     out = tmp_path / "j.h5"
     shutil.copy(tiny_reference, out)
     with h5py.File(out, "a") as f:
         f.attrs["job_json"] = "{}"
+    data = out.read_bytes()
+    at = data.find(b"KSRT")
+    assert at > 0
+    while at >= 0:  # and every sealed copy of the root
+        flip(out, at + 60, n=1)
+        at = data.find(b"KSRT", at + 4)
     with pytest.raises(InputError, match="--job"):
         service.recover(out)
     r = service.recover(out, TINY)

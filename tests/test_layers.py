@@ -1,4 +1,4 @@
-"""Unit tier: the package's layers, read from its imports (README "How it is built").
+"""Unit tier: the package's layers, read from its imports (docs/architecture.md, "How it is built").
 
 Each module may import only from its own layer or the layers below it, lazy imports
 inside functions included; the light commands and the config floor load neither
@@ -55,8 +55,8 @@ MODULE_ORDER = {
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper",
                  "volumes"],
     "analysis.volumes": ["_nearest", "geometry", "estimators"],
-    "store": ["checksum", "format", "journal", "provenance", "table", "read", "compatible",
-              "failed_writes", "writer", "salvage", "sweep_file"],
+    "store": ["checksum", "format", "journal", "provenance", "table", "sealed", "read",
+              "compatible", "failed_writes", "writer", "salvage", "sweep_file"],
     "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],
     "strain_sweep": ["result", "schedule", "sweep"],
     "studies": ["accuracy"],

@@ -68,6 +68,6 @@ def test_compile_notice_before_the_first_compile(tmp_path):
     args = ("energy", "--state", str(SHIPPED / "Init_1.dat"), "--L", "11.6")
     first = _knitsweep(*args, env=env)
     assert first.returncode == 0, first.stderr
-    assert first.stderr.startswith("compiling numerical kernels, once per install")
+    assert first.stderr.startswith("compiling numerical kernels (stockinette) once")
     again = _knitsweep(*args, env=env)
     assert again.returncode == 0 and "compiling" not in again.stderr, again.stderr

@@ -22,6 +22,7 @@ from .common import (
     app,
     check_range,
     compile_notice,
+    flag,
     option,
     stitch_inputs,
     user_errors,
@@ -49,7 +50,7 @@ def phase_diagram(
                default="<first results>_phase_diagram"),
     ] = None,
     threshold: ThresholdOpt = None,
-    no_figures: Annotated[bool, typer.Option("--no-figures", help="write the tables only")] = False,
+    figures: Annotated[bool, flag("--figures", help="the figures as well as the tables")] = True,
     formats: Annotated[
         str, typer.Option("--format", help="figure formats, comma-separated: png, pdf, svg")
     ] = "png",
@@ -57,7 +58,7 @@ def phase_diagram(
         str, typer.Option("--width", help="figure width: auto, column (3.4 in) or page "
                           "(7.0 in), journal widths with 7-8 pt fonts")
     ] = "auto",
-    no_title: Annotated[bool, typer.Option("--no-title", help="figures without titles")] = False,
+    title: Annotated[bool, flag("--title", help="figures with titles")] = True,
     style: Annotated[
         str | None, option("--style", help="matplotlib style (name or file), or knitsweep",
                            default="your matplotlibrc")
@@ -77,11 +78,11 @@ def phase_diagram(
         if out is not None:
             check_output_dir(out, "--out")
         options = FigureOptions(tuple(f.strip() for f in formats.split(",") if f.strip()), width,
-                                not no_title, style)  # fmt: skip
+                                title, style)  # fmt: skip
         # as JSON: the object alone on stdout, each file on stderr as it is written
         progress = (lambda line: line.startswith("wrote ") and typer.echo(line, err=True)
                     ) if as_json else typer.echo  # fmt: skip
-        report = make_phase_diagram(results, out, threshold, figures=not no_figures,
+        report = make_phase_diagram(results, out, threshold, figures=figures,
                                     options=options, progress=progress)  # fmt: skip
     if as_json:
         red = report.reduction
@@ -145,9 +146,9 @@ def render(
         float, typer.Option("--elevation", help="view angle above the fabric plane (°)")
     ] = 72.0,
     width: Annotated[int, typer.Option("--pixels", help="image width (pixels)")] = 1100,
-    highlight: Annotated[bool, typer.Option("--highlight", help="wash out all stitches but the "
+    highlight: Annotated[bool, flag("--highlight", help="wash out all stitches but the "
                                             "unit cell")] = False,
-    contact_volumes: Annotated[bool, typer.Option(
+    contact_volumes: Annotated[bool, flag(
         "--contact-volumes", help="draw the stitch's contact volumes by class instead (paper "
         "Fig. 6a-e)")] = False,
     volume_points: Annotated[int, typer.Option(
@@ -162,12 +163,13 @@ def render(
     with user_errors():
         params = None
         flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core, "stitch": stitch}
-        if state is not None:
+        given = [f"--{n.replace('_', '-')}" for n, v in {**flags, "config": config}.items()
+                 if v is not None]  # fmt: skip
+        if results is not None and given:
+            raise InputError(f"{', '.join(given)}: a results file holds its own parameters; "
+                             "drop them to draw --results, or draw a --state with them")  # fmt: skip
+        if results is None:
             params, _ = stitch_inputs(config, **flags)
-        elif config is not None or any(v is not None for v in flags.values()):
-            raise InputError("--L, --B, --k, --p, --r, --r-core, --stitch and --config apply to "
-                             "--state; "
-                             "a results file holds its own parameters")  # fmt: skip
         if contact_volumes:
             from ..report.contact_volumes import render_contact_volumes
 

@@ -16,13 +16,16 @@ from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
 HELP = {"help_option_names": ["-h", "--help"]}
 """Every command takes -h as well as --help."""
 
+
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     context_settings=HELP,
-    help="Simulate jammed stockinette fabric: energies, relaxations, strain sweeps, "
-    "MPI parameter sweeps and phase diagrams (Gonzalez et al. 2025).",
+    help="Simulate knitted fabric as a periodic unit cell of yarn: stockinette and knit/purl "
+    f"patterns (stitches: {STITCH_CHOICES}). Energies, relaxations, strain sweeps, MPI "
+    "parameter sweeps, jamming phase diagrams and pictures (Gonzalez et al. 2025, "
+    "docs/model.md).",
 )
 
 
@@ -39,7 +42,7 @@ def _root(
     version: Annotated[bool, typer.Option("--version", "-V", callback=_version, is_eager=True,
                        help="print the version and exit")] = False,
 ) -> None:  # fmt: skip
-    """knitsweep: stockinette unit-cell simulations (docs/model.md)."""
+    """knitsweep: knitted-fabric unit-cell simulations (docs/model.md)."""
 
 
 def option(*names: str, help: str, default: str | None = None, **kw):
@@ -49,6 +52,31 @@ def option(*names: str, help: str, default: str | None = None, **kw):
     unit in parentheses in the paper's notation (mm, mN/mm², mN·mm², N/mm, mJ, s)."""
     text = help if default is None else f"{help} \\[default: {default}]"
     return typer.Option(*names, help=text, show_default=default is None, **kw)
+
+
+def flag(name: str, help: str, **kw):
+    """A boolean option that reads ``--name`` on and ``--no-name`` off, shown so in the
+    help (``--quiet/--no-quiet``); its default is the parameter's."""
+    return typer.Option(f"{name}/--no-{name.removeprefix('--')}", help=help, **kw)
+
+
+def _flags_show_no_type() -> None:
+    """typer (0.29) writes a ``<bool>`` type beside every flag in its rich help, where
+    click writes none: a flag takes no value, so none is shown."""
+    from typer.core import TyperOption
+
+    shown = getattr(TyperOption, "display_type_rich", None)
+    if shown is None or getattr(shown, "flags_show_no_type", False):
+        return
+
+    def display_type_rich(self, ctx):
+        return None if self.is_flag else shown(self, ctx)
+
+    display_type_rich.flags_show_no_type = True
+    TyperOption.display_type_rich = display_type_rich
+
+
+_flags_show_no_type()
 
 
 # ---- shared options (paper units; defaults: paper Table 1) --------------------------
@@ -69,13 +97,15 @@ NodesOpt = Annotated[int | None, option("--quadrature-nodes", help="Gauss–Lege
                                         "segment", default="32")]  # fmt: skip
 ImagesOpt = Annotated[str | None, option("--images", help="periodic images: cutoff (all that "
                                          "touch) or reference", default="cutoff")]  # fmt: skip
-StitchOpt = Annotated[str | None, option("--stitch", help=f"stitch pattern: one of {STITCH_CHOICES}",
+STITCH_HELP = f"stitch pattern: {STITCH_CHOICES}"
+"""The help of every --stitch option, built from the stitch registry."""
+StitchOpt = Annotated[str | None, option("--stitch", help=STITCH_HELP,
                                          default=DEFAULT_STITCH)]  # fmt: skip
 ConfigOpt = Annotated[
     Path | None,
     typer.Option("--config", help="an authors' *key value config file (jammed-knits format)"),
 ]
-JsonOpt = Annotated[bool, typer.Option("--json", help="print one JSON object")]
+JsonOpt = Annotated[bool, flag("--json", help="print one JSON object")]
 
 
 @contextlib.contextmanager
@@ -111,15 +141,13 @@ def check_range(name: str, value, lo, hi, unit: str = "") -> None:
         )
 
 
-def compile_notice(energy_only: bool = False) -> None:
-    """Tell the user when this command will first compile the numerical kernels."""
-    from .. import kernels
+def compile_notice(stitch: str | None = None, energy_only: bool = False) -> None:
+    """Tell the user when this command will first compile the numerical kernels of
+    ``stitch`` (its pattern's own ones included), and how long that usually takes."""
+    from ..compilation import compile_notice as notice
+    from ..stitches import DEFAULT_STITCH
 
-    message = (
-        kernels.compile_notice(("cell.cell_energy_listed-",))
-        if energy_only
-        else kernels.compile_notice()
-    )
+    message = notice((stitch or DEFAULT_STITCH,), "energy" if energy_only else "run")
     if message:
         typer.echo(message, err=True)
 
@@ -152,14 +180,31 @@ def stitch_inputs(config, **flags):
 
 
 def _print_result(result: dict, as_json: bool, units: dict[str, str]) -> None:
+    """One JSON object, or one line a key with its unit (``units``; a dict of inputs
+    as ``name=value`` pairs, nested ones dotted; a ``units`` entry is not printed)."""
     if as_json:
         typer.echo(json.dumps(result))
         return
-    width = max(len(k) for k in result)
-    for key, value in result.items():
+    shown = {k: v for k, v in result.items() if k != "units"}
+    width = max(len(k) for k in shown)
+    for key, value in shown.items():
         unit = units.get(key, "")
-        text = f"{value:.12g}" if isinstance(value, float) else str(value)
+        if isinstance(value, dict):
+            text = " ".join(f"{k}={_text(v)}" for k, v in _dotted(value).items())
+        else:
+            text = _text(value)
         typer.echo(f"{key:<{width}}  {text} {unit}".rstrip())
+
+
+def _text(value) -> str:
+    return f"{value:.12g}" if isinstance(value, float) else str(value)
+
+
+def _dotted(values: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in values.items():
+        out |= _dotted(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v}
+    return out
 
 
 ENERGY_UNITS = {
@@ -171,3 +216,15 @@ ENERGY_UNITS = {
     "a_y": "mm",
     "seconds": "s",
 }
+
+
+def _relax_units() -> dict[str, str]:
+    from ..quantities import PARAMETERS
+
+    return {**ENERGY_UNITS, "min_zeta": "1", "compile_seconds": "s",
+            **{name: q.units for name, q in PARAMETERS.items()}}  # fmt: skip
+
+
+RELAX_UNITS = _relax_units()
+"""The units of ``relax``'s numbers (its JSON's ``units``): energies mJ, lengths mm,
+times s, and the parameters' (their names carry them too: ``L_mm``, ``k_mN_per_mm2``)."""

@@ -10,6 +10,7 @@ import typer
 from ..config import SOLVERS
 from .common import (
     ENERGY_UNITS,
+    RELAX_UNITS,
     BOpt,
     ConfigOpt,
     ImagesOpt,
@@ -26,6 +27,7 @@ from .common import (
     _print_result,
     app,
     compile_notice,
+    flag,
     option,
     stitch_inputs,
     user_errors,
@@ -51,7 +53,7 @@ def energy(
             stitch=stitch, samples=samples, quadrature_nodes=quadrature_nodes, images=images,
         )  # fmt: skip
         x = read_state(state, params.stitch)
-        compile_notice(energy_only=True)
+        compile_notice(params.stitch, energy_only=True)
         result = CellModel(params, fidelity).energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
     _print_result(result, as_json, ENERGY_UNITS)
@@ -86,9 +88,12 @@ def relax(
                                        "state file (one number per line, as --state reads)",
                                        default="printed only")] = None,
 ) -> None:  # fmt: skip
-    """Relax the zero-force state at fixed yarn length (both periods free)."""
+    """Relax the zero-force state at fixed yarn length (both periods free). Its seconds
+    are the relaxation's, compile_seconds those of compiling the kernels first (0 once
+    cached); --json also gives the parameters, numerics and units."""
     import time
 
+    from ..compilation import compile_clock
     from ..config import StartSettings, zero_force_solvers
     from ..errors import InputError, check_seed
     from ..formats import check_writable, read_state, write_state
@@ -108,16 +113,25 @@ def relax(
         note = zero_force_solvers(params.stitch, n.solver.method)
         if note:
             typer.echo(f"note: {note}", err=True)
-        compile_notice()
+        compile_notice(params.stitch)
         t0 = time.perf_counter()
-        best = zero_force(params, n.fidelity, n.solver, settings, seed, initial=x0).best
+        with compile_clock() as compiling:  # the kernels compile on first call
+            best = zero_force(params, n.fidelity, n.solver, settings, seed, initial=x0).best
         seconds = time.perf_counter() - t0
     result = {
         "total_energy": best.total_energy, "bending_energy": best.bending_energy,
         "contact_energy": best.contact_energy, "a_x": best.a_x, "a_y": best.a_y,
         "length": best.length, "converged": best.converged, "status": best.status,
         "message": best.message, "iterations": best.iterations, "evaluations": best.evaluations,
-        "min_zeta": best.min_zeta, "seconds": seconds,
+        "min_zeta": best.min_zeta, "seconds": seconds - compiling.seconds,
+        "compile_seconds": compiling.seconds,
+        "parameters": {"stitch": params.stitch, **params.model_dump(),
+                       "L_over_r": params.L_mm / params.r_mm},
+        "numerics": {"preset": n.preset, "fidelity": n.fidelity.model_dump(mode="json"),
+                     "solver": n.solver.model_dump(mode="json"),
+                     "starts": settings.model_dump(mode="json"), "seed": seed,
+                     "state": None if state is None else str(state)},
+        "units": RELAX_UNITS,
     }  # fmt: skip
     if out is not None:  # the best state, converged or not (the status says which)
         with user_errors():
@@ -126,7 +140,7 @@ def relax(
             except OSError as e:  # the disk filled or the directory went away meanwhile
                 raise InputError(f"--out {out}: cannot write it ({e.strerror or e})") from None
         result["state_file"] = str(out)
-    _print_result(result, as_json, ENERGY_UNITS)
+    _print_result(result, as_json, RELAX_UNITS)
     if not best.converged:
         raise typer.Exit(1)
 
@@ -145,7 +159,7 @@ def sweep(
                                                 "exceeds this (N/mm)", default="0.4")] = None,
     max_strain: Annotated[float | None, option("--max-strain", help="stop at this strain",
                                                default="1.0")] = None,
-    compression: Annotated[bool, typer.Option("--compression", help="push instead of pull")] = False,
+    compression: Annotated[bool, flag("--compression", help="push instead of pull")] = False,
     observables: Annotated[str | None, option(
         "--observables", help="what the sweep must determine, comma-separated: curve, "
         "secant_modulus, offset_stress, energy_gaps; it stops once they are",
@@ -156,13 +170,19 @@ def sweep(
     out: Annotated[Path | None, option("--out", help="also write the table to this .csv or .h5 file",
                                           default="printed only")] = None,
 ) -> None:  # fmt: skip
-    """One point's strain sweep, with a progress bar; prints the stress–strain table."""
+    """One point's strain sweep, with a progress bar; prints the stress–strain table (CSV,
+    units in the column names, the inputs on its first line); the last line's seconds are
+    the sweep's (its rest state included), those of compiling the kernels on the line
+    before."""
+    import time
+
+    from ..compilation import compile_clock
     from ..config import StartSettings
     from ..errors import InputError, check_seed
     from ..formats import check_writable
     from ..presets import Numerics
     from ..service.progress import SweepProgress
-    from ..store.sweep_file import sweep_table, write_sweep
+    from ..store.sweep_file import sweep_inputs, sweep_table, write_sweep
     from ..strain_sweep import NoRestState, strain_sweep_from_rest
 
     with user_errors():
@@ -185,21 +205,28 @@ def sweep(
         )  # fmt: skip
         protocol = n.protocol
         settings = StartSettings() if starts is None else StartSettings(count=starts)
-    compile_notice()
+    compile_notice(params.stitch)
+    t0 = time.perf_counter()
     with SweepProgress(f"{direction} sweep", protocol.max_strain,
-                       protocol.stop_stress_N_per_mm) as bar:  # fmt: skip
+                       protocol.stop_stress_N_per_mm) as bar, compile_clock() as compiling:  # fmt: skip
         try:
             _, result = strain_sweep_from_rest(params, direction, protocol, n.fidelity, n.solver,
                                                settings, seed, bar.update)  # fmt: skip
         except NoRestState as e:
             typer.echo(f"error: {e}", err=True)
             raise typer.Exit(1) from None
-    typer.echo(sweep_table(result))
+    computing = time.perf_counter() - t0 - compiling.seconds  # the rest state and the sweep
+    inputs = sweep_inputs(params, direction, n, settings, seed)
+    typer.echo(sweep_table(result, inputs))
+    if compiling.seconds:
+        typer.echo(f"# compiled the kernels in {compiling.seconds:.1f} s (cached from now on)",
+                   err=True)  # fmt: skip
     typer.echo(f"# {result.status}: {result.stop_reason}; {len(result.strain)} steps, "
-               f"{result.relaxations} relaxations, {result.wall_seconds:.1f} s", err=True)  # fmt: skip
+               f"{result.relaxations} relaxations, "
+               f"{computing:.1f} s", err=True)  # fmt: skip
     if out is not None:
         with user_errors():
             try:
-                write_sweep(out, result, params)
+                write_sweep(out, result, params, inputs)
             except OSError as e:  # the disk filled or the directory went away meanwhile
                 raise InputError(f"--out {out}: cannot write it ({e.strerror or e})") from None

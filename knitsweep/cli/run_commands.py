@@ -8,11 +8,13 @@ from typing import Annotated
 
 import typer
 
-from ..stitches import DEFAULT_STITCH, STITCH_CHOICES, check_stitch_name
+from ..stitches import DEFAULT_STITCH, check_stitch_name
 from .common import (
     HELP,
+    STITCH_HELP,
     JsonOpt,
     app,
+    flag,
     option,
     user_errors,
 )
@@ -30,11 +32,11 @@ def run(
     ] = "auto",
     shard: Annotated[str | None, typer.Option("--shard", help="run shard i/N of the grid "
                      "(e.g. 0/4), for knitsweep merge")] = None,
-    retry_failed: Annotated[bool, typer.Option("--retry-failed", help="rerun failed tasks")] = False,
-    quiet: Annotated[bool, typer.Option("--quiet", help="no progress bar")] = False,
+    retry_failed: Annotated[bool, flag("--retry-failed", help="rerun failed tasks")] = False,
+    quiet: Annotated[bool, flag("--quiet", help="no progress bar")] = False,
     max_tasks: Annotated[int | None, typer.Option("--max-tasks", help="confirm a job of more "
                          "than 20000 tasks (points + sweeps): run up to this many")] = None,
-    relabel: Annotated[bool, typer.Option("--relabel", help="write into a results file made "
+    relabel: Annotated[bool, flag("--relabel", help="write into a results file made "
                        "by a job of another name or description, and give it this job's")] = False,
 ) -> None:  # fmt: skip
     """Run a job: every grid point's zero-force state and its x/y strain sweeps, into
@@ -57,12 +59,10 @@ def run(
     if summary.storage_error:  # the one line is printed; the run stopped as interrupted
         raise typer.Exit(summary.exit_code)
     c = summary.counts
-    seconds = summary.seconds  # (the compile, on a cold install, inside it)
-    compiled = (f" ({summary.compile_seconds:.1f} s of it compiling the kernels, cached from now "
-                "on)" if summary.compile_seconds else "")  # fmt: skip
     typer.echo(f"{summary.out}: {c['done']} done, {c['failed']} failed, {c['not_knittable']} not "
                f"knittable of {summary.total} tasks ({summary.skipped} already finished) in "
-               f"{seconds:.1f} s{compiled}", err=True)  # fmt: skip
+               f"{summary.seconds:.1f} s{time_split(summary.seconds, summary.compile_seconds)}",
+               err=True)  # fmt: skip
     for line in summary.failures[:10]:
         typer.echo(f"  failed: {line}", err=True)
     if summary.exit_code == EXIT_TASKS_FAILED:
@@ -70,6 +70,15 @@ def run(
                    f"{EXIT_TASKS_FAILED}): see knitsweep status {summary.out}; rerun with "
                    "--retry-failed to compute them again", err=True)  # fmt: skip
     raise typer.Exit(summary.exit_code)
+
+
+def time_split(seconds: float, compile_seconds: float) -> str:
+    """' (12.0 s compiling the kernels, cached from now on; 3.1 s computing)' for a run
+    that compiled them first, else ''."""
+    if not compile_seconds:
+        return ""
+    return (f" ({compile_seconds:.1f} s compiling the kernels, cached from now on; "
+            f"{max(seconds - compile_seconds, 0.0):.1f} s computing)")  # fmt: skip
 
 
 @app.command()
@@ -80,10 +89,12 @@ def status(
         typer.Option("--by", help="count per value of a parameter: L_mm, k_mN_per_mm2, …, "
                      "direction"),
     ] = None,
+    tasks: Annotated[bool, flag("--tasks", help="also list every finished task: its id "
+                                "(for render --task), parameters, status and seconds")] = False,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
     """Counts of a results file (done, failed, running, pending), elapsed time and ETA
-    while a run writes it, wall time once finished."""
+    while a run writes it, wall time once finished; with --tasks every task's id."""
     from .. import service
     from ..errors import InputError
     from ..quantities import PARAMETERS
@@ -92,7 +103,7 @@ def status(
     with user_errors():
         if by is not None and by not in (*PARAMETERS, "direction"):
             raise InputError(f"by = {by!r}: must be one of {', '.join((*PARAMETERS, 'direction'))}")
-        s = service.status(results, by=by)
+        s = service.status(results, by=by, tasks=tasks)
     if as_json:
         typer.echo(json.dumps(s))
         return
@@ -117,6 +128,28 @@ def status(
         typer.echo(f"  malformed journal entry {line}: its task is recomputed on resume")
     for line in s["check"]:
         typer.echo(f"  {line}")
+    if tasks:
+        typer.echo(f"tasks (draw one with knitsweep render --results {results} --task ID; "
+                   "a unique prefix of the id will do):")  # fmt: skip
+        for line in task_lines(s["tasks"]):
+            typer.echo(f"  {line}")
+
+
+def task_lines(rows: list[dict]) -> list[str]:
+    """'point    43f8c26538190f30  done  L=11.4 k=0.1  0.57 s' per task of ``status``'s
+    ``tasks``: the stitch and the parameters that vary among them, L always."""
+    from ..quantities import PARAMETER_NAMES, PARAMETERS, value_text
+
+    names = [p for p in PARAMETERS if p not in ("L_over_r",) and (p == "L_mm" or len(
+        {r.get(p) for r in rows}) > 1)]  # fmt: skip
+    lines = []
+    for r in rows:
+        kind = f"{r['kind']} {r['direction']}".strip()
+        values = " ".join(f"{PARAMETER_NAMES[p].symbol}={value_text(r[p])}" for p in names
+                          if r.get(p) is not None)  # fmt: skip
+        seconds = "" if r["seconds"] is None else f"  {r['seconds']:.2f} s"
+        lines.append(f"{kind:<7}  {r['task_id']}  {r['status']}  {values}{seconds}")
+    return lines
 
 
 @app.command()
@@ -200,7 +233,7 @@ def slurm_render(
     shards: Annotated[int | None, typer.Option("--shards", help="array tasks (array)")] = None,
     cpus_per_task: Annotated[int | None, typer.Option("--cpus-per-task", help="local workers "
                                                       "per shard (array)")] = None,
-    requeue: Annotated[bool, typer.Option("--requeue", help="requeue after the walltime "
+    requeue: Annotated[bool, flag("--requeue", help="requeue after the walltime "
                                           "signal, to resume (mpi, array)")] = False,
     script: Annotated[Path | None, typer.Option("--script", help="write it here, not to stdout")] = None,
 ) -> None:  # fmt: skip
@@ -228,8 +261,8 @@ def compile_(
                          "~/.cache/knitsweep")] = None,
     jobs: Annotated[int | None, option("--jobs", help="processes compiling side by side",
                     default="as many as idle cores, at most 3")] = None,
-    stitch: Annotated[list[str] | None, option("--stitch", help="stitch pattern: one of "
-                      f"{STITCH_CHOICES}", default=DEFAULT_STITCH)] = None,
+    stitch: Annotated[list[str] | None, option("--stitch", help=STITCH_HELP,
+                      default=DEFAULT_STITCH)] = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
     """Compile every kernel a `run` uses (and the pair forces `report` computes) into
@@ -251,14 +284,15 @@ def compile_(
             os.environ["NUMBA_CACHE_DIR"] = str(cache_dir.resolve())
         stitches = tuple(check_stitch_name(name) for name in stitch or (DEFAULT_STITCH,))
         from .. import kernels
-        from ..compilation import KERNEL_GROUPS, compile_kernels
+        from ..compilation import KERNEL_GROUPS, compile_kernels, kernel_entry_points
 
-        was_cached = kernels.cached()
+        needed = kernel_entry_points(stitches)
+        was_cached = kernels.cached(needed)
         t0 = time.perf_counter()
         seconds = compile_kernels(stitches=stitches, jobs=jobs, what="all")
         wall = time.perf_counter() - t0
     result = {"cache_dir": kernels.numba.config.CACHE_DIR, "was_cached": was_cached,
-              "cached": kernels.cached(), "seconds": round(wall, 2),
+              "cached": kernels.cached(needed), "seconds": round(wall, 2),
               "groups": {g: round(s, 2) for g, s in seconds.items()}}  # fmt: skip
     if as_json:
         typer.echo(json.dumps(result))

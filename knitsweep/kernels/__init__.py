@@ -42,26 +42,47 @@ def _cache_dir() -> str:
 
 numba.config.CACHE_DIR = _cache_dir()
 
-COMPILE_SECONDS = 30
-"""About how long compiling every kernel takes once (benchmarks/bench_compile.py on the
-idle 2-core project VM: 21 s in one process, 14 s with the groups side by side, which
-``compilation.compile_kernels`` does when cores are idle; a loaded machine takes longer)."""
-ENTRY_POINTS = ("cell.cell_energy_listed-", "contact.find_contacts-",
-                 "forces.contact_forces_by_class-", "kkt.kkt_step-")  # fmt: skip
+ENTRY_POINTS = tuple(f"knitsweep.kernels.{name}" for name in (
+    "cell.cell_energy_listed", "contact.find_contacts", "forces.contact_forces_by_class",
+    "kkt.kkt_step"))  # fmt: skip
+"""The kernels every task calls, by module path and name (``kernel``); the stitch's own
+ones are added by ``compilation.kernel_entry_points``."""
+
+
+def kernel(name: str):
+    """The numba dispatcher called ``name`` ("knitsweep.kernels.cell.cell_energy_listed"):
+    importing its module compiles nothing."""
+    import importlib
+
+    module, _, attr = name.rpartition(".")
+    return getattr(importlib.import_module(module), attr)
+
+
+def in_cache(dispatcher) -> bool:
+    """Whether numba's on-disk cache holds a compiled version of ``dispatcher`` that
+    numba would load here: its index for this source file (numba keys the index on the
+    file's path and content, so another checkout's kernels do not count) has an entry
+    for this CPU and this bytecode (the key numba looks up), and that entry's data file
+    is there."""
+    import os
+
+    cache = getattr(dispatcher, "_cache", None)
+    index_file = getattr(cache, "_cache_file", None)
+    if index_file is None:  # caching off, or no writable cache directory
+        return False
+    try:
+        index = index_file._load_index()
+        codegen = dispatcher.targetctx.codegen()
+        return any(cache._index_key(key[0], codegen) == key
+                   and os.path.exists(index_file._data_path(name))
+                   for key, name in index.items())  # fmt: skip
+    except Exception:  # an unreadable index, or a numba whose cache looks otherwise
+        return False
 
 
 def cached(entry_points: tuple[str, ...] = ENTRY_POINTS) -> bool:
-    """Whether numba's on-disk cache holds this version's kernels (by default the
-    ones every task uses; ``("cell.cell_energy_listed-",)`` for one energy) already; if not,
-    the first call compiles them: up to ``COMPILE_SECONDS``."""
-    indexes = [p.name for p in Path(numba.config.CACHE_DIR).glob("**/*.nbi")]
-    return all(any(n.startswith(entry) for n in indexes) for entry in entry_points)
-
-
-def compile_notice(entry_points: tuple[str, ...] = ENTRY_POINTS) -> str | None:
-    """What to tell a user before the first call compiles these kernels (None if
-    they are cached)."""
-    if cached(entry_points):
-        return None
-    return (f"compiling numerical kernels, once per install: ~{COMPILE_SECONDS} s "
-            f"(cached in {numba.config.CACHE_DIR})")  # fmt: skip
+    """Whether numba's on-disk cache holds every kernel of ``entry_points`` (names as in
+    ``ENTRY_POINTS``; by default the ones every task calls) compiled from this
+    checkout's sources for this CPU (``in_cache``); if not, the first call compiles
+    them (``compilation.compile_notice`` says how long that usually takes)."""
+    return all(in_cache(kernel(name)) for name in entry_points)

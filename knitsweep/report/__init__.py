@@ -95,7 +95,7 @@ def phase_diagram(
     """
     paths = [Path(results)] if isinstance(results, (str, Path)) else [Path(p) for p in results]
     tell = progress or (lambda line: None)
-    res = load(*paths, threshold=threshold)
+    res = load(*paths, threshold=threshold, warn=False)
     for line in summary_lines(res.reduction):
         tell(line)
     first = paths[0]

@@ -303,7 +303,7 @@ def write_report(
     if out.suffix.lower() not in (".html", ".htm"):
         raise InputError(f"out = '{out}': the report is an .html file")
     check_writable(out, "--out")
-    results = load(*paths, threshold=threshold)
+    results = load(*paths, threshold=threshold, warn=False)
     if progress is not None:
         progress(results.reduction.status_line)
     return replace_file(out, report_html(results, progress=progress).encode("utf-8"))

@@ -300,8 +300,8 @@ def _partial_reasons(root: Mapping[str, Any], n_found: int) -> list[str]:
         reasons.append(f"{n_found} of {n_expected} tasks present")
     check = root.get("check")
     if check is not None and (check.damaged or check.structure):
-        reasons.append(f"{len(check.damaged)} damaged task(s) not used"
-                       + (f" ({'; '.join(check.structure)})" if check.structure else "")
+        reasons.append("; ".join([f"{len(check.damaged)} damaged task(s) not used"]
+                                 * bool(check.damaged) + check.structure_lines())
                        + f": `knitsweep recover {root['file']}`, then resume")  # fmt: skip
     return reasons
 

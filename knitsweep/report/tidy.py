@@ -1,5 +1,5 @@
 """The results as one tidy ``xarray.Dataset`` over the grid's own dimensions
-(``Results.to_xarray``; README, Results in Python).
+(``Results.to_xarray``; docs/tutorials/results-in-python.md).
 
 Layout (CF Conventions 1.10 attributes: every variable has ``units`` and
 ``long_name``):

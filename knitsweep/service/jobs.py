@@ -1,6 +1,6 @@
 """Job specs: what a sweep computes, validated before any compute starts.
 
-A job file is TOML (see ``jobs/*.toml`` and the README's job-spec reference).
+A job file is TOML (see ``jobs/*.toml`` and docs/job-files.md).
 It names a grid over the stitch parameters, the directions to pull, a fidelity
 preset with optional overrides, the sweep protocol, the starts and seed, and the
 optional observables to store. Every value is checked when the file is loaded;

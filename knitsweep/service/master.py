@@ -47,7 +47,7 @@ COMMIT_AGE_S = 0.2
 arriving (the master commits at once when it has nothing else to do)."""
 
 EXIT_TASKS_FAILED = 4
-"""Exit code of a run that finished but whose file holds failed tasks (README)."""
+"""Exit code of a run that finished but whose file holds failed tasks (docs/how-to/runs.md)."""
 
 
 @dataclass
@@ -285,6 +285,7 @@ class _Master:
                 if not queue:
                     break
                 self.executor.submit(*queue.popleft())
+            self.progress.setup_s = float(getattr(self.executor, "compile_seconds", 0.0))
             reply = self.executor.next_reply(timeout=0.25, idle=self._commit)
             if reply is not None:
                 self._handle(reply)
@@ -367,6 +368,22 @@ def varying_parameters(job: JobSpec) -> tuple[str, ...]:
     tied = tuple(n for n, tie in job.grid.ties().items() if len(axes.get(tie.to, ())) > 1)
     stitch = ("stitch",) if len(job.stitches) > 1 else ()
     return stitch + tuple(n for n, v in axes.items() if len(v) > 1) + tied
+
+
+def _on_disk(out: Path, master: _Master | None) -> int:
+    """How many of this run's tasks the disk holds after a write failed (the file and
+    its journal as read back now: results received but never made durable, or lost
+    with a journal deleted under the run, are not counted)."""
+    from ..store.read import iter_entries
+
+    if master is None:
+        return 0
+    ours = {POINTS: master.points, SWEEPS: master.sweeps}
+    try:
+        return len({(e.kind, e.task_id) for e in iter_entries(out)
+                    if e.task_id in ours.get(e.kind, ())})  # fmt: skip
+    except Exception:  # the file itself unreadable: nothing can be counted on
+        return 0
 
 
 def run_job(
@@ -454,9 +471,10 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
             summary.compile_seconds = float(getattr(executor, "compile_seconds", 0.0))
     written = sum(summary.counts.values())
     if failure is not None:
+        written = _on_disk(out, master)
         summary.interrupted = True
         summary.storage_error = str(failure)
-        print(f"error: {failure}; {written} of {summary.total} tasks are in {out} (with its "
+        print(f"error: {failure.strerror or failure}; {written} of {summary.total} tasks are in {out} (with its "
               f"journal); {remedy(failure)} and run the same command again to resume",
               file=sys.stderr, flush=True)  # fmt: skip
     elif summary.interrupted:

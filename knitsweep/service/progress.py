@@ -68,6 +68,9 @@ class RunProgress:
     stream: IO[str] = field(default_factory=lambda: sys.stderr)
     live: bool | None = None  # None: a live display when the stream is a terminal
     every: float = 30.0
+    setup_s: float = 0.0
+    """Seconds of the run spent compiling the kernels before tasks could start: the ETA's
+    throughput counts only the time after."""
     kinds: dict[str, _Kind] = field(default_factory=lambda: {k: _Kind() for k in KINDS})
     t0: float = field(default_factory=time.monotonic)
     _last_summary: float = 0.0
@@ -107,7 +110,8 @@ class RunProgress:
 
     def eta(self) -> float:
         """Seconds still to go: the work left, each task at its kind's mean time, over
-        the worker seconds done per wall second so far; inf until measurable."""
+        the worker seconds done per wall second since the kernels were compiled (``setup_s``);
+        inf until measurable."""
         done_work = sum(k.seconds for k in self.kinds.values())
         if done_work <= 0.0:
             return math.inf
@@ -117,7 +121,7 @@ class RunProgress:
                 return math.inf
             means["sweep"] = 10.0 * means["point"]  # measured: a sweep costs ~10 points
         left = sum((k.total - k.finished) * (means[n] or 0.0) for n, k in self.kinds.items())
-        return left / (done_work / max(self.elapsed, 1e-9))
+        return left / (done_work / max(self.elapsed - self.setup_s, 1e-9))
 
     def counts(self) -> dict[str, float]:
         return {"elapsed_s": self.elapsed, "eta_s": self.eta(),

@@ -9,6 +9,7 @@ workers are released instead of left waiting.
 from __future__ import annotations
 
 import math
+import os
 import signal
 import time
 from pathlib import Path
@@ -30,7 +31,7 @@ if TYPE_CHECKING:
     from .executors import ExecutorKind
 
 LARGE_GRID_TASKS = 20_000
-"""Jobs with more tasks (points and sweeps) than this need ``--max-tasks`` (README)."""
+"""Jobs with more tasks (points and sweeps) than this need ``--max-tasks`` (docs/input-validation.md)."""
 
 
 def default_output(job: JobSpec, shard: tuple[int, int] | None) -> Path:
@@ -89,8 +90,28 @@ def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
     out = Path(out) if out is not None else default_output(job, shard_t)
     check_grid_size(job, max_tasks)
     check_output(out)
+    adopt_empty(out)
     check_label(job, out, relabel)
     return job, shard_t, out
+
+
+def adopt_empty(out: Path) -> Path | None:
+    """A 0-byte results file holds no results: kept aside (``<file>.damaged``) so that
+    the run starts it anew, its journal folded in (nothing is lost). Not when a copy
+    beside it (shadow, spare) holds results that a writer would delete as stale:
+    ``recover`` is for that. Returns where the file is kept (None: not adopted)."""
+    import sys
+
+    from ..store.salvage import set_aside
+
+    copies = [out.with_name(f".{out.name}.{what}") for what in ("shadow", "spare")]
+    if (out.is_symlink() or not out.is_file() or out.stat().st_size or any(map(os.path.lexists, copies))
+            or writer_alive(lock_path(out))):  # fmt: skip
+        return None
+    kept = set_aside(out)
+    print(f"warning: {out} was empty (0 bytes, no results): kept as {kept}; this run starts "
+          "it anew", file=sys.stderr, flush=True)  # fmt: skip
+    return kept
 
 
 def check_label(job: JobSpec, out: Path, relabel: bool = False) -> None:
@@ -139,7 +160,7 @@ def check_output(out: Path) -> None:
     check_no_links(out)
 
 
-def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
+def status(path: str | Path, by: str | None = None, tasks: bool = False) -> dict[str, Any]:
     """Counts of a results file (done, failed, not_knittable, running, pending, total),
     its elapsed time and ETA while a run writes it, its wall time once finished.
 
@@ -149,7 +170,9 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
     counts are the file's own, and the total is the planned task count (updated to the
     tasks it holds when a run closes the file), never less than what it holds.
     ``by``: a parameter (``L_mm``, ``k_mN_per_mm2``, …, ``direction``) to count the
-    file's tasks per value of.
+    file's tasks per value of. ``tasks``: also list every finished task (``tasks``: kind,
+    id, status, direction, point id, stitch, parameters, seconds; the ids
+    ``knitsweep render --results FILE --task ID`` draws).
     """
     path = Path(path)
     root = read_root(path)
@@ -159,6 +182,7 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
     groups: dict[Any, dict[str, int]] = {}
     journalled, problems = scan(journal_dir(path))  # once, before the file (iter_entries)
     check = FileCheck()
+    listed: list[dict[str, Any]] = []
     for e in iter_entries(path, journalled=journalled, check=check):
         if e.kind == SERIES:
             series.append(e.meta)
@@ -173,6 +197,8 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
             group[s] = group.get(s, 0) + 1
         if s == FAILED:
             failures.append(f"{e.kind[:-1]} {e.task_id}: {e.meta.get('message', '')}")
+        if tasks and e.kind in (POINTS, SWEEPS):
+            listed.append(task_row(e))
     live = read_progress(path)
     fresh = (
         live is not None
@@ -217,7 +243,31 @@ def status(path: str | Path, by: str | None = None) -> dict[str, Any]:
             "done": sum(m.get("status") == "done" for m in series),
             "total": len(series),
         },
+        **({"tasks": sorted(listed, key=_task_order)} if tasks else {}),
     }
+
+
+def task_row(e) -> dict[str, Any]:
+    """One finished task of a results file as plain data: kind (point, sweep), id,
+    status, direction and point id (a sweep's), stitch, parameters, seconds."""
+    from ..quantities import PARAMETERS
+
+    row = {"kind": e.kind[:-1], "task_id": e.task_id, "status": str(e.meta.get("status", "")),
+           "direction": str(e.meta.get("direction", "")),
+           "point_id": str(e.meta.get("point_id", "")),
+           "stitch": str(e.meta.get("stitch", DEFAULT_STITCH))}  # fmt: skip
+    row |= {p: plain_value(e.meta[p]) for p in PARAMETERS if p != "stitch" and p in e.meta}
+    row["seconds"] = plain_value(e.meta.get("seconds"))
+    return row
+
+
+def _task_order(row: dict[str, Any]) -> tuple:
+    """Points before sweeps; then by stitch, the parameters, L, direction."""
+    from ..quantities import NUMERIC_SERIES_PARAMS
+
+    return (row["kind"] != "point", row["stitch"],
+            *(row.get(p, 0.0) for p in NUMERIC_SERIES_PARAMS), row.get("L_mm", 0.0),
+            row["direction"])  # fmt: skip
 
 
 def _wall_seconds(root: dict[str, Any]) -> float:

@@ -86,7 +86,7 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
 
     t0 = time.perf_counter()
     if not kernels_cached(job):
-        with compile_lock(notice):
+        with compile_lock(notice, job):
             if not kernels_cached(job):  # nobody compiled them while this one waited
                 compile_kernels(job.fidelity, heard, job.stitches)
     compile_kernels(job.fidelity, heard, job.stitches)  # loads them (at once if just compiled)
@@ -94,14 +94,15 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
 
 
 @contextlib.contextmanager
-def compile_lock(notice: Callable[[str], None] | None = None):
+def compile_lock(notice: Callable[[str], None] | None = None, job: JobSpec | None = None):
     """Hold the lock file beside numba's kernel cache (``<cache dir>.lock``) while
     the kernels are compiled. With a node-local cache (``NUMBA_CACHE_DIR``
     on a node's /tmp, as the SLURM templates set it) the first rank of a node to
     come compiles, once, and the node's other ranks wait and then load its
     cache, instead of every rank compiling at once. Blocking, but a signal
     interrupts the wait (under ``signals.interruptible``). Without a writable
-    cache directory there is nothing to share, so no lock."""
+    cache directory there is nothing to share, so no lock. ``job``: whose kernels the
+    notice of a wait is about (None: those every task calls)."""
     import fcntl
     import os
 
@@ -120,7 +121,8 @@ def compile_lock(notice: Callable[[str], None] | None = None):
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            if notice is not None and not kernels.cached():
+            if notice is not None and not (kernels.cached() if job is None
+                                           else kernels_cached(job)):  # fmt: skip
                 notice(
                     f"waiting for another process of this host to compile the kernels (lock {path})"
                 )

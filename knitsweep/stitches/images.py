@@ -17,9 +17,10 @@ it is. Every group has one interface:
   change its crossings in a relaxation checks them; translations of the crossover ansatz
   cannot); ``checks_resolution``: whether the contact sum's sampling is checked
   (``CellModel.resolution_change``);
-* ``entry_points``: its kernels' names in numba's cache beyond every task's
-  (``compilation.kernel_entry_points``); ``compile(m, what)``: compile them for ``m``'s
-  argument types without running them.
+* ``entry_points``: its kernels' names in numba's cache beyond every task's, and
+  ``energy_entry_points`` those of its energy alone (``compilation.kernel_entry_points``);
+  ``compile_seconds``: about how long compiling them takes; ``compile(m, what)``: compile
+  them for ``m``'s argument types without running them.
 
 ``m`` is a ``CellModel`` (its parameters ``ip``, tables ``_qtab``, ``_qw``, ``_ctab``,
 weights ``_seg_w``, image mode ``_mode`` and gradient buffers). The argument lists of the
@@ -29,6 +30,8 @@ mirrored through z = 0 when pm m + pn n is odd (``mirror_parity``; garter, rib, 
 """
 
 from __future__ import annotations
+
+from typing import ClassVar
 
 import numpy as np
 
@@ -58,6 +61,10 @@ class Translations:
     lists_neighbours = True
     checks_resolution = False
     entry_points: tuple[str, ...] = ()
+    energy_entry_points = ("knitsweep.kernels.cell.cell_energy_listed",)
+    compile_seconds: ClassVar[dict[str, float]] = {"run": 29, "energy": 17}
+    """About how long compiling a task's kernels (``run``) or one energy's takes once on an
+    idle machine, s (``compilation.COMPILE_SECONDS``, where the measurement is told)."""
     parity = (0, 0)
 
     def energy_args(self, m, cp, jac, x, with_grad) -> tuple:
@@ -130,7 +137,9 @@ class Glides(Translations):
     name = "glides"
     lists_neighbours = False
     checks_resolution = True
-    entry_points = ("pattern_cell.pattern_cell_energy-",)
+    entry_points = ("knitsweep.kernels.pattern_cell.pattern_cell_energy",)
+    energy_entry_points = entry_points
+    compile_seconds: ClassVar[dict[str, float]] = {"run": 53, "energy": 20}
 
     def __init__(self, parity: tuple[int, int]) -> None:
         self.parity = (int(parity[0]), int(parity[1]))

@@ -52,11 +52,17 @@ class FileCheck:
         self.unverified += other.unverified
         self.structure += other.structure
 
+    def structure_lines(self) -> list[str]:
+        """One line per structure problem ("damaged /sweeps: column description
+        unreadable" for one that names the table, "damaged: …" for the others)."""
+        return [f"damaged {why}" if why.startswith("/") else f"damaged: {why}"
+                for why in self.structure]  # fmt: skip
+
     def lines(self, path: Any) -> list[str]:
         """One line per damaged task or structure problem, and one for the unverified."""
         out = [f"damaged {kind[:-1]} {tid}: {why}: not used, recomputed on resume"
                for kind, tid, why in self.damaged]  # fmt: skip
-        out += [f"damaged: {why}" for why in self.structure]
+        out += self.structure_lines()
         if self.damaged or self.structure:
             out.append(f"`knitsweep recover {path}` rebuilds the file from what is intact")
         if self.unverified:

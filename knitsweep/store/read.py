@@ -90,9 +90,12 @@ def recover_hint(path: Path) -> str:
         head = b""
     beside = [p for p in (journal_dir(path), path.with_name(f".{path.name}.spare"),
                           path.with_name(f".{path.name}.shadow")) if p.exists()]  # fmt: skip
-    if head == SIGNATURE or beside or (path.exists() and path.stat().st_size == 0):
+    if head == SIGNATURE or beside:
         return (f"; if it is a damaged knitsweep results file, `knitsweep recover {path}` "
                 "rebuilds it from its intact tasks, the spare copy and the journal")  # fmt: skip
+    if path.exists():  # nothing of a results file in it, nor beside it
+        return (f"; if it should be a results file, `knitsweep recover {path} --job JOB.toml` "
+                f"starts it anew in place (this file kept as {path.name}.damaged)")  # fmt: skip
     return ""
 
 
@@ -102,10 +105,10 @@ PARALLEL_FROM = 256
 
 
 def file_entries(f, with_data: bool, check: FileCheck | None = None,
-                 skip: set | frozenset = frozenset()) -> Iterator[Entry]:  # fmt: skip
+                 skip: set | frozenset = frozenset(), salvage: bool = False) -> Iterator[Entry]:  # fmt: skip
     """The verified tasks of an open file (damaged ones recorded in ``check`` and left
     out), but those in ``skip`` ((kind, task id) pairs): a table's rows (schema 3) or
-    task groups (schemas 1 and 2)."""
+    task groups (schemas 1 and 2); ``salvage``: see ``table.table_entries``."""
     groups = []
     for kind in KINDS:
         table = _table(f, kind, check)
@@ -114,7 +117,7 @@ def file_entries(f, with_data: bool, check: FileCheck | None = None,
             continue
         if table is False:  # its index is damaged: recorded in check
             continue
-        for e in table_entries(table, kind, check, skip):
+        for e in table_entries(table, kind, check, skip, salvage):
             if not with_data:
                 e.record = {}
             yield e

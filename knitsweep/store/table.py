@@ -169,7 +169,7 @@ class _Columns:
     """The columns of one kind's table, as its ``columns`` attribute lists them
     (column -> [name, role, the values' dtype, dimensions]), created as needed."""
 
-    def __init__(self, group, kind: str) -> None:
+    def __init__(self, group, kind: str, described: bool = True) -> None:
         self.g = group
         self.kind = kind
         self.scales: dict[str, Any] = {}
@@ -179,8 +179,30 @@ class _Columns:
         self.name_of: dict[str, str] = {}
         self._found: dict[tuple, str] = {}  # (role, name, dtype, rank) -> column
         self.changed = False
-        for col, (name, role, dtype, dims) in json.loads(group.attrs.get("columns", "{}")).items():
-            self._register(col, name, role, np.dtype(dtype), tuple(dims))
+        self.described = described  # False: the columns as found (the description damaged)
+        if not described:
+            self._from_datasets()
+            return
+        try:
+            listed = json.loads(group.attrs.get("columns", "{}"))
+            for col, (name, role, dtype, dims) in listed.items():
+                if not (isinstance(name, str) and role in ("array", "scalar")):
+                    raise ValueError(col)
+                self._register(col, name, role, np.dtype(dtype), tuple(map(str, dims)))
+        except Exception as e:  # a JSON that no longer parses, or not a description
+            raise Damaged(f"/{kind}: column description unreadable ({type(e).__name__})") from None
+
+    def _from_datasets(self) -> None:
+        """The columns as the group's datasets show them (for ``recover`` when the
+        ``columns`` attribute is damaged): a row's ``entry`` says which of them it
+        uses; its digest decides what an int8 column held (bool or int8)."""
+        h5py = _h5()
+        for col, ds in self.g.items():
+            if col in RESERVED or not isinstance(ds, h5py.Dataset) or ds.is_scale:
+                continue
+            dtype = np.dtype(object) if ds.dtype.kind in "OSU" else ds.dtype
+            role = "scalar" if ds.ndim == 1 else "array"
+            self._register(col, col, role, dtype, (TASK, *(f"axis{i}" for i in range(1, ds.ndim))))
 
     def _register(self, col, name, role, dtype, dims) -> None:
         self.dims[col], self.dtype[col], self.role[col] = dims, dtype, role
@@ -372,10 +394,20 @@ def _decode(v: Any) -> Any:
 
 
 def table_entries(group, kind: str, check: FileCheck | None = None,
-                  skip: set | frozenset = frozenset()) -> Iterator[Entry]:  # fmt: skip
+                  skip: set | frozenset = frozenset(), salvage: bool = False) -> Iterator[Entry]:  # fmt: skip
     """The verified entries of a table (with their arrays), but those whose (kind, task
-    id) is in ``skip``; a damaged row is left out and recorded in ``check``."""
-    columns = _Columns(group, kind)
+    id) is in ``skip``; a damaged row is left out and recorded in ``check``. A damaged
+    column description hides every row (recorded in ``check.structure``), unless
+    ``salvage`` (``knitsweep recover``): then the rows are read from the columns
+    found, each verified by its digest."""
+    try:
+        columns = _Columns(group, kind)
+    except Damaged as e:
+        if check is not None:
+            check.structure.append(str(e))
+        if not salvage:
+            return
+        columns = _Columns(group, kind, described=False)
     tasks = [_decode(t) for t in group[TASK][()]]
     for start in range(0, len(tasks), READ_ROWS):
         stop = min(start + READ_ROWS, len(tasks))
@@ -406,8 +438,8 @@ def find_row(group, kind: str, task_id: str) -> Entry | None:
     where = _rows_of(group[TASK][()]).get(task_id)
     if where is None:
         return None
-    columns = _Columns(group, kind)
     try:
+        columns = _Columns(group, kind)
         block = {name: group[name][where : where + 1] for name in (ENTRY, DIGEST, *columns.dims)}
         return _row_entry(kind, task_id, block, 0, columns)
     except Exception:
@@ -431,10 +463,12 @@ def _row_entry(kind: str, task_id: str, block: dict, i: int, columns: _Columns) 
             arrays[name] = a
     except Exception as e:
         raise Damaged(f"unreadable ({type(e).__name__})") from None
-    if row_digest(task_id, entry_json, arrays) != digest:
+    if row_digest(task_id, entry_json, arrays) != digest and not (
+            not columns.described and _as_bool(task_id, entry_json, arrays, placed, digest,
+                                               columns)):  # fmt: skip
         raise Damaged("checksum mismatch (the stored data changed after it was written)")
     for col, name in columns.name_of.items():  # the scalar columns say what entry says
-        if columns.role[col] != "scalar":
+        if columns.role[col] != "scalar" or not columns.described:
             continue
         v = attrs.get(name)
         want = v if v is not None and _scalar_dtype(v) == columns.dtype[col] else None
@@ -447,3 +481,14 @@ def _row_entry(kind: str, task_id: str, block: dict, i: int, columns: _Columns) 
         if not ok:
             raise Damaged(f"its {col} column disagrees with its entry")
     return Entry(kind, task_id, arrays, renamed(dict(attrs)))
+
+
+def _as_bool(task_id, entry_json, arrays, placed, digest, columns) -> bool:
+    """Whether the row matches its digest with its int8 columns read as booleans (what
+    a damaged description no longer says); if so, ``arrays`` holds them so."""
+    flags = {name: arrays[name].astype(bool) for name, (col, _) in placed.items()
+             if columns.dtype[col] == np.int8}  # fmt: skip
+    if not flags or row_digest(task_id, entry_json, {**arrays, **flags}) != digest:
+        return False
+    arrays.update(flags)
+    return True

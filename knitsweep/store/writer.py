@@ -83,6 +83,7 @@ from .journal import (
 )
 from .provenance import environment_metadata
 from .read import _open, file_entries, read_root
+from .sealed import append_root, append_rows
 from .table import create_table, put_rows
 
 __all__ = ["ResultWriter", "StorageError", "atomic_write_bytes", "check_compatible",
@@ -103,12 +104,15 @@ def _hidden(path: Path, what: str) -> Path:
 # ---- writing ---------------------------------------------------------------------
 
 
-def _put(f, entries: list[Entry], prepared: dict | None = None) -> None:
+def _put(f, entries: list[Entry], prepared: dict | None = None,
+         framed: dict | None = None) -> None:  # fmt: skip
     """Write entries into their kinds' tables of an open file, each replacing an
     earlier version of its task (a failure being replaced by a rerun, or a duplicate
-    after a crash); ``prepared``: ``table.put_rows``'s."""
+    after a crash), and their sealed frames (``store.sealed``); ``prepared``:
+    ``table.put_rows``'s, ``framed``: ``sealed.append_rows``'s."""
     for kind in KINDS:
         put_rows(f[kind], kind, [e for e in entries if e.kind == kind], prepared)
+    append_rows(f, entries, framed)
 
 
 def check_no_links(path: Path) -> None:
@@ -120,6 +124,67 @@ def check_no_links(path: Path) -> None:
                     (_hidden(path, "shadow"), "shadow copy"), (_hidden(path, "spare"), "spare copy"),
                     (progress_path(path), "progress file")):  # fmt: skip
         refuse_link(p, what)
+
+
+def hold_lock(path: Path) -> int:
+    """An exclusive flock on ``<file>.lock`` (its descriptor), held by a writer or a
+    ``recover`` for as long as it works on ``path``; the kernel drops it when the
+    process dies, however it dies. InputError if another process holds it."""
+    lock = lock_path(path)
+    if not path.parent.is_dir():
+        raise StorageError(2, f"cannot write {path}: directory {path.parent} does not exist")
+    check_no_links(path)
+    while True:
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_RDWR | os.O_NOFOLLOW, 0o644)
+        except OSError as e:
+            if e.errno == errno.ELOOP:  # made a link since check_no_links looked
+                check_no_links(path)
+            raise storage_error(lock, e) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            owner = " on host ".join(os.read(fd, 200).decode(errors="replace").split())
+            os.close(fd)
+            raise InputError(
+                f"{path} is being written by process {owner or '?'}; wait for it to finish"
+            ) from None
+        try:  # the file we locked may have been unlinked by a finishing writer
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()} {socket.gethostname()}".encode())
+    except OSError as e:
+        os.close(fd)
+        raise storage_error(path, e) from None
+    return fd
+
+
+def release_lock(path: Path, fd: int) -> None:
+    with contextlib.suppress(OSError):  # e.g. the directory became read-only:
+        lock_path(path).unlink(missing_ok=True)  # a stale lock is harmless
+    os.close(fd)
+
+
+def remove_stale(path: Path) -> None:
+    """Delete what an interrupted checkpoint or ``recover`` left beside ``path``: the
+    shadow and spare, temporary files of this writer's name, and a killed
+    ``recover``'s rebuild (``.<file>.<pid>.recover.tmp`` with its journal, lock and
+    copies). Only under ``path``'s lock: no process that made them is alive."""
+    name = path.name
+    for stale in (_hidden(path, "shadow"), _hidden(path, "spare"),
+                  *path.parent.glob(f".{name}.*.tmp"), *path.parent.glob(f".{name}.*.recover.tmp*"),
+                  *path.parent.glob(f"..{name}.*.recover.tmp.*")):  # fmt: skip
+        with contextlib.suppress(OSError):
+            if stale.is_dir() and not stale.is_symlink():
+                shutil.rmtree(stale)
+            else:
+                stale.unlink(missing_ok=True)
 
 
 def _lockable(path: Path, mode: int) -> bool | None:
@@ -166,6 +231,7 @@ class ResultWriter:
         self._lag: list[Entry] = []  # in the file, not yet in the shadow
         self._lag_attrs: dict[str, Any] = {}
         self._prepared: dict[int, tuple] = {}  # the lag's rows, made when first written
+        self._framed: dict[int, tuple] = {}  # … and their sealed frames
         self._shadow_ready = False
         self.malformed: list[tuple[Path, str]] = []
         self.check = FileCheck()  # damaged and unverified tasks found in the file
@@ -182,48 +248,11 @@ class ResultWriter:
 
     # -- lifecycle
     def _acquire_lock(self) -> None:
-        """An exclusive flock on ``<file>.lock`` for the life of this writer; the
-        kernel drops it when the process dies, however it dies."""
-        lock = lock_path(self.path)
-        if not self.path.parent.is_dir():
-            raise StorageError(2, f"cannot write {self.path}: directory {self.path.parent} "
-                               "does not exist")  # fmt: skip
-        check_no_links(self.path)
-        while True:
-            try:
-                fd = os.open(lock, os.O_CREAT | os.O_RDWR | os.O_NOFOLLOW, 0o644)
-            except OSError as e:
-                if e.errno == errno.ELOOP:  # made a link since check_no_links looked
-                    check_no_links(self.path)
-                raise storage_error(lock, e) from None
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                owner = " on host ".join(os.read(fd, 200).decode(errors="replace").split())
-                os.close(fd)
-                raise InputError(
-                    f"{self.path} is being written by process {owner or '?'}; wait for it to finish"
-                ) from None
-            try:  # the file we locked may have been unlinked by a finishing writer
-                same = os.fstat(fd).st_ino == os.stat(lock).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                break
-            os.close(fd)
-        try:
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()} {socket.gethostname()}".encode())
-        except OSError as e:
-            os.close(fd)
-            raise storage_error(self.path, e) from None
-        self._lock_fd = fd
+        self._lock_fd = hold_lock(self.path)
 
     def _release_lock(self) -> None:
         if self._lock_fd is not None:
-            with contextlib.suppress(OSError):  # e.g. the directory became read-only:
-                lock_path(self.path).unlink(missing_ok=True)  # a stale lock is harmless
-            os.close(self._lock_fd)
+            release_lock(self.path, self._lock_fd)
             self._lock_fd = None
 
     @property
@@ -248,12 +277,7 @@ class ResultWriter:
                 # same results, new label or run settings (the caller allowed a relabel)
                 self._root_updates |= {"job_json": self.job.model_dump_json(),
                                        "job_name": self.job.name}  # fmt: skip
-        for stale in (  # only now: a damaged file was refused with its spare kept
-            self._shadow,
-            self._spare,
-            *self.path.parent.glob(f".{self.path.name}.*.tmp"),
-        ):
-            stale.unlink(missing_ok=True)  # a checkpoint interrupted before its rename
+        remove_stale(self.path)  # only now: a damaged file was refused with its spare kept
         try:
             self.journal.mkdir(exist_ok=True)
             for stale in self.journal.glob(".*.tmp"):
@@ -286,6 +310,7 @@ class ResultWriter:
                 for kind in KINDS:
                     create_table(f, kind)
                 seal_root(f)
+                append_root(f)
             _fsync_file(tmp)
             os.replace(tmp, self.path)
         except StorageError:
@@ -302,7 +327,7 @@ class ResultWriter:
         with _open(self.path) as f:
             self.stored = list(file_entries(f, False, self.check))
         if self.check.structure:
-            raise InputError(f"{self.path} is damaged ({'; '.join(self.check.structure)}): "
+            raise InputError(f"{self.path}: {'; '.join(self.check.structure_lines())}: "
                              f"`knitsweep recover {self.path}` rebuilds it from its intact "
                              "tasks, the spare copy and the journal")  # fmt: skip
 
@@ -391,6 +416,7 @@ class ResultWriter:
                 self._lag_attrs = dict(attrs or {})
         self._prepared = {id(e): self._prepared[id(e)] for e in self._lag
                           if id(e) in self._prepared}  # fmt: skip
+        self._framed = {id(e): self._framed[id(e)] for e in self._lag if id(e) in self._framed}
         return len(entries)
 
     def _check_space(self, entries: list[Entry]) -> None:
@@ -423,11 +449,14 @@ class ResultWriter:
             # last checkpoint's results, written again: a group copied from the other
             # file (H5Ocopy) would keep references into that file, and its dimension
             # scales would point at nothing
-            _put(f, self._lag + entries, self._prepared)
+            _put(f, self._lag + entries, self._prepared, self._framed)
             for k, v in {**self._lag_attrs, **(attrs or {})}.items():
                 f.attrs[k] = v
             seal_root(f)
+            append_root(f)
         _fsync_file(self._shadow)
+        if os.path.islink(self._shadow):  # swapped for a link since: never renamed into place
+            raise OSError(errno.ELOOP, "symbolic link", str(self._shadow))
         try:  # keep the version being replaced: it becomes the next shadow
             os.link(self.path, self._spare)
             spare = self._spare
