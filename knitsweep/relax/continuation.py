@@ -76,7 +76,7 @@ def walk_starts(
     settings: SolverSettings | None = None,
     merge_tolerance: float = 0.0,
 ) -> tuple[list[tuple[Relaxation, int]], np.ndarray, np.ndarray]:
-    """Zero-force relaxations at ``target`` from several starts (state (30,), the
+    """Zero-force relaxations at ``target`` from several starts (state (n,), the
     parameters it was relaxed at), each walked there in small parameter stages
     (docs/model.md §7).
 
