@@ -34,6 +34,7 @@ def compile_kernels(
     stitches: tuple[str, ...] = (DEFAULT_STITCH,),
     jobs: int | None = None,
     what: str = "run",
+    each_kernel: Callable[[], None] | None = None,
 ) -> dict[str, float]:
     """Compile (or load from numba's cache) every kernel a task of these ``stitches``
     uses, once, before work fans out to other processes; returns the seconds per
@@ -46,7 +47,8 @@ def compile_kernels(
     ``knitsweep energy`` calls). ``jobs``: processes that
     compile groups side by side when the cache is cold (None: as many as there are
     idle cores, at most one a group; 1: all here). Each fills the shared on-disk
-    cache; this process then loads the kernels from it.
+    cache; this process then loads the kernels from it. ``each_kernel`` is called
+    before each kernel this process compiles or loads (``compile_group``).
     """
     message = compile_notice(stitches, what)
     if message and notice is not None:
@@ -57,7 +59,7 @@ def compile_kernels(
         seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs, what))
     for group in groups:
         t0 = time.perf_counter()
-        compile_group(group, fidelity, stitches, what)
+        compile_group(group, fidelity, stitches, what, each_kernel)
         seconds[group] = seconds.get(group, 0.0) + time.perf_counter() - t0
     return seconds
 
@@ -92,7 +94,9 @@ only (stockinette) or with a knit/purl pattern's glides (garter, rib, seed). Mea
 with ``benchmarks/bench_compile.py --jobs 1 --what run|energy --stitch
 stockinette|garter`` (an empty cache, one process) on the 2-core project VM
 (2026-12-04): the CPU seconds of the compiling process, which are its wall time on an
-idle core. On a busy machine the wall time grows with the load: the same runs took
+idle core (numba compiles for the host CPU, here AMD znver5; with
+``NUMBA_CPU_NAME=generic`` stockinette's took 25 s, the same within the noise). On a
+busy machine the wall time grows with the load: the same runs took
 143-304 s (stockinette, load 7.5-10) and 447-526 s (garter, load 14-17), 0.7-2.1 times
 the CPU seconds scaled by load/cores (``compile_notice``'s estimate)."""
 
@@ -154,34 +158,44 @@ def compile_group(
     fidelity: Fidelity | None = None,
     stitches: tuple[str, ...] = (DEFAULT_STITCH,),
     what: str = "run",
+    each_kernel: Callable[[], None] | None = None,
 ) -> None:
-    """Compile (or load) the kernels of one of ``KERNEL_GROUPS`` in this process.
+    """Compile (or load) the kernels of one of ``KERNEL_GROUPS`` in this process,
+    calling ``each_kernel`` (if given) before each one (the signal tests' test point
+    between kernels: ``service.signals.COMPILE_STAGES``).
 
     The contact kernels are compiled for the argument types of the model's calls
     without running them (so without the geometry kernel, which another process
     may be compiling at the same time).
     """  # fmt: skip
+    tick = each_kernel or _nothing
     if group == "solver":
         from .kernels.kkt import ROWS_FROM
         from .kernels.kkt_rows import compile_solver
 
         largest = max(get_stitch(name).n_state for name in stitches)
+        tick()
         compile_solver(ROWS_FROM if what == "all" else largest)
         return
     for name in stitches:
         model = CellModel(StitchParams(stitch=name), fidelity)
         if group == "geometry":
+            tick()
             model._geometry_of(model.stitch.start(1))
         elif group == "contact":
-            _compile_contact(model, what)
+            _compile_contact(model, what, tick)
         else:
             raise ValueError(f"kernel group {group!r}: one of {', '.join(KERNEL_GROUPS)}")
 
 
-def _compile_contact(model: CellModel, what: str) -> None:
+def _nothing() -> None:
+    pass
+
+
+def _compile_contact(model: CellModel, what: str, tick: Callable[[], None] = _nothing) -> None:
     """The contact kernels of ``model``'s image group (``stitches.images``), compiled for
-    the argument types of its calls."""
-    model.image_group.compile(model, what)
+    the argument types of its calls; ``tick`` is called before each kernel compiles."""
+    model.image_group.compile(model, what, tick)
 
 
 def idle_cores() -> int:
@@ -207,8 +221,11 @@ def _compile_in_processes(groups, fidelity, stitches, jobs, what="run") -> dict[
         min(bins, key=lambda b: sum(_GROUP_WEIGHT[x] for x in b)).append(g)
     spec = json.dumps({"fidelity": (fidelity or Fidelity()).model_dump(mode="json"),
                        "stitches": list(stitches), "what": what})  # fmt: skip
+    # SIGINT/SIGTERM end a compiling child silently (a Ctrl-C reaches the terminal's
+    # whole process group): the process that started it decides what a signal means
     code = (
-        "import sys; from knitsweep.compilation import _compile_child; _compile_child(sys.argv[1:])"
+        "import signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+        "from knitsweep.compilation import _compile_child; _compile_child(sys.argv[1:])"
     )
     procs = [subprocess.Popen([sys.executable, "-c", code, spec, *b], stdout=subprocess.PIPE,
                               text=True) for b in bins]  # fmt: skip

@@ -20,6 +20,7 @@ from .kernels.forces import N_CLASSES
 from .kernels.neighbours import build_neighbour_list
 from .stitches import Stitch, get_stitch
 from .stitches.images import image_group
+from .stitches.patterns import check_start
 
 
 class NeighbourList:
@@ -152,6 +153,17 @@ class CellModel:
         cp, jac = self.stitch.buffers()
         self._geometry(self._as_state(x), cp, jac)
         return cp, jac
+
+    def check_start(self, x: np.ndarray, label: str = "start") -> float:
+        """min ζ of a start ``x`` of this stitch (at this model's samples per segment),
+        or InputError naming the segment of the cell and the image where the hard cores
+        overlap (``stitches.patterns.check_start``; numpy, so that a command can check a
+        start before any kernel compiles). The same ζ as ``min_zeta``, for every stitch."""
+        ip = self.ip
+        x = self._as_state(x)
+        return check_start(self.control_points(x), x[-2], x[-1], ip.r, ip.rc,
+                           self.stitch.mirror_parity, label, self.fidelity.samples_per_segment,
+                           compiled=False)  # fmt: skip
 
     def min_zeta(self, x: np.ndarray) -> float:
         """Smallest compression zeta over all counted contacts (1.0 if none);

@@ -80,6 +80,18 @@ def start_states(
     return starts
 
 
+def check_shipped_starts(stitches: tuple[str, ...], fidelity: Fidelity | None = None) -> None:
+    """Refuse (InputError naming the stitch, the start, the segment and the image) a
+    shipped start whose hard cores overlap, before any compute. The perturbed copies
+    are not refused: at the default perturbation (2 %) some of them overlap (measured:
+    23 of 240 garter starts, 1 of 240 stockinette), and each such start ends its walk
+    as not knittable while the point's other starts go on (``walk_starts``)."""
+    for stitch in stitches:
+        model = CellModel(shipped_source(stitch), fidelity or Fidelity())
+        for i, name in enumerate(model.stitch.starts):
+            model.check_start(model.stitch.start(i + 1), f"shipped start {name} of {stitch}")
+
+
 def _at_own_length(label: str, x: np.ndarray, shipped: CellModel) -> Start:
     """A start from state ``x``: the shipped states' parameters at ``x``'s own yarn
     length (``shipped`` is the model of ``shipped_source``)."""

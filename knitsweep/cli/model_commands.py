@@ -54,7 +54,9 @@ def energy(
         )  # fmt: skip
         x = read_state(state, params.stitch)
         compile_notice(params.stitch, energy_only=True)
-        result = CellModel(params, fidelity).energies(x).as_dict()
+        model = CellModel(params, fidelity)
+        model.check_start(x, f"state file {state}")
+        result = model.energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
     _print_result(result, as_json, ENERGY_UNITS)
 
@@ -97,6 +99,7 @@ def relax(
     from ..config import StartSettings, zero_force_solvers
     from ..errors import InputError, check_seed
     from ..formats import check_writable, read_state, write_state
+    from ..model import CellModel
     from ..presets import Numerics
     from ..zero_force import zero_force
 
@@ -116,6 +119,8 @@ def relax(
         compile_notice(params.stitch)
         t0 = time.perf_counter()
         with compile_clock() as compiling:  # the kernels compile on first call
+            if x0 is not None:  # before any relaxation
+                CellModel(params, n.fidelity).check_start(x0, f"state file {state}")
             best = zero_force(params, n.fidelity, n.solver, settings, seed, initial=x0).best
         seconds = time.perf_counter() - t0
     result = {

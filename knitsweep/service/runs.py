@@ -92,7 +92,18 @@ def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
     check_output(out)
     adopt_empty(out)
     check_label(job, out, relabel)
+    if not out.exists():  # (a resume was checked when its file began, and may need no kernel)
+        check_job_starts(job)
     return job, shard_t, out
+
+
+def check_job_starts(job: JobSpec) -> None:
+    """The shipped starts of every stitch of the job (README "Bad input": an
+    overlapping start is refused, naming the segments), before any task's kernels
+    compile (this loads the geometry kernels)."""
+    from ..zero_force import check_shipped_starts
+
+    check_shipped_starts(job.stitches, job.fidelity)
 
 
 def adopt_empty(out: Path) -> Path | None:

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..config import CONVERGED, DONE, FAILED, NOT_KNITTABLE
 from ..quantities import registered
+from . import signals
 from .jobs import JobSpec, PointTask, SweepTask
 
 _STATUS = {CONVERGED: DONE, NOT_KNITTABLE: NOT_KNITTABLE}
@@ -84,12 +85,27 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
         if notice is not None:
             notice(message)
 
+    def each_kernel() -> None:
+        signals.check()  # a signal whose exception numba swallowed (see below) ends it here
+        signals.test_point("kernel")
+
+    signals.arm_llvm_test_point()
     t0 = time.perf_counter()
-    if not kernels_cached(job):
-        with compile_lock(notice, job):
-            if not kernels_cached(job):  # nobody compiled them while this one waited
-                compile_kernels(job.fidelity, heard, job.stitches)
-    compile_kernels(job.fidelity, heard, job.stitches)  # loads them (at once if just compiled)
+    try:
+        if not kernels_cached(job):
+            with compile_lock(notice, job):
+                if not kernels_cached(job):  # nobody compiled them while this one waited
+                    compile_kernels(job.fidelity, heard, job.stitches, each_kernel=each_kernel)
+        # loads them (at once if just compiled)
+        compile_kernels(job.fidelity, heard, job.stitches, each_kernel=each_kernel)
+    except Exception:
+        # A signal that lands while LLVM emits code is raised inside llvmlite's ctypes
+        # callback, which swallows it: numba then misses that module's code and fails
+        # later ("RuntimeError: no compiled object yet"). The signal was recorded:
+        # the compile was interrupted, whatever numba raises after it.
+        if signals.received() is None:
+            raise
+        raise signals.Interrupted(signals.received()) from None
     return time.perf_counter() - t0 if compiled else 0.0
 
 

@@ -19,8 +19,8 @@ it is. Every group has one interface:
   (``CellModel.resolution_change``);
 * ``entry_points``: its kernels' names in numba's cache beyond every task's, and
   ``energy_entry_points`` those of its energy alone (``compilation.kernel_entry_points``);
-  ``compile_seconds``: about how long compiling them takes; ``compile(m, what)``: compile
-  them for ``m``'s argument types without running them.
+  ``compile_seconds``: about how long compiling them takes; ``compile(m, what, tick)``:
+  compile them for ``m``'s argument types without running them.
 
 ``m`` is a ``CellModel`` (its parameters ``ip``, tables ``_qtab``, ``_qw``, ``_ctab``,
 weights ``_seg_w``, image mode ``_mode`` and gradient buffers). The argument lists of the
@@ -31,6 +31,7 @@ mirrored through z = 0 when pm m + pn n is odd (``mirror_parity``; garter, rib, 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import ClassVar
 
 import numpy as np
@@ -46,9 +47,16 @@ from .patterns import min_zeta_where
 from .topology import topology_word
 
 
-def _signature(args: tuple) -> tuple:
+def _nothing() -> None:
+    pass
+
+
+def _signature(args: tuple, tick: Callable[[], None]) -> tuple:
+    """numba's types of a kernel's ``args``, built just before it compiles (``tick``
+    first: the caller's hook, e.g. to take a signal between kernels)."""
     import numba
 
+    tick()
     return tuple(numba.typeof(a) for a in args)
 
 
@@ -106,25 +114,27 @@ class Translations:
     def topology_change(self, m, x) -> str:
         return ""
 
-    def compile(self, m, what: str) -> None:
+    def compile(self, m, what: str, tick: Callable[[], None] = _nothing) -> None:
         """Compile (or load) this group's kernels for ``m``'s argument types: with or
         without a neighbour list (``cell_energy`` is that kernel with ``NO_LIST``); the
-        checks and forces unless ``what == "energy"``; the pair forces with "all"."""
+        checks and forces unless ``what == "energy"``; the pair forces with "all".
+        ``tick`` is called before each kernel compiles."""
         x = m.stitch.start(1)
         cp, jac = m.stitch.buffers()
-        cell_energy_listed.compile(_signature(self.energy_args(m, cp, jac, x, True) + NO_LIST))
+        args = self.energy_args(m, cp, jac, x, True) + NO_LIST
+        cell_energy_listed.compile(_signature(args, tick))
         if what == "energy":
             return
-        build_neighbour_list.compile(_signature(self.neighbour_args(m, cp, x, 0.1)))
-        find_contacts.compile(_signature((cp, m._ctab, x[-2], x[-1], m.ip.r, m._mode)))
+        build_neighbour_list.compile(_signature(self.neighbour_args(m, cp, x, 0.1), tick))
+        find_contacts.compile(_signature((cp, m._ctab, x[-2], x[-1], m.ip.r, m._mode), tick))
         dcp = np.ascontiguousarray(jac[..., -2:])
         forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
         contact_forces_by_class.compile(
-            _signature(self.forces_args(m, cp, dcp, x, forces, energies))
+            _signature(self.forces_args(m, cp, dcp, x, forces, energies), tick)
         )
         if what == "all":  # the post-processing's pair forces: no task calls them
             contact_pair_forces_by_class.compile(
-                _signature(self.pair_forces_args(m, cp, x, False, forces))
+                _signature(self.pair_forces_args(m, cp, x, False, forces), tick)
             )
 
 
@@ -195,25 +205,26 @@ class Glides(Translations):
                 f"signs), the {stitch.name} stitch has {count} crossings as "
                 f"{_runs(ref)}")  # fmt: skip
 
-    def compile(self, m, what: str) -> None:
+    def compile(self, m, what: str, tick: Callable[[], None] = _nothing) -> None:
         """This group's kernels, then the translations' as well: ``kernels.cached``
         looks for them, so a cache filled by a job of patterns alone must hold them
         too."""
         x = m.stitch.start(1)
         cp, jac = m.stitch.buffers()
-        pattern_cell_energy.compile(_signature(self.energy_args(m, cp, jac, x, True)))
+        pattern_cell_energy.compile(_signature(self.energy_args(m, cp, jac, x, True), tick))
         if what != "energy":
+            tick()
             compile_checks()  # the checks after every relaxation
             forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
             dcp = np.ascontiguousarray(jac[..., -2:])
             mirrored_forces_by_class.compile(
-                _signature(self.forces_args(m, cp, dcp, x, forces, energies))
+                _signature(self.forces_args(m, cp, dcp, x, forces, energies), tick)
             )
             if what == "all":  # the post-processing's pair forces
                 mirrored_pair_forces_by_class.compile(
-                    _signature(self.pair_forces_args(m, cp, x, False, forces))
+                    _signature(self.pair_forces_args(m, cp, x, False, forces), tick)
                 )
-        Translations.compile(TRANSLATIONS, m, what)
+        Translations.compile(TRANSLATIONS, m, what, tick)
 
 
 TRANSLATIONS = Translations()
