@@ -1,5 +1,5 @@
-"""Compiling the kernels a command uses, once, before work fans out (README "Compile
-time"): per group of kernels with disjoint sources, in child processes side by side when
+"""Compiling the kernels a command uses, once, before work fans out (docs/performance.md,
+"Compile time"): per group of kernels with disjoint sources, in child processes side by side when
 the cache is cold and cores are idle, each filling numba's shared on-disk cache.
 """
 

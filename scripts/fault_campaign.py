@@ -1,8 +1,8 @@
 """A fault campaign against ``knitsweep run`` and the results files it writes: signals
 and kills straight to one rank of ``mpirun`` (the master alone or one worker alone) and
 to mpirun, truncated files, flipped bytes, planted symbolic links and a full disk. Each
-trial checks what README promises ("Exit codes", "Crash safety, the journal and
-checkpoints"): how the run ends, that no rank is left 30 s after the signal, and that
+trial checks what the documentation promises (docs/how-to/runs.md "Exit codes",
+docs/journal.md "Crash safety, the journal and checkpoints"): how the run ends, that no rank is left 30 s after the signal, and that
 nothing is lost, duplicated or changed: the damaged or interrupted file, recovered if
 needed and resumed, holds the same tasks with bit-identical arrays as an uninterrupted
 run. Prints one table row per kind of fault, and each failure.

@@ -98,7 +98,7 @@ def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
 
 
 def check_job_starts(job: JobSpec) -> None:
-    """The shipped starts of every stitch of the job (README "Bad input": an
+    """The shipped starts of every stitch of the job (docs/patterns.md: an
     overlapping start is refused, naming the segments), before any task's kernels
     compile (this loads the geometry kernels)."""
     from ..zero_force import check_shipped_starts

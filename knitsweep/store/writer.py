@@ -26,8 +26,8 @@ deduplicated by task id, the journal winning (it is never older than the file).
 A malformed journal entry is skipped, reported by ``journal_problems`` and its
 task recomputed. Disk use during a run: twice the file, plus the journal.
 
-Schema (``schema_version`` 3, :data:`RESULTS_SCHEMA_VERSION`; documented in the
-README). Files of schema 1 and 2 (one HDF5 group per task) still read; ``merge`` and
+Schema (``schema_version`` 3, :data:`RESULTS_SCHEMA_VERSION`; documented in
+docs/results-file.md). Files of schema 1 and 2 (one HDF5 group per task) still read; ``merge`` and
 ``recover`` rewrite schema 2 into 3; a schema-2 file is not resumed.
 
 * root attributes: ``schema_version``, ``knitsweep_version``, ``git_commit``,
