@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from ..stitches import DEFAULT_STITCH, check_stitch_name
 from .common import (
     HELP,
     STITCH_HELP,
@@ -265,7 +266,7 @@ def compile_(
     jobs: Annotated[int | None, option("--jobs", help="processes compiling side by side",
                     default="as many as idle cores, at most 3")] = None,
     stitch: Annotated[list[str] | None, option("--stitch", help=STITCH_HELP,
-                      default="stockinette")] = None,
+                      default=DEFAULT_STITCH)] = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
     """Compile every kernel a `run` uses (and the pair forces `report` computes) into
@@ -285,12 +286,7 @@ def compile_(
                 raise InputError(f"cache_dir = {cache_dir}: set before the kernels are imported")
             cache_dir.mkdir(parents=True, exist_ok=True)
             os.environ["NUMBA_CACHE_DIR"] = str(cache_dir.resolve())
-        from ..stitches import DEFAULT_STITCH, STITCH_NAMES
-
-        stitches = tuple(stitch or (DEFAULT_STITCH,))
-        for name in stitches:
-            if name not in STITCH_NAMES:
-                raise InputError(f"stitch = {name!r}: one of {', '.join(STITCH_NAMES)}")
+        stitches = tuple(check_stitch_name(name) for name in stitch or (DEFAULT_STITCH,))
         from .. import kernels
         from ..compilation import KERNEL_GROUPS, compile_kernels, kernel_entry_points
 

@@ -24,6 +24,7 @@ from ..config import FAILED
 from ..errors import InputError
 from ..formats import check_writable, replace_file
 from ..plain import plain_value
+from ..quantities import OBSERVABLE_REGISTRY, registered
 from .plotting import FigureOptions
 from .results import Results, load
 from .tables import TRANSITION_SUMMARY
@@ -65,11 +66,12 @@ _TRANSITION_COLUMNS = ("direction", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_
                        *(f for c in TRANSITION_SUMMARY for f in c.fields))  # fmt: skip
 _SWEEP_COLUMNS = ("direction", "L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm",
                   "r_core_mm", "Y_sec_N_per_mm", "sigma0_N_per_mm", "delta_E_b_mJ",
-                  "delta_E_c_mJ", "jammed", "regime", "n_steps", "max_strain")  # fmt: skip
+                  "delta_E_c_mJ", "jammed", "regime", "n_steps", "max_strain",
+                  *(o.column for o in registered("sweep")))  # fmt: skip
 _POINT_COLUMNS = ("L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm",
                   "status", "a_x0_mm", "a_y0_mm", "aspect_ratio", "E_b_rest_mJ",
-                  "E_c_rest_mJ", "thickness0_mm", "rest_found_by", "rest_fall_mJ",
-                  "regime")  # fmt: skip
+                  "E_c_rest_mJ", *(o.column for o in registered("point")), "rest_found_by",
+                  "rest_fall_mJ", "regime")  # fmt: skip
 _PROBLEM_COLUMNS = ("kind", "status", "direction", "L_mm", "k_mN_per_mm2", "message", "task_id")
 _PROVENANCE = ("job_name", "run_status", "started_at", "finished_at", "run_seconds",
                "knitsweep_version", "git_commit", "host", "slurm_job_id", "python_version",
@@ -104,8 +106,9 @@ _NAMES = {"L_over_r": "L/r", "L_over_r_trans": "(L/r)<sub>trans</sub>", "delta_L
           "delta_E_b": "ΔE<sub>b</sub>", "delta_E_c": "ΔE<sub>c</sub>", "sigma0": "σ<sub>0</sub>",
           "Y_sec": "Y<sub>sec</sub>", "k": "k", "B": "B", "r": "r", "r_core": "r<sub>core</sub>",
           "a_x0": "a<sub>x0</sub>", "a_y0": "a<sub>y0</sub>", "E_b_rest": "E<sub>b</sub> at rest",
-          "E_c_rest": "E<sub>c</sub> at rest", "thickness0": "thickness at rest",
-          "L_trans": "L<sub>trans</sub>", "L": "L"}  # fmt: skip
+          "E_c_rest": "E<sub>c</sub> at rest", "L_trans": "L<sub>trans</sub>", "L": "L",
+          **{o.table_name or o.name: html.escape(o.label) for o in OBSERVABLE_REGISTRY
+             if o.label}}  # fmt: skip
 _UNITS = {"mN/mm2": "mN/mm²", "mN mm2": "mN·mm²", "mN mm4": "mN·mm⁴"}
 
 

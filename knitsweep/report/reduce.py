@@ -38,7 +38,7 @@ from ..analysis.transitions import Transition
 from ..config import Fidelity
 from ..errors import InputError
 from ..plain import plain_value
-from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS
+from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS, registered, sweep_observables
 from ..stitches import DEFAULT_STITCH
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
@@ -194,11 +194,11 @@ def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dic
             "aspect_ratio": a_y0 / a_x0,
             "E_b_rest_mJ": float(rec["bending_energy"][winner]),
             "E_c_rest_mJ": float(rec["contact_energy"][winner]),
-            "thickness0_mm": plain_value(meta.get("thickness")),
             # a lower minimum a sweep found from this point and started over from
             "rest_found_by": plain_value(meta.get("rest_found_by")),
             "rest_fall_mJ": plain_value(meta.get("rest_fall_mJ")),
         }
+        row |= {o.column: plain_value(meta.get(o.name)) for o in registered("point")}
         phi = rec.get("packing_fraction")
         if phi is not None and len(phi) > winner:
             row["packing_fraction"] = plain_value(phi[winner])
@@ -262,6 +262,7 @@ def _analyse_sweep(
         "thickness_strain_max": m.thickness_strain_max,
         "thickness_strain_at_secant": m.thickness_strain_at,
         "jammed": m.jamming_gap >= threshold,
+        **sweep_observables(rec),
     }
     stored = rec.get("contact_forces")
     zero_forces = np.asarray(stored)[0] if stored is not None and len(stored) else point_forces

@@ -52,7 +52,7 @@ def drawn(cp: np.ndarray, a_x: float, a_y: float, params: StitchParams, label: s
 
     geometry = get_stitch(params.stitch)
     order = list(geometry.path_order)
-    parity = tuple(geometry.mirror_parity) if geometry.images == "glides" else (0, 0)
+    parity = tuple(geometry.mirror_parity)  # (0, 0) for translations alone
     return Stitch(np.asarray(cp, dtype=float)[order], a_x, a_y, params.r_mm, label,
                   geometry.closing_shift, parity, params)  # fmt: skip
 

@@ -417,6 +417,8 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
     except BaseException:
         executor.shutdown(abort=False)  # nothing was handed out; release the workers
         raise
+    for note in job.solver_notes():
+        print(f"note: {note}", file=sys.stderr, flush=True)
     for path, why in writer.malformed:
         print(f"warning: journal entry {path.name} was malformed ({why}): its task is "
               "recomputed", file=sys.stderr, flush=True)  # fmt: skip

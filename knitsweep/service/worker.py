@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..config import CONVERGED, DONE, FAILED, NOT_KNITTABLE
+from ..quantities import registered
 from . import signals
 from .jobs import JobSpec, PointTask, SweepTask
 
@@ -211,7 +212,8 @@ def _signal_cause(e: Exception) -> Exception:
 
 def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dict[str, Any]:
     """The zero-force record of one point (``ZeroForce.to_record`` plus the task
-    status, the winner's thickness and, if stored, its contact forces). ``carried``
+    status, the winner's registered point observables (``quantities.registered``) and, if
+    stored, its contact forces). ``carried``
     (``[starts] carry``): the state ``x`` and ``params`` of the point it starts from."""
     from ..zero_force import zero_force
 
@@ -232,7 +234,8 @@ def point_record(job: JobSpec, params: Any, zf: Any) -> dict[str, Any]:
     model = CellModel(params, job.fidelity)
     if np.all(np.isfinite(best.x)):
         record["rest_energy"] = best.total_energy
-        record["thickness"] = model.thickness(best.x)
+        for observable in registered("point"):  # the winner's (``thickness`` …)
+            record[observable.name] = getattr(model, observable.method)(best.x)
         if job.store.contact_forces:
             record["contact_forces"] = model.contact_forces_by_class(best.x)
     if job.store.packing_fraction:

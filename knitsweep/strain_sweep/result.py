@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.metrics import EnergyGaps, energy_gaps
+from ..quantities import registered
 from ..zero_force import ZeroForce
 
 
@@ -60,7 +61,9 @@ class SweepResult:
     stress_envelope: np.ndarray = field(default_factory=lambda: np.empty(0))
     bending_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
     contact_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
-    thickness: np.ndarray = field(default_factory=lambda: np.empty(0))
+    observed: dict[str, np.ndarray] = field(default_factory=dict)
+    """The registered step observables (``quantities.registered("step")``: ``thickness``
+    …) by name, each (n,); read as attributes too (``result.thickness``)."""
     winner: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     converged: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool))
     iterations: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
@@ -83,6 +86,12 @@ class SweepResult:
     rest_found: str = ""
     rest: ZeroForce | None = None
 
+    def __getattr__(self, name: str) -> np.ndarray:
+        observed = self.__dict__.get("observed", {})
+        if name in observed:
+            return observed[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
     @property
     def total_energy(self) -> np.ndarray:
         return self.bending_energy + self.contact_energy
@@ -93,8 +102,15 @@ class SweepResult:
         return energy_gaps(self.bending_energy, self.contact_energy)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The per-step arrays by name (for tables and storage)."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name in _STEP_ARRAYS}
+        """The per-step arrays by name (for tables and storage), the registered step
+        observables after the energies."""
+        out = {}
+        for f in fields(self):
+            if f.name in _STEP_ARRAYS:
+                out[f.name] = getattr(self, f.name)
+            elif f.name == "observed":
+                out |= self.observed
+        return out
 
     def to_record(self) -> dict[str, Any]:
         """Every field as storable values: the per-step and per-start arrays,
@@ -126,9 +142,12 @@ class SweepResult:
         """The inverse of ``to_record`` (extra keys are ignored; a record stored
         without ``states`` gets an empty (0, 0) array; one written before starts could
         merge or sweeps could stop early gets empty per-start arrays and empty
-        ``stopped_by``/0 total evaluations)."""
+        ``stopped_by``/0 total evaluations; one written before an observable was
+        registered lacks it)."""
         arrays = {k: np.asarray(rec[k]) for k in (*_STEP_ARRAYS, *_START_ARRAYS) if k in rec}
-        return cls(direction=str(rec["direction"]), **arrays, status=str(rec["sweep_status"]),
+        observed = {o.name: np.asarray(rec[o.name]) for o in registered("step") if o.name in rec}
+        return cls(direction=str(rec["direction"]), **arrays, observed=observed,
+                   status=str(rec["sweep_status"]),
                    stop_reason=str(rec["message"]), stopped_by=str(rec.get("stopped_by", "")),
                    relaxations=int(rec["relaxations"]),
                    evaluations_total=int(rec.get("evaluations_total", 0)),
@@ -138,7 +157,7 @@ class SweepResult:
 
 
 _STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "bending_energy",
-                "contact_energy", "thickness", "winner", "converged", "iterations", "evaluations",
+                "contact_energy", "winner", "converged", "iterations", "evaluations",
                 "min_zeta", "length_residual", "kkt_residual", "relax_seconds", "states")  # fmt: skip
 _START_ARRAYS = ("carried", "merged_into", "merged_at")
 

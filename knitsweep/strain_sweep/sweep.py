@@ -34,6 +34,7 @@ from ..config import (
     SweepProtocol,
 )
 from ..model import CellModel
+from ..quantities import registered
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
 from ..stitches.topology import topology_word
 from ..zero_force import ZeroForce, pick_lowest, relax_at_rest, zero_force
@@ -256,7 +257,7 @@ def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, r
         stress_envelope=forces / a_perp0,
         bending_energy=eb,
         contact_energy=ec,
-        thickness=np.array([model.thickness(s.x) for s in steps]),
+        observed=_step_observables(model, steps),
         winner=np.array(winners, dtype=np.int64),
         converged=np.array([s.status == CONVERGED for s in steps]),
         iterations=np.array([s.iterations for s in steps], dtype=np.int64),
@@ -276,6 +277,13 @@ def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, r
         evaluations_total=n_eval,
         wall_seconds=wall,
     )
+
+
+def _step_observables(model: CellModel, steps: list[Relaxation]) -> dict[str, np.ndarray]:
+    """Every registered step observable (``quantities.registered("step")``) of every
+    step's state, (n,) each, by name."""
+    return {o.name: np.array([getattr(model, o.method)(s.x) for s in steps])
+            for o in registered("step")}  # fmt: skip
 
 
 class NoRestState(RuntimeError):
