@@ -109,7 +109,9 @@ only (stockinette) or with a knit/purl pattern's glides (garter, rib, seed). Mea
 with ``benchmarks/bench_compile.py --jobs 1 --what run|energy --stitch
 stockinette|garter`` (an empty cache, one process) on the 2-core project VM
 (2026-12-04): the CPU seconds of the compiling process, which are its wall time on an
-idle core. On a busy machine the wall time grows with the load: the same runs took
+idle core (numba compiles for the host CPU, here AMD znver5; with
+``NUMBA_CPU_NAME=generic`` stockinette's took 25 s, the same within the noise). On a
+busy machine the wall time grows with the load: the same runs took
 143-304 s (stockinette, load 7.5-10) and 447-526 s (garter, load 14-17), 0.7-2.1 times
 the CPU seconds scaled by load/cores (``compile_notice``'s estimate)."""
 

@@ -122,7 +122,7 @@ def test_render_says_which_flags_a_results_file_overrides(tmp_path):
     assert out.returncode == 2
     assert out.stderr.strip() == ("error: --L, --stitch: a results file holds its own "
                                   "parameters; drop them to draw --results, or draw a --state "
-                                  "with them")  # fmt: skip
+                                  "or a relaxation (neither --results nor --state) with them")  # fmt: skip
     # without a results file, the parameters are not refused for one (the bad --cells
     # stops the command before anything is drawn)
     alone = knitsweep("render", "--stitch", "rib", "--cells", "0", "--out", str(tmp_path / "a.png"))

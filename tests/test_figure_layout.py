@@ -9,6 +9,7 @@ import shutil
 import subprocess
 from itertools import combinations
 
+import numpy as np
 import pytest
 from results_factory import write_results
 
@@ -124,3 +125,116 @@ def test_pdf_fonts_are_truetype_and_svg_text_is_text(reduction, tmp_path):
     assert "Type 3" not in listing.stdout
     text = svg.getvalue().decode()
     assert "<text" in text and "energy gap" in text
+
+
+def labels_on_data(fig) -> list[str]:
+    """Texts and legends inside an axes that cover its data (markers, lines in data
+    coordinates: ``declutter.data_points``), after the figure is drawn."""
+    from knitsweep.report.declutter import covers, data_points
+
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    out = []
+    for ax in fig.axes:
+        pts, half = data_points(ax, renderer)
+        if not len(pts):
+            continue
+        labels = [t for t in ax.texts if t.get_visible() and t.get_text().strip()]
+        legend = ax.get_legend()
+        for a in labels + ([legend] if legend is not None else []):
+            n = covers(a.get_window_extent(renderer), pts, half)
+            if n:
+                what = repr(a.get_text()[:40]) if hasattr(a, "get_text") else "a legend"
+                out.append(f"{what} covers {n} data points of {ax.get_title()[:30]!r}")
+    return out
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+@pytest.mark.parametrize("name", list(FIGURES))
+def test_no_label_covers_data(reduction, name, width):
+    with style(FigureOptions(width=width, style="knitsweep")):
+        fig = finish(FIGURES[name](reduction, []))
+        problems = labels_on_data(fig)
+    assert not problems, "\n".join(problems)
+
+
+def test_the_data_check_finds_labels_on_data():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(3, 3))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.plot([0, 1], [0, 1], marker="o", ls="none")
+    ax.scatter([0.5], [0.2], s=80)
+    ax.plot([0, 1], [1, 0])
+    ax.text(0.0, 0.0, "on a marker")
+    ax.text(0.5, 0.2, "on a scatter point")
+    ax.text(0.5, 0.5, "on the line")
+    ax.text(0.1, 0.55, "free")
+    got = labels_on_data(fig)
+    assert len(got) == 3 and not any("free" in g for g in got), got
+
+
+def test_declutter_moves_a_legend_off_the_data():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(3, 2.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    x = np.linspace(0, 1, 30)
+    ax.plot(x, 1 - x, marker="o", label="falling, a long label")
+    ax.plot(x, x, marker="s", label="rising, a long label")
+    ax.legend(loc="center")  # on the crossing
+    assert labels_on_data(fig)
+    finish(fig)
+    assert not labels_on_data(fig)
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_fig4c_draws_every_series_and_names_every_region(reduction, width):
+    """A panel for each stitch's series, and the legend has an entry of every colour
+    that shades a regime (the 'jammed only in x' region too)."""
+    from matplotlib.colors import to_hex
+
+    from knitsweep.report.plotting import REGIME_FILL
+
+    with style(FigureOptions(width=width, style="knitsweep")):
+        fig = finish(FIGURES["fig4c_phase_diagram.png"](reduction, []))
+    titles = " ".join(ax.get_title() for ax in fig.axes)
+    assert "stitch = stockinette" in titles and "stitch = garter" in titles, titles
+    regime = {to_hex(c) for c in REGIME_FILL.values()}
+
+    def fills(artists):
+        return {to_hex(c) for a in artists if hasattr(a, "get_facecolor")
+                for c in np.atleast_2d(a.get_facecolor())} & regime  # fmt: skip
+
+    drawn = [a for ax in fig.axes for a in [*ax.patches, *ax.collections]
+             if not hasattr(a, "get_paths") or any(len(q.vertices) for q in a.get_paths())]  # fmt: skip
+    shaded = fills(drawn)
+    named = fills(h for leg in fig.legends for h in leg.legend_handles)
+    assert shaded and shaded <= named, (shaded, named)
+
+
+def test_fig4c_names_the_jammed_only_in_x_region(reduction):
+    """Where (L/r)_trans in x lies above y's (jammed in x after y has unjammed), the
+    lavender region is drawn and the legend names it (it once named three regions
+    whatever was drawn)."""
+    import dataclasses
+
+    from knitsweep.report.plotting import REGIME_LABEL
+
+    y_of = {tuple(t[p] for p in ("stitch", "k_mN_per_mm2", "r_mm")): t["L_over_r_trans"]
+            for t in reduction.transitions if t["direction"] == "y"}  # fmt: skip
+    moved = []
+    for t in reduction.transitions:
+        key = tuple(t[p] for p in ("stitch", "k_mN_per_mm2", "r_mm"))
+        if t["direction"] == "x" and t["status"] == "transition" and y_of.get(key) is not None:
+            t = {**t, "L_over_r_trans": y_of[key] + 0.3}
+        moved.append(t)
+    red = dataclasses.replace(reduction, transitions=moved)
+    with style(FigureOptions(width="page", style="knitsweep")):
+        fig = finish(FIGURES["fig4c_phase_diagram.png"](red, []))
+    labels = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
+    assert REGIME_LABEL["jammed_x_only"] in labels, labels

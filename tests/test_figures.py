@@ -147,7 +147,7 @@ def test_render_point_and_sweep(tiny, tmp_path):
     out = knitsweep("render", "--results", str(tiny), "--task", point[:6], "--out",
                     str(tmp_path / "p.png"), "--pixels", "320")  # fmt: skip
     assert out.returncode == 0, out.stderr
-    assert out.stdout.startswith(f"wrote {tmp_path / 'p.png'}: zero-force stitch, L = ")
+    assert out.stdout.strip() == f"wrote {tmp_path / 'p.png'}: stockinette, zero-force state"
     assert_image(tmp_path / "p.png", 10_000)
     out = knitsweep("render", "--results", str(tiny), "--task", sweep, "--out",
                     str(tmp_path / "s.png"), "--pixels", "320", "--radius", "0.5")  # fmt: skip
@@ -200,11 +200,12 @@ def test_render_state_file(tmp_path):
 @pytest.mark.parametrize(
     ("args", "fragment"),
     [
-        ([], "give either --results FILE --task ID, or --state FILE"),
         (["--state", "S", "--results", "R"], "give either"),
+        (["--state", "S", "--starts", "2"], "--preset and --starts apply to a relaxation"),
+        (["--preset", "nosuch"], "preset"),
         (["--results", "R"], "--results needs --task"),
         (["--state", "S", "--strain-step", "2"], "--strain-step applies to a sweep"),
-        (["--results", "R", "--task", "p", "--L", "11"], "apply to --state"),
+        (["--results", "R", "--task", "p", "--L", "11"], "a results file holds its own parameters"),
         (["--state", "S", "--radius", "0"], "radius = 0.0: must be > 0"),
         (["--state", "S", "--side", "left"], "side = 'left'"),
         (["--state", "S", "--k", "-1"], "k_mN_per_mm2 = -1.0"),
@@ -289,18 +290,17 @@ def test_bad_figure_options_are_refused(tiny, tmp_path):
 
 
 def test_render_defaults_show_the_stitches(tmp_path):
-    """The default tube is the paper's 0.5/0.74 of r (a tube of radius r is a solid
-    wall), one hue per row with no seams between cells, holes in shadow, not white."""
+    """The default tube is the yarn's radius r, holes in shadow, not white."""
     from PIL import Image
 
-    from knitsweep.report.render import BACKGROUND, RADIUS_FRACTION, render
+    from knitsweep.report.render import BACKGROUND, render
 
     path, stitch = render(tmp_path / "s.png", state=SHIPPED / "Init_1.dat", cells=2,
-                          width_px=500)  # fmt: skip
-    assert abs(RADIUS_FRACTION * stitch.r_mm - 0.5) < 1e-12 and stitch.r_mm == 0.74
+                          width_px=500, radius=0.5)  # fmt: skip
+    assert stitch.r_mm == 0.74
     pixels = np.asarray(Image.open(path).convert("RGB"), dtype=float) / 255.0
     white = np.all(pixels > 0.98, axis=-1)
-    inner = white[60:-60, 60:-60]  # inside the picture frame: no white at all
+    inner = white[130:-60, 60:-60]  # inside the picture frame (below the title): no white
     assert not inner.any(), int(inner.sum())
     assert np.isclose(pixels, BACKGROUND, atol=0.02).all(axis=-1).any()  # the holes
 
@@ -406,10 +406,10 @@ def test_render_stockinette_tile_is_translations_alone():
 
 def test_render_garter_draws_its_mirrored_rows(tmp_path):
     """``render --stitch garter`` draws the purl rows: the picture is not the one of the
-    cell translated, and shows both the warm (cell) and the cool (mirrored) colours."""
+    cell translated."""
     import dataclasses
 
-    from knitsweep.report.render import _view_matrix, rasterize, window
+    from knitsweep.report.render import _view_matrix, shade_tile, window
     from knitsweep.stitches import get_stitch
 
     state = tmp_path / "g.dat"
@@ -421,12 +421,9 @@ def test_render_garter_draws_its_mirrored_rows(tmp_path):
     stitch = _garter_stitch()
     view = _view_matrix(72.0, 0.0, "face")
     box = window(stitch, 2, view)
-    image = rasterize(stitch, 2, 0.5, view, box, 160)
-    flat = rasterize(dataclasses.replace(stitch, mirror_parity=(0, 0)), 2, 0.5, view, box, 160)
+    image = shade_tile(stitch, 2, 0.5, view, box, 160)
+    flat = shade_tile(dataclasses.replace(stitch, mirror_parity=(0, 0)), 2, 0.5, view, box, 160)
     assert np.abs(image - flat).max() > 0.3
-    warm = (image[..., 0] > image[..., 2] + 0.15).mean()
-    cool = (image[..., 2] > image[..., 0] + 0.15).mean()
-    assert warm > 0.05 and cool > 0.05, (warm, cool)
 
 
 @pytest.mark.parametrize("name", ["rib", "garter", "seed"])

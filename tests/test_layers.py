@@ -46,7 +46,7 @@ LAYERS = [
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
-                "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks"],
+                "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks", "raster"],
     "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free", "garter", "rib",
                  "seed"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
@@ -62,9 +62,10 @@ MODULE_ORDER = {
     "studies": ["accuracy"],
     "service": ["signals", "grid", "jobs", "progress", "worker", "adaptive", "executors",
                 "slurm", "master", "runs", "recovery"],
-    "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "plotting",
+    "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "declutter", "plotting",
                "fig_energy", "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns",
-               "figures", "html", "tile", "render", "contact_volumes"],
+               "figures", "html", "tile", "sources", "tube_mesh", "raster", "export3d", "render",
+               "contact_volumes"],
     "service.executors": ["protocol", "local", "mpi"],
     "cli": ["common", "model_commands", "run_commands", "analysis_commands", "application"],
 }  # fmt: skip

@@ -119,7 +119,9 @@ def report(
 
 @app.command()
 def render(
-    out: Annotated[Path, typer.Option("--out", help="image to write: .png, .pdf or .svg")],
+    out: Annotated[Path, typer.Option("--out", help="file to write: a picture (.png, .pdf, "
+                                      ".svg) or the tile's yarn in 3D (.vtp, .vtu for "
+                                      "ParaView; .ply, .obj for Blender)")],
     results: Annotated[
         Path | None, typer.Option("--results", help="results file written by knitsweep run")
     ] = None,
@@ -131,16 +133,25 @@ def render(
                            "index)", default="0, the zero-force state")
     ] = None,
     state: Annotated[
-        Path | None, typer.Option("--state", help="a state (Init) file instead")
+        Path | None, option("--state", help="a state (Init) file instead",
+                            default="without --results: the stitch relaxed at the parameters")
     ] = None,
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
     r_core: RcOpt = None, stitch: StitchOpt = None, config: ConfigOpt = None,
+    preset: Annotated[str | None, option("--preset", help="relaxing (no --state, no "
+                                         "--results): the fidelity preset",
+                                         default="converged")] = None,
+    starts: Annotated[int, typer.Option("--starts", help="relaxing: shipped starts to relax "
+                                        "from, the lowest energy kept")] = 1,
     radius: Annotated[
         float | None,
-        option("--radius", help="tube radius to draw (mm)",
-               default="0.68 r, the paper's 0.5 mm for r = 0.74 mm"),
+        option("--radius", help="tube radius to draw (mm)", default="the yarn radius r"),
     ] = None,
-    cells: Annotated[int, typer.Option("--cells", help="stitches per side of the picture")] = 3,
+    core: Annotated[bool, typer.Option("--core", help="draw the incompressible cores (radius "
+                                       "r_core) instead of the yarn")] = False,
+    cells: Annotated[str | None, option(
+        "--cells", help="stitches across and rows: N or NxM",
+        default="two repeats of the pattern each way, at least 3")] = None,
     side: Annotated[str, typer.Option("--side", help="face (knit side) or back (purl side)")] = "face",
     elevation: Annotated[
         float, typer.Option("--elevation", help="view angle above the fabric plane (°)")
@@ -155,8 +166,9 @@ def render(
         "--volume-points", help="--contact-volumes: tube points, a power of 2")] = 1 << 15,
 ) -> None:  # fmt: skip
     """Draw relaxed stitches as yarn tubes, like the paper's Fig. 1a, or with
-    --contact-volumes their contact volumes (Fig. 6a-e): a task of a results file (point,
-    or sweep at --strain-step) or a state file."""
+    --contact-volumes their contact volumes (Fig. 6a-e), or write the tile's yarn as a 3D
+    file: a task of a results file (point, or sweep at --strain-step), a state file, or
+    the stitch relaxed at the parameters given (--stitch, --L, ...)."""
     from ..errors import InputError
     from ..report import render as rendering
 
@@ -167,28 +179,53 @@ def render(
                  if v is not None]  # fmt: skip
         if results is not None and given:
             raise InputError(f"{', '.join(given)}: a results file holds its own parameters; "
-                             "drop them to draw --results, or draw a --state with them")  # fmt: skip
+                             "drop them to draw --results, or draw a --state or a relaxation "
+                             "(neither --results nor --state) with them")  # fmt: skip
         if results is None:
             params, _ = stitch_inputs(config, **flags)
+        if results is not None or state is not None:
+            if preset is not None or starts != 1:
+                raise InputError("--preset and --starts apply to a relaxation (neither "
+                                 "--results nor --state)")  # fmt: skip
+        else:
+            from ..presets import check_preset
+
+            if preset is not None:
+                check_preset(preset)
+            check_range("starts", starts, 1, 64)
+        grid = parse_cells(cells)
+        if results is None and state is None:
+            compile_notice(params.stitch if params is not None else None)
         if contact_volumes:
             from ..report.contact_volumes import render_contact_volumes
 
-            path, stitch = render_contact_volumes(
-                out,
-                results=results,
-                task=task,
-                step=step,
-                state=state,
-                params=params,
-                samples=volume_points,
-            )
-        else:
-            path, stitch = rendering.render(
+            path, drawn = render_contact_volumes(
                 out, results=results, task=task, step=step, state=state, params=params,
-                radius=radius, cells=cells, side=side, elevation_deg=elevation, width_px=width,
-                highlight=highlight,
+                samples=volume_points, preset=preset, starts=starts,
             )  # fmt: skip
-    typer.echo(f"wrote {path}: {stitch.label}")
+        else:
+            path, drawn = rendering.render(
+                out, results=results, task=task, step=step, state=state, params=params,
+                radius=radius, cells=grid, side=side, elevation_deg=elevation, width_px=width,
+                highlight=highlight, core=core, preset=preset, starts=starts,
+            )  # fmt: skip
+    typer.echo(f"wrote {path}: {drawn.name}, {drawn.label}")
+
+
+def parse_cells(cells: str | None) -> tuple[int, int] | None:
+    """``--cells``: "N" (N × N) or "NxM" (N across, M rows)."""
+    from ..errors import InputError
+
+    if cells is None:
+        return None
+    parts = cells.lower().replace("×", "x").split("x")
+    try:
+        values = [int(v) for v in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 2):
+        raise InputError(f"cells = {cells!r}: give N or NxM (stitches across x rows)")
+    return (values[0], values[-1])
 
 
 @app.command()

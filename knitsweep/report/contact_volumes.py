@@ -21,7 +21,8 @@ import numpy as np
 
 from ..config import StitchParams
 from ..errors import InputError
-from .render import OUT_SUFFIXES, stitch_to_draw
+from .render import OUT_SUFFIXES
+from .sources import stitch_to_draw, title
 from .tile import Stitch, cell_path
 
 VOLUME_COLOUR = {  # paper Fig. 6a–d; the patterns' classes after them
@@ -142,7 +143,7 @@ def draw_contact_volumes(stitch: Stitch, out: str | Path, samples: int = 1 << 15
                for k in clouds if len(clouds[k])]  # fmt: skip
     fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), frameon=False,
                fontsize=9)  # fmt: skip
-    fig.suptitle(f"contact volumes: {stitch.label}", fontsize=11)
+    fig.suptitle(f"contact volumes of {title(stitch)}", fontsize=11)
     out = Path(out)
     fig.savefig(out, dpi=150, facecolor="white")
     return out
@@ -151,20 +152,23 @@ def draw_contact_volumes(stitch: Stitch, out: str | Path, samples: int = 1 << 15
 def render_contact_volumes(out: str | Path, *, results: str | Path | None = None,
                            task: str | None = None, step: int | None = None,
                            state: str | Path | None = None, params: StitchParams | None = None,
-                           samples: int = 1 << 15) -> tuple[Path, Stitch]:  # fmt: skip
+                           samples: int = 1 << 15, preset: str | None = None,
+                           starts: int = 1) -> tuple[Path, Stitch]:  # fmt: skip
     """``knitsweep render --contact-volumes``: the stitch of a results-file task (point,
-    or sweep at ``step``) or of a state file, its contact volumes drawn to ``out``.
+    or sweep at ``step``), of a state file, or with neither of ``params`` relaxed
+    (``preset``, ``starts``), its contact volumes drawn to ``out``.
 
     Raises:
-        InputError: bad output suffix, samples not a power of 2 in 2^10..2^20, both or
-            neither source, unknown task or bad step.
+        InputError: bad output suffix, samples not a power of 2 in 2^10..2^20, both
+            sources, unknown task or bad step.
     """
     out = Path(out)
     if out.suffix.lower() not in OUT_SUFFIXES:
         raise InputError(f"out = '{out}': must end in {', '.join(OUT_SUFFIXES)}")
     if not (1 << 10 <= samples <= MAX_SAMPLES and samples & (samples - 1) == 0):
         raise InputError(f"samples = {samples}: must be a power of 2 in 1024..{MAX_SAMPLES}")
-    if (results is None) == (state is None):
-        raise InputError("give either --results FILE --task ID, or --state FILE")
-    stitch = stitch_to_draw(results, task, step, state, params)
+    if results is not None and state is not None:
+        raise InputError("give either --results FILE --task ID, or --state FILE, or neither "
+                         "(the stitch relaxed at the parameters given)")  # fmt: skip
+    stitch = stitch_to_draw(results, task, step, state, params, preset, starts)
     return draw_contact_volumes(stitch, out, samples), stitch

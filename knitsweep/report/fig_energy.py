@@ -16,6 +16,7 @@ import numpy as np
 from ..analysis.paper import TABLE_S4, at_table_1
 from ..analysis.transitions import Transition
 from ..quantities import PARAMETER_NAMES, SERIES_PARAMS
+from .declutter import movable
 from .plotting import (
     BENDING_COLOUR,
     BRACKET_FILL,
@@ -80,9 +81,9 @@ def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, 
                 else "unjammed from the first L")  # fmt: skip
         if narrow():
             text = text.replace(" at ", "\nat ").replace(" from ", "\nfrom ")
-        ax.text(0.98, 0.45 if log else 0.97, text, transform=ax.transAxes, ha="right",
-                va="center" if log else "top", fontsize="medium", color="0.25",
-                bbox={"fc": "white", "ec": "0.7", "pad": 2.5})  # fmt: skip
+        movable(ax.text(0.98, 0.45 if log else 0.97, text, transform=ax.transAxes, ha="right",
+                        va="center" if log else "top", fontsize="medium", color="0.25",
+                        bbox={"fc": "white", "ec": "0.7", "pad": 2.5}))  # fmt: skip
     if log:
         from matplotlib.ticker import LogLocator
 
@@ -121,10 +122,10 @@ def _fit_line(ax: Any, t: Transition, colour: str, x_first: float, threshold: fl
         ax.annotate("", xy=(t.L_over_r_trans, y), xytext=(x0, y),
                     arrowprops={"arrowstyle": "<->", "color": "0.2", "lw": 1.2,
                                 "shrinkA": 0, "shrinkB": 0}, zorder=6)  # fmt: skip
-        ax.text(max(x0, t.L_over_r_trans), y, f"  ΔL/r = {t.delta_L_over_r:.3f}"
-                + ("\n  (zero beyond the transition)" if t.delta_L_over_r < 0 else ""), ha="left",
-                va="center", fontsize="medium", color="0.2",
-                bbox={"fc": "white", "ec": "none", "alpha": 0.8, "pad": 1.0})  # fmt: skip
+        movable(ax.text(max(x0, t.L_over_r_trans), y, f"  ΔL/r = {t.delta_L_over_r:.3f}"
+                        + ("\n  (zero beyond the transition)" if t.delta_L_over_r < 0 else ""),
+                        ha="left", va="center", fontsize="medium", color="0.2",
+                        bbox={"fc": "white", "ec": "none", "alpha": 0.8, "pad": 1.0}))  # fmt: skip
 
 
 def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any:
@@ -280,10 +281,16 @@ def _trans_value(t: dict | None, top: float, bottom: float) -> float:
     return t["L_over_r_trans"]
 
 
-def _regime_panel(ax: Any, xs: np.ndarray, tx: np.ndarray, ty: np.ndarray, lim: tuple) -> None:
-    """Shade the regimes between the two (L/r)_trans lines over a parameter axis."""
+def _regime_panel(ax: Any, xs: np.ndarray, tx: np.ndarray, ty: np.ndarray,
+                  lim: tuple) -> set[str]:  # fmt: skip
+    """Shade the regimes between the two (L/r)_trans lines over a parameter axis; the
+    regimes shaded."""
     bottom, top = lim
+    shown: set[str] = set()
     if np.all(np.isfinite(tx)) and np.all(np.isfinite(ty)):
+        shown = {"jammed_xy", "unjammed"} if np.any(np.minimum(tx, ty) > bottom) else {"unjammed"}
+        shown |= {"jammed_y_only"} if np.any(tx < ty) else set()
+        shown |= {"jammed_x_only"} if np.any(tx > ty) else set()
         low, high = np.minimum(tx, ty), np.maximum(tx, ty)
         ax.fill_between(xs, bottom, low, color=REGIME_FILL["jammed_xy"], lw=0)
         ax.fill_between(xs, low, high, where=tx <= ty, interpolate=True, lw=0,
@@ -293,6 +300,7 @@ def _regime_panel(ax: Any, xs: np.ndarray, tx: np.ndarray, ty: np.ndarray, lim: 
         ax.fill_between(xs, high, top, color=REGIME_FILL["unjammed"], lw=0)
     ax.set_ylim(bottom, top)
     ax.set_xlim(xs[0], xs[-1])
+    return shown
 
 
 def _transition_marks(ax: Any, xs: np.ndarray, rows: list[dict | None], d: str,
@@ -320,12 +328,21 @@ def _transition_marks(ax: Any, xs: np.ndarray, rows: list[dict | None], d: str,
                         zorder=6)  # fmt: skip
 
 
-def _regime_legend(fig: Any, axes: list, with_lines: bool) -> None:
+REGIMES = ("jammed_xy", "jammed_y_only", "jammed_x_only", "unjammed")
+
+
+def _regime_legend(fig: Any, shown: set[str], with_lines: bool, markers: bool = False) -> None:
+    """The figure's legend: every regime ``shown`` (in the order of ``REGIMES``), the
+    transition lines (``with_lines``) or the sampled sweeps' markers (``markers``)."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    handles = [Patch(color=REGIME_FILL[r], label=REGIME_LABEL[r])
-               for r in ("jammed_xy", "jammed_y_only", "unjammed")]  # fmt: skip
+    handles = [Patch(color=REGIME_FILL[r], label=REGIME_LABEL[r]) for r in REGIMES if r in shown]
+    if markers:
+        handles += [Line2D([], [], ls="none", marker="o", ms=7, color=TRANSITION_LINE["x"],
+                           label="sweep jammed (gap ≥ threshold)"),
+                    Line2D([], [], ls="none", marker="o", ms=7, mfc="white",
+                           color=TRANSITION_LINE["x"], label="sweep unjammed")]  # fmt: skip
     if with_lines:
         handles += [Line2D([], [], color=TRANSITION_LINE[d], lw=4.0 if d == "x" else 1.8,
                            marker="o" if d == "x" else "s", ms=10 if d == "x" else 5.5,
@@ -359,22 +376,20 @@ def fig4c_phase_diagram(red: Reduction, notes: list[str]) -> Any:
             groups.setdefault(k[:pi] + k[pi + 1 :], []).append(k)
         panels += [(p, pi, g, sorted(ks, key=lambda k: k[pi]))
                    for g, ks in groups.items() if len(ks) >= 2]  # fmt: skip
-    if not panels:
-        if len(keys) > 1:  # only the stitch varies: the first stitch's series
-            notes.append(f"fig4c: the regimes of {label_of(red, keys[0])}, the first of "
-                         f"{len(keys)} series")  # fmt: skip
-        return _regime_strip(red, keys[0], by_key)
+    if not panels:  # no parameter axis (one series, or only the stitch varies): a strip each
+        return _regime_strips(red, limit_panels(keys, "fig4c", notes), by_key)
     panels = limit_panels(panels, "fig4c", notes)
     ncols = min(len(panels), 2)
     fig = new_figure(max(8.0, 5.0 * ncols + 0.3), 3.6 * -(-len(panels) // ncols) + 1.3)
     lim = _lim(red)
+    shown: set[str] = set()
     for ax, (p, pi, _, ks) in zip(grid_of_panels(fig, len(panels), ncols), panels, strict=True):
         xs = np.array([k[pi] for k in ks])
         rx = [by_key.get((k, "x")) for k in ks]
         ry = [by_key.get((k, "y")) for k in ks]
         tx = np.array([_trans_value(t, lim[1], lim[0]) for t in rx])
         ty = np.array([_trans_value(t, lim[1], lim[0]) for t in ry])
-        _regime_panel(ax, xs, tx, ty, lim)
+        shown |= _regime_panel(ax, xs, tx, ty, lim)
         for d, rows in (("x", rx), ("y", ry)):
             if any(t is not None for t in rows):
                 _transition_marks(ax, xs, rows, d, lim, label=False)
@@ -386,24 +401,49 @@ def fig4c_phase_diagram(red: Reduction, notes: list[str]) -> Any:
         fixed = dict(zip(SERIES_PARAMS, ks[0], strict=True))
         others = series_label(fixed, [q for q in red.varying if q != p])
         ax.set_title(f"at {others}" if others else rf"$(L/r)_{{\rm trans}}$ against ${sym}$")
-    _regime_legend(fig, [], with_lines=True)
+    _regime_legend(fig, shown, with_lines=True)
     title(fig, red, r"Phase diagram: onset of unjamming $(L/r)_{\rm trans}$ and regimes")
     return fig
 
 
-def _regime_strip(red: Reduction, key: tuple, by_key: dict) -> Any:
-    """One series: the regimes along L/r, with the sampled sweeps marked."""
+def _regime_strips(red: Reduction, keys: list, by_key: dict) -> Any:
+    """Each series: the regimes along L/r, with the sampled sweeps marked, a panel each."""
     lim = _lim(red)
-    fig = new_figure(8.0, 3.6)
-    ax = fig.subplots()
+    fig = new_figure(8.0, 2.9 * len(keys) + 0.9)
+    axes = fig.subplots(len(keys), 1, squeeze=False, sharex=True)[:, 0]
+    shown: set[str] = set()
+    for ax, key in zip(axes, keys, strict=True):
+        shown |= _regime_strip(ax, red, key, by_key, lim)
+        ax.xaxis.set_tick_params(labelbottom=True)
+        lab = label_of(red, key)
+        if lab and len(keys) > 1:
+            ax.set_title(lab)
+    axes[-1].set_xlabel(L_OVER_R)
+    _regime_legend(fig, shown, with_lines=False, markers=True)
+    lab = label_of(red, keys[0]) if len(keys) == 1 else ""
+    title(fig, red, r"Regimes along $L/r$ " + (f"({lab})" if lab else
+                                              "(one series: no parameter varies)"
+                                              if len(keys) == 1 else f"({len(keys)} series)"))  # fmt: skip
+    return fig
+
+
+def _regime_strip(ax: Any, red: Reduction, key: tuple, by_key: dict, lim: tuple) -> set[str]:
+    """One series' regimes along L/r on ``ax``, with its sampled sweeps marked; the
+    regimes shaded."""
+    shown: set[str] = set()
     tx = _trans_value(by_key.get((key, "x")), np.inf, -np.inf)
     ty = _trans_value(by_key.get((key, "y")), np.inf, -np.inf)
     if not (np.isnan(tx) or np.isnan(ty)):
         low, high = np.clip(min(tx, ty), *lim), np.clip(max(tx, ty), *lim)
-        ax.axvspan(lim[0], low, color=REGIME_FILL["jammed_xy"], lw=0)
         mid = "jammed_y_only" if tx <= ty else "jammed_x_only"
-        ax.axvspan(low, high, color=REGIME_FILL[mid], lw=0)
-        ax.axvspan(high, lim[1], color=REGIME_FILL["unjammed"], lw=0)
+        for name, a, b in (
+            ("jammed_xy", lim[0], low),
+            (mid, low, high),
+            ("unjammed", high, lim[1]),
+        ):
+            if b > a:
+                ax.axvspan(a, b, color=REGIME_FILL[name], lw=0)
+                shown.add(name)
     for yi, d in ((1.0, "x"), (0.0, "y")):
         rows = [r for r in red.sweeps if r["direction"] == d and series_key(r) == key]
         if not rows:
@@ -411,7 +451,7 @@ def _regime_strip(red: Reduction, key: tuple, by_key: dict) -> Any:
         xs = [r["L_over_r"] for r in rows]
         face = [TRANSITION_LINE[d] if r["jammed"] else "white" for r in rows]
         ax.scatter(xs, [yi] * len(xs), s=60, c=face, edgecolors=TRANSITION_LINE[d], zorder=4,
-                   marker="o" if d == "x" else "s", linewidths=1.5)  # fmt: skip
+                   marker="o" if d == "x" else "s", linewidths=1.5, clip_on=False)  # fmt: skip
         t = by_key.get((key, d))
         if t is not None and t["status"] == "transition":
             ax.plot([t["L_over_r_trans"]] * 2, [yi - 0.3, yi + 0.3], color=TRANSITION_LINE[d],
@@ -423,11 +463,4 @@ def _regime_strip(red: Reduction, key: tuple, by_key: dict) -> Any:
     ax.set_yticks([1.0, 0.0])
     ax.set_yticklabels(["pulled in x", "pulled in y"])
     ax.grid(False)
-    ax.set_xlabel(L_OVER_R)
-    ax.text(0.99, 0.02, "filled: jammed (gap ≥ threshold), open: unjammed",
-            transform=ax.transAxes, ha="right", va="bottom", fontsize="medium", color="0.3")  # fmt: skip
-    _regime_legend(fig, [ax], with_lines=False)
-    lab = label_of(red, key)
-    title(fig, red, r"Regimes along $L/r$ " + (f"({lab})" if lab else
-                                              "(one series: no parameter varies)"))  # fmt: skip
-    return fig
+    return shown

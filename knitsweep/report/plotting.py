@@ -267,14 +267,18 @@ def sci(value: float, digits: int = 3) -> str:
 
 def finish(fig: Any) -> Any:
     """Last touches of every figure before it is saved: at column width, at most 3-5
-    major ticks on linear axes (crowded tick labels otherwise meet)."""
+    major ticks on linear axes (crowded tick labels otherwise meet); legends and
+    movable labels moved off the data (``declutter``)."""
     from matplotlib.ticker import AutoLocator, MaxNLocator
+
+    from .declutter import declutter
 
     if narrow():
         for ax in fig.axes:
             for axis, n in ((ax.xaxis, 3), (ax.yaxis, 5)):
                 if type(axis.get_major_locator()) is AutoLocator:
                     axis.set_major_locator(MaxNLocator(nbins=n, steps=[1, 2, 5, 10]))
+    declutter(fig)
     return fig
 
 

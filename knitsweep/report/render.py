@@ -8,12 +8,17 @@ t_c = (a_x, 0, 0)), so one row's yarn is the cell's path repeated by that shift,
 the rows repeat along the wale period t_w = (0, a_y, 0). The copies are the stitch's
 images (``Stitch.images``, docs/model.md §11): the copy at lattice offset (m, n) is
 g p = M^μ p + m t_c + n t_w with M = diag(1, 1, −1) (the mirror z → −z through the
-fabric plane) and μ = (pm m + pn n) mod 2, (pm, pn) the stitch's ``mirror_parity``
-((0, 0) for a pattern of translations: stockinette; (0, 1) garter, whose odd rows are
-purl rows; (1, 0) rib; (1, 1) seed). Each row is drawn as a tube of radius r around
-its centre-line, seen along a tilted direction in orthographic projection, shaded
-(Lambert + specular) and depth-sorted face by face (painter's algorithm), so that
-interlocking loops hide each other correctly. Lengths in mm.
+fabric plane) and μ = (pm m + pn n) mod 2, (pm, pn) the stitch's ``mirror_parity``.
+
+Each row's yarn is one tube of radius ρ (default the yarn's radius r) around one curve
+through the whole tile (``tube_mesh``: continuous frames and normals across the cells),
+seen along a tilted direction in orthographic projection, rasterised with a depth
+buffer (``raster``: interlocking and pressed-together tubes hide each other along their
+true intersection) at ``SUPERSAMPLE``² samples per pixel, averaged (anti-aliasing), and
+shaded per pixel from the interpolated normals: a key and a fill light (Lambert +
+Blinn–Phong), a relief cue (yarn further back in the fabric darker) and the occlusion
+of the depth buffer's neighbourhood (crevices darker). Each row (course) has one colour
+along its whole yarn. Lengths in mm.
 
 matplotlib is imported lazily, with the Agg canvas and no pyplot.
 """
@@ -29,26 +34,31 @@ import numpy as np
 from ..config import StitchParams
 from ..errors import InputError
 from ..formats import check_writable, replace_file
-from .tile import Stitch, cell_path, copy_mirrored, dense_cell_path, frames, row_path, unit_cell
+from .sources import FROM_FILE, drawn, stitch_from_results, stitch_from_state, stitch_to_draw, title
+from .tile import ROW_COLOURS, Stitch, cell_path, copy_mirrored, row_path, unit_cell
 
-ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
-"""Base colour of each row (course) of yarn, cycling."""
-PATTERN_COLOURS = {False: ("#c8553d", "#d9a21b"), True: ("#3a7ca5", "#6a994e")}
-"""With mirrored images (a knit/purl pattern): warm colours (red, gold) for the cell's
-unmirrored copies, cool ones (blue, green) for the mirrored copies, alternating every
-second row within each, so that the knit and the purl rows (garter), columns (rib) or
-checkerboard squares (seed) tell apart at a glance."""
+__all__ = ["ROW_COLOURS", "cell_path", "copy_mirrored", "drawn", "render", "row_path", "stitch_from_results",
+           "stitch_from_state", "stitch_to_draw", "title", "unit_cell"]  # fmt: skip
 
 OUT_SUFFIXES = (".png", ".pdf", ".svg")
+MESH_SUFFIXES = (".vtp", ".vtu", ".ply", ".obj")
+"""3D files of the tile's yarn (``export3d``)."""
 
 BACKGROUND = np.array([0.17, 0.17, 0.19])
 """What shows through the holes between the loops: shadow, so that a hole reads as
 one (a white background made the small holes at the cell corners look like defects)."""
 
-
 SIDES = ("face", "back")
 """Which side of the fabric faces the viewer: 'face' (the knit side, its V-shaped legs;
 seen from −z in this model's frame) or 'back' (the purl side, seen from +z)."""
+
+SUPERSAMPLE = 2
+"""Samples per pixel along each axis (anti-aliasing)."""
+AROUND = 48
+"""Vertices per ring of the tube mesh."""
+MAX_RADIUS = 10.0
+"""Largest tube radius (mm) a picture may ask for."""
+MAX_CELLS = 12
 
 
 def _view_matrix(elevation_deg: float, azimuth_deg: float, side: str = "face") -> np.ndarray:
@@ -64,137 +74,149 @@ def _view_matrix(elevation_deg: float, azimuth_deg: float, side: str = "face") -
     return rx @ flip @ rz
 
 
-def _shade(base: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """Lambert + Blinn–Phong shading of face colours (m, 3) for view-space normals (m, 3)."""
-    light = np.array([-0.45, 0.55, 1.0])
-    light /= np.linalg.norm(light)
-    half = light + np.array([0.0, 0.0, 1.0])
-    half /= np.linalg.norm(half)
-    diffuse = np.clip(normals @ light, 0.0, 1.0)[:, None]
-    spec = np.clip(normals @ half, 0.0, 1.0)[:, None] ** 40
-    rgb = base * (0.3 + 0.7 * diffuse) + 0.35 * spec
-    return np.clip(rgb, 0.0, 1.0)
+def default_cells(stitch: Stitch) -> tuple[int, int]:
+    """(stitches across, rows): two repeats of the pattern (``Stitch.repeat``) each
+    way, at least 3 (the paper's Fig. 1a: 3 × 3 stockinette stitches)."""
+    along, rows = stitch.repeat
+    return max(3, 2 * along), max(3, 2 * rows)
 
 
-def _cell_tint(row: int, column: int, centre: tuple[int, int] | None,
-               mirrored: bool | None = None) -> np.ndarray:  # fmt: skip
-    """The row's hue, the same along the whole yarn (no seams where cells meet); with
-    ``mirrored`` (a pattern with mirrored images: whether this copy is one), the hue of
-    :data:`PATTERN_COLOURS`; with a ``centre`` cell, the others washed towards grey so
-    that it stands out."""
-    from matplotlib.colors import to_rgb
-
-    if mirrored is None:
-        rgb = np.array(to_rgb(ROW_COLOURS[row % len(ROW_COLOURS)]))
-    else:
-        rgb = np.array(to_rgb(PATTERN_COLOURS[mirrored][(row // 2) % 2]))
-    if centre is not None and (row, column) != centre:
-        rgb = 0.55 * rgb + 0.45 * np.array([0.78, 0.76, 0.72])
-    return np.clip(rgb, 0.0, 1.0)
+def _cells(cells: int | tuple[int, int]) -> tuple[int, int]:
+    return (cells, cells) if isinstance(cells, int) else (int(cells[0]), int(cells[1]))
 
 
-RADIUS_FRACTION = 0.5 / 0.74
-"""Default tube radius as a fraction of the yarn radius r: the paper drew its Fig. 1a
-with 0.5 mm for r = 0.74 mm "to better display the yarn structure" (a tube of the full
-radius, whose compressible shells overlap, looks like a solid wall)."""
-MAX_RADIUS = 10.0
-"""Largest tube radius (mm) a picture may ask for."""
-
-
-def window(stitch: Stitch, cells: int, view: np.ndarray) -> np.ndarray:
-    """Screen box (x_lo, x_hi, y_lo, y_hi), mm, of ``cells`` × ``cells`` cell periods
+def window(stitch: Stitch, cells: int | tuple[int, int], view: np.ndarray) -> np.ndarray:
+    """Screen box (x_lo, x_hi, y_lo, y_hi), mm, of ``cells`` (across, rows) cell periods
     centred on the patch."""
+    nx, ny = _cells(cells)
     mid = cell_path(stitch.control_points, 8).mean(axis=0)
     if stitch.mirrors:  # the fabric's middle is the mirror plane z = 0
         mid[2] = 0.0
-    t_c = stitch.t_c
     t_w = np.array([0.0, stitch.a_y, 0.0])
-    corners = np.array([mid + (i - 0.5) * t_c + (j - 0.5) * t_w
-                        for i in (0, cells) for j in (0, cells)]) @ view.T  # fmt: skip
+    corners = np.array([mid + (i - 0.5) * stitch.t_c + (j - 0.5) * t_w
+                        for i in (0, nx) for j in (0, ny)]) @ view.T  # fmt: skip
     return np.array([corners[:, 0].min(), corners[:, 0].max(),
                      corners[:, 1].min(), corners[:, 1].max()])  # fmt: skip
 
 
-def rasterize(stitch: Stitch, cells: int, radius: float, view: np.ndarray, box: np.ndarray,
-              width_px: int, highlight: bool = False) -> np.ndarray:  # fmt: skip
-    """The fabric seen through ``box`` as an RGB image (H, width_px, 3) in [0, 1].
+def copies_in_view(stitch: Stitch, view: np.ndarray, box: np.ndarray,
+                   reach: float) -> dict[int, range]:  # fmt: skip
+    """Row → the consecutive copies of it whose yarn (widened by ``reach`` mm) can be
+    seen through the screen box ``box``."""
+    one = cell_path(stitch.control_points, 6)
+    t_w = np.array([0.0, stitch.a_y, 0.0])
+    steps = np.column_stack([stitch.t_c @ view.T, t_w @ view.T])[:2]  # screen (2, 2)
+    middle = np.array([box[0] + box[1], box[2] + box[3]]) / 2.0 - (one.mean(axis=0) @ view.T)[:2]
+    c0, r0 = np.rint(np.linalg.solve(steps, middle)).astype(int)  # the copy at the centre
+    extent = np.hypot(box[1] - box[0], box[3] - box[2]) + np.ptp(one @ view.T, axis=0)[:2].sum()
+    lim_c = int(np.ceil(extent / np.linalg.norm(steps[:, 0]))) + 2
+    lim_w = int(np.ceil(extent / np.linalg.norm(steps[:, 1]))) + 2
+    out = {}
+    for row in range(r0 - lim_w, r0 + lim_w + 1):
+        seen = []
+        for c in range(c0 - lim_c, c0 + lim_c + 1):
+            pts = row_path(stitch, one, row, range(c, c + 1)) @ view.T
+            if (pts[:, 0].max() + reach >= box[0] and pts[:, 0].min() - reach <= box[1]
+                    and pts[:, 1].max() + reach >= box[2] and pts[:, 1].min() - reach <= box[3]):  # fmt: skip
+                seen.append(c)
+        if seen:
+            out[row] = range(min(seen), max(seen) + 1)
+    return out
 
-    The tube surfaces are sampled more finely than a pixel and drawn with a depth
-    buffer, so that yarns pressed into each other (the model's compressible shell)
-    meet along their true intersection. ``cells`` × ``cells`` stitches plus a ring of
-    neighbours are drawn, so the window shows a continuous fabric.
-    """
+
+def _shade(normals: np.ndarray) -> np.ndarray:
+    """Light (H, W, 1) on view-space unit normals (H, W, 3): a key light from the upper
+    left and a weak fill from the right (Lambert), and the key's Blinn–Phong highlight
+    returned separately (H, W, 1)."""
+    key = np.array([-0.45, 0.55, 1.0])
+    key /= np.linalg.norm(key)
+    fill = np.array([0.7, -0.2, 0.7])
+    fill /= np.linalg.norm(fill)
+    half = key + np.array([0.0, 0.0, 1.0])
+    half /= np.linalg.norm(half)
+    diffuse = 0.75 * np.clip(normals @ key, 0.0, 1.0) + 0.2 * np.clip(normals @ fill, 0.0, 1.0)
+    spec = np.clip(normals @ half, 0.0, 1.0) ** 40
+    return diffuse[..., None], spec[..., None]
+
+
+def _tints(stitch: Stitch, rows: np.ndarray, columns: np.ndarray,
+           centre: tuple[int, int] | None) -> np.ndarray:  # fmt: skip
+    """Base colours (K, 3) of centre vertices by their row; with a ``centre`` copy, the
+    others washed towards grey so that it stands out."""
+    from matplotlib.colors import to_rgb
+
+    palette = np.array([to_rgb(c) for c in ROW_COLOURS])
+    rgb = palette[np.mod(rows, len(ROW_COLOURS))]
+    if centre is not None:
+        other = (rows != centre[0]) | (columns != centre[1])
+        rgb[other] = 0.55 * rgb[other] + 0.45 * np.array([0.78, 0.76, 0.72])
+    return rgb
+
+
+def shade_tile(stitch: Stitch, cells: int | tuple[int, int], radius: float, view: np.ndarray,
+               box: np.ndarray, width_px: int, highlight: bool = False,
+               supersample: int = SUPERSAMPLE) -> np.ndarray:  # fmt: skip
+    """The fabric seen through ``box`` as an RGB image (H, width_px, 3) in [0, 1]
+    (module docstring); ``cells`` only says which copy ``highlight`` saturates."""
+    from scipy.ndimage import uniform_filter
+
+    from .raster import rasterize
+    from .tube_mesh import tube_mesh
+
     px = (box[1] - box[0]) / width_px
-    height_px = int(np.ceil((box[3] - box[2]) / px))
-    zbuf = np.full(height_px * width_px, -np.inf)
-    image = np.tile(BACKGROUND, (height_px * width_px, 1))
-    step = px / 1.6
-    one = dense_cell_path(stitch.control_points, step)
-    per_cell = len(one) - 1
-    eye = view[2]  # unit vector towards the viewer, fabric coordinates
-    offsets = np.linspace(-0.56 * np.pi, 0.56 * np.pi, int(np.ceil(1.12 * np.pi * radius / step)))
-    centre = unit_cell(stitch, cells) if highlight else None
-    reach = radius + 2.0 * px
-    for row in range(-1, cells + 1):
-        path = row_path(stitch, one, row, range(-1, cells + 1))
-        screen = path @ view.T
-        near = ((screen[:, 0] > box[0] - reach) & (screen[:, 0] < box[1] + reach)
-                & (screen[:, 1] > box[2] - reach) & (screen[:, 1] < box[3] + reach))  # fmt: skip
-        if not near.any():
-            continue
-        _, normal, binormal = frames(path)
-        tints = np.array([_cell_tint(row, c, centre, copy_mirrored(stitch, row, c))
-                          for c in range(-1, cells + 1)])  # fmt: skip
-        column = np.minimum(np.arange(len(path)) // per_cell, cells + 1)
-        idx = np.flatnonzero(near)
-        for chunk in np.array_split(idx, max(1, len(idx) // 1500)):
-            phi0 = np.arctan2(binormal[chunk] @ eye, normal[chunk] @ eye)
-            phi = phi0[:, None] + offsets[None, :]
-            ring = (np.cos(phi)[..., None] * normal[chunk, None, :]
-                    + np.sin(phi)[..., None] * binormal[chunk, None, :]).reshape(-1, 3)  # fmt: skip
-            pts = (np.repeat(path[chunk], len(offsets), axis=0) + radius * ring) @ view.T
-            ix = np.floor((pts[:, 0] - box[0]) / px).astype(np.int64)
-            iy = np.floor((box[3] - pts[:, 1]) / px).astype(np.int64)
-            ok = (ix >= 0) & (ix < width_px) & (iy >= 0) & (iy < height_px)
-            pix = (iy * width_px + ix)[ok]
-            depth = pts[ok, 2]
-            order = np.lexsort((depth, pix))
-            last = np.r_[pix[order][1:] != pix[order][:-1], True]
-            sel = order[last]
-            nearer = depth[sel] > zbuf[pix[sel]]
-            sel = sel[nearer]
-            zbuf[pix[sel]] = depth[sel]
-            base = tints[np.repeat(column[chunk], len(offsets))[ok][sel]]
-            image[pix[sel]] = _shade(base, ring[ok][sel] @ view.T)
-    image = image.reshape(height_px, width_px, 3)
-    return _fill_holes(image, zbuf.reshape(height_px, width_px))
+    height_px = int(np.ceil((box[3] - box[2]) / px - 1e-9))
+    fine = px / supersample
+    sigma = 0.4 * radius / fine  # the occlusion's neighbourhood
+    pad = int(np.ceil(2.0 * sigma))
+    shape = (height_px * supersample + 2 * pad, width_px * supersample + 2 * pad)
+    padded = box + fine * pad * np.array([-1.0, 1.0, -1.0, 1.0])
+    copies = copies_in_view(stitch, view, padded, radius + fine)
+    centre = unit_cell(stitch, _cells(cells)[1]) if highlight else None
+    zs = cell_path(stitch.control_points, 16)[:, 2]  # the fabric's depth, mirrors included
+    zs = np.concatenate([zs, -zs]) if stitch.mirrors else zs
+    z_lo, z_hi = float(zs.min()) - radius, float(zs.max()) + radius
+    towards = -1.0 if view[2, 2] < 0 else 1.0  # the fabric's z that points at the viewer
+    spacing = min(2.0 * np.pi * radius / AROUND, 0.1)
+    mesh = tube_mesh(stitch, copies, radius, spacing, AROUND)
+    screen = mesh.points @ view.T
+    xy = np.column_stack([(screen[:, 0] - padded[0]) / fine, (padded[3] - screen[:, 1]) / fine])
+    frags = rasterize(xy, screen[:, 2], mesh.triangles, shape)
+    covered = frags.covered
+    tint = _tints(stitch, mesh.centre_row, mesh.centre_column, centre)[mesh.ring]
+    near = mesh.points[:, 2] - z_lo if towards > 0 else z_hi - mesh.points[:, 2]
+    relief = np.clip(near / (z_hi - z_lo), 0.0, 1.0)
+    values = np.column_stack([mesh.normals @ view.T, tint, relief])
+    at = frags.interpolate(values, mesh.triangles, 1.0)  # (H, W, 7)
+    n = at[..., :3] / np.linalg.norm(at[..., :3], axis=-1)[..., None]
+    diffuse, spec = _shade(n)
+    image = at[..., 3:6] * (0.22 + diffuse) * (0.55 + 0.45 * at[..., 6:7]) + 0.3 * spec
+    depth = frags.depth
+    if covered.any():  # occlusion: neighbours nearer the viewer than a pixel shade it
+        far = depth[covered].min() - 2.0 * radius
+        filled = np.where(covered, depth, far)
+        around = filled
+        width = round(np.sqrt(4.0 * sigma**2 + 1.0))  # three box passes ~ a Gaussian
+        for _ in range(3):
+            around = uniform_filter(around, width, mode="nearest")
+        occlusion = np.clip((around - filled) / radius, 0.0, 1.0)
+        image *= (1.0 - 0.55 * occlusion)[..., None]
+    image[~covered] = BACKGROUND
+    image = np.clip(image, 0.0, 1.0)[pad : shape[0] - pad, pad : shape[1] - pad]
+    return image.reshape(height_px, supersample, width_px, supersample, 3).mean(axis=(1, 3))
 
 
-def _fill_holes(image: np.ndarray, zbuf: np.ndarray) -> np.ndarray:
-    """Pixels the sampling missed inside a surface (≥ 3 of 4 neighbours drawn) take
-    the mean colour of their drawn neighbours."""
-    empty = ~np.isfinite(zbuf)
-    pad_e = np.pad(~empty, 1, constant_values=False)
-    pad_i = np.pad(image, ((1, 1), (1, 1), (0, 0)))
-    shifts = ((0, 1), (2, 1), (1, 0), (1, 2))
-    count = sum(pad_e[a : a + empty.shape[0], b : b + empty.shape[1]] for a, b in shifts)
-    total = sum(pad_i[a:a + empty.shape[0], b:b + empty.shape[1]]
-                * pad_e[a:a + empty.shape[0], b:b + empty.shape[1], None] for a, b in shifts)  # fmt: skip
-    fill = empty & (count >= 3)
-    image[fill] = total[fill] / count[fill, None]
-    return image
-
-
-def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float | None = None,
-                elevation_deg: float = 72.0, azimuth_deg: float = 0.0, side: str = "face",
-                width_px: int = 1100, highlight: bool = False) -> Path:  # fmt: skip
-    """Draw a window onto ``cells`` × ``cells`` stitches to ``out`` (.png, .pdf, .svg).
+def draw_stitch(stitch: Stitch, out: str | Path, cells: int | tuple[int, int] | None = None,
+                radius: float | None = None, elevation_deg: float = 72.0,
+                azimuth_deg: float = 0.0, side: str = "face", width_px: int = 1100,
+                highlight: bool = False, core: bool = False) -> Path:  # fmt: skip
+    """Draw a window onto ``cells`` (across, rows; one int: square) stitches to ``out``
+    (.png, .pdf, .svg).
 
     Args:
         stitch: the cell to repeat.
-        cells: stitches per side of the window (the paper's Fig. 1a look: 3).
-        radius: tube radius, mm [``RADIUS_FRACTION`` × r, the paper's 0.5 mm for
-            r = 0.74 mm, which shows the stitches].
+        cells: stitches across and rows [``default_cells``: two repeats of the pattern,
+            at least 3 × 3].
+        radius: tube radius, mm [the yarn radius r; with ``core``, r_core].
         elevation_deg: angle between the viewing direction and the fabric plane
             (90: straight onto the fabric).
         azimuth_deg: rotation of the fabric about its normal.
@@ -202,125 +224,64 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int = 3, radius: float |
         width_px: resolution of the rendering, pixels across (the saved figure is
             7 inches wide at 160 dpi either way).
         highlight: wash out every stitch but the central one (the unit cell).
+        core: draw the incompressible cores (radius r_core) instead of the yarn.
     """
     import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
 
     if side not in SIDES:
         raise InputError(f"side = {side!r}: must be one of {', '.join(SIDES)}")
-    r = RADIUS_FRACTION * stitch.r_mm if radius is None else radius
+    nx, ny = default_cells(stitch) if cells is None else _cells(cells)
+    r = tube_radius(stitch, radius, core)
     view = _view_matrix(elevation_deg, azimuth_deg, side)
-    box = window(stitch, cells, view)
-    image = rasterize(stitch, cells, r, view, box, width_px, highlight)
+    box = window(stitch, (nx, ny), view)
+    image = shade_tile(stitch, (nx, ny), r, view, box, width_px, highlight)
+    what = "cores (r_core)" if core and radius is None else "yarn"
+    note = (f"{nx} × {ny} stitches, {side} side; {what} drawn at radius {r:.3g} mm; "
+            "one colour per row") + ("; saturated: one unit cell" if highlight else "")  # fmt: skip
+    if stitch.label.startswith(FROM_FILE):
+        note = f"{stitch.label}\n{note}"
     out = Path(out)
-    width = 7.0  # inches at 160 dpi: the picture is shown 1120 px wide whatever width_px is
-    height = width * image.shape[0] / image.shape[1] + (1.0 if stitch.mirrors else 0.8)
     with matplotlib.rc_context({"font.size": 11, "font.family": "DejaVu Sans"}):
-        fig = Figure(figsize=(width + 0.3, height), layout="constrained")
-        FigureCanvasAgg(fig)
-        ax = fig.subplots()
-        ax.imshow(image, extent=tuple(box), interpolation="antialiased")
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
-        for spine in ax.spines.values():
-            spine.set_color("0.6")
-        ax.set_title(stitch.label, fontsize=11)
-        note = f"{cells} × {cells} stitches, {side} side; tube radius {r:.3g} mm (yarn r = "
-        note += f"{stitch.r_mm:g} mm)" + ("; saturated: one unit cell" if highlight else "")
-        if stitch.mirrors:
-            note += "\nwarm colours: the cell's copies; cool: its mirror images (z → −z)"
-        ax.text(1.0, -0.01, note, transform=ax.transAxes, ha="right", va="top", fontsize=10,
-                color="0.35")  # fmt: skip
+        fig = stitch_figure(image, box, title(stitch), note)
         buf = io.BytesIO()
         fig.savefig(buf, format=Path(out).suffix.lstrip(".").lower(), dpi=160, facecolor="white")
     return replace_file(out, buf.getvalue())  # never through a symbolic link
 
 
-# ---- where the stitch comes from ---------------------------------------------------
+def stitch_figure(image: np.ndarray, box: np.ndarray, head: str, note: str) -> Any:
+    """The picture ``image`` (H, W, 3) of the screen box ``box`` in a figure 7.3 inches
+    wide (1168 px at 160 dpi, whatever the image's resolution), ``head`` above it and
+    ``note`` below, the figure as tall as they need."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    width = 7.0
+    lines = head.count("\n") + 1 + note.count("\n") + 1
+    height = width * image.shape[0] / image.shape[1] + 0.25 + 0.21 * lines
+    fig = Figure(figsize=(width + 0.3, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.imshow(image, extent=tuple(box), interpolation="antialiased")
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    for spine in ax.spines.values():
+        spine.set_color("0.6")
+    ax.set_title(head, fontsize=11)
+    ax.set_xlabel(note, fontsize=10, color="0.35", loc="right")  # in the layout, not over it
+    return fig
 
 
-def stitch_from_state(x: np.ndarray, params: StitchParams, label: str = "") -> Stitch:
-    """The picture of a state vector of the stitch ``params.stitch`` (docs/model.md §2)."""
-    from ..model import CellModel
-
-    model = CellModel(params)
-    return drawn(model.control_points(x), float(x[-2]), float(x[-1]), params,
-                 label or f"L = {params.L_mm:g} mm, r = {params.r_mm:g} mm")  # fmt: skip
-
-
-def drawn(cp: np.ndarray, a_x: float, a_y: float, params: StitchParams, label: str) -> Stitch:
-    """The picture of control points (S, 6, 3) of the stitch ``params.stitch``, in its
-    drawing order, with its images as the stitch declares them (``images``: translations,
-    or glides with its ``mirror_parity``)."""
-    from ..stitches import get_stitch
-
-    geometry = get_stitch(params.stitch)
-    order = list(geometry.path_order)
-    parity = tuple(geometry.mirror_parity) if geometry.images == "glides" else (0, 0)
-    return Stitch(np.asarray(cp, dtype=float)[order], a_x, a_y, params.r_mm, label,
-                  geometry.closing_shift, parity)  # fmt: skip
-
-
-def _find_task(results: Path, task: str) -> Any:
-    from ..store.read import iter_entries, read_root
-
-    read_root(results)
-    matches = [e for e in iter_entries(results, with_data=True) if e.task_id.startswith(task)]
-    if not matches:
-        raise InputError(f"task = {task!r}: no point or sweep with this id in {results}")
-    if len(matches) > 1:
-        raise InputError(f"task = {task!r}: matches {len(matches)} tasks; give more characters")
-    return matches[0]
-
-
-def stitch_from_results(results: str | Path, task: str, step: int | None = None) -> Stitch:
-    """The stitch of one task of a results file.
-
-    A point id gives its zero-force state (the lowest-energy start). A sweep id gives
-    the state at ``step`` (default 0, the zero-force state); steps other than 0 need
-    the sweep's stored ``states`` or ``control_points`` ([store] states or geometry).
-    Ids may be abbreviated to a unique prefix.
-    """
-    from ..store.format import POINTS
-    from ..store.read import iter_entries
-
-    results = Path(results)
-    e = _find_task(results, task)
-    meta, rec = e.meta, e.record
-    if meta.get("status") != "done":
-        raise InputError(f"task {e.task_id} has status {meta.get('status')!r}: nothing to draw")
-    params = StitchParams.from_flat(meta)
-    what = f"L = {params.L_mm:g} mm, k = {params.k_mN_per_mm2:g} mN/mm², B = {params.B_mN_mm2:g} mN·mm²"
-    if e.kind == POINTS:
-        if step not in (None, 0):
-            raise InputError(
-                f"strain_step = {step}: a point has only its zero-force state (step 0)"
-            )
-        x = np.asarray(rec["x"][int(meta.get("winner", 0))], dtype=float)
-        return stitch_from_state(x, params, f"zero-force stitch, {what}")
-    step = 0 if step is None else step
-    n = len(rec.get("strain", []))
-    if not 0 <= step < n:
-        raise InputError(f"strain_step = {step}: sweep {e.task_id} has steps 0..{n - 1}")
-    label = (f"pulled in {meta['direction']}, step {step} (strain {rec['strain'][step]:.3f}), "
-             f"{what}")  # fmt: skip
-    if "control_points" in rec:
-        cp = np.asarray(rec["control_points"][step], dtype=float)
-        return drawn(cp, float(rec["a_x"][step]), float(rec["a_y"][step]), params, label)
-    if "states" in rec:
-        return stitch_from_state(np.asarray(rec["states"][step], dtype=float), params, label)
-    if step == 0:
-        point = next((p for p in iter_entries(results, with_data=True)
-                      if p.kind == POINTS and p.task_id == meta.get("point_id")), None)  # fmt: skip
-        if point is not None:
-            x = np.asarray(point.record["x"][int(point.meta.get("winner", 0))], dtype=float)
-            return stitch_from_state(x, params, label)
-    raise InputError(
-        f"sweep {e.task_id} stores no states or control points; only step 0 can be drawn "
-        "(set [store] states = true or geometry = true in the job to keep every step)"
-    )
+def tube_radius(stitch: Stitch, radius: float | None, core: bool) -> float:
+    """The radius drawn: ``radius`` if given, else the core radius r_core (``core``) or
+    the yarn radius r."""
+    if radius is not None:
+        return radius
+    if core:
+        if stitch.params is None:
+            raise InputError("--core: the stitch's r_core is not known")
+        return stitch.params.r_core_mm
+    return stitch.r_mm
 
 
 def render(
@@ -332,26 +293,32 @@ def render(
     state: str | Path | None = None,
     params: StitchParams | None = None,
     radius: float | None = None,
-    cells: int = 3,
+    cells: int | tuple[int, int] | None = None,
     side: str = "face",
     elevation_deg: float = 72.0,
     width_px: int = 1100,
     highlight: bool = False,
+    core: bool = False,
+    preset: str | None = None,
+    starts: int = 1,
 ) -> tuple[Path, Stitch]:
-    """Draw a stitch from a results-file task or from a state file (``knitsweep render``).
-
-    Give either ``results`` and ``task`` (and optionally ``step``), or ``state`` and
-    ``params`` (default parameters if None). Returns the file written and the stitch.
+    """Draw a stitch (``knitsweep render``): a results-file task, a state file, or, with
+    neither, the stitch of ``params`` relaxed (``preset``, ``starts``). ``out`` ending in
+    .vtp, .vtu, .ply or .obj writes the tile's yarn as a 3D file instead (``export3d``).
+    Returns the file written and the stitch.
 
     Raises:
-        InputError: both or neither source, unknown task, bad step, bad output suffix,
-            cells outside 1..8, radius ≤ 0 or > MAX_RADIUS, elevation outside (0, 90], unknown side.
+        InputError: both sources, unknown task, bad step, bad output suffix, cells outside
+            1..MAX_CELLS, radius ≤ 0 or > MAX_RADIUS, elevation outside (0, 90], unknown side.
     """
     out = Path(out)
-    if out.suffix.lower() not in OUT_SUFFIXES:
-        raise InputError(f"out = '{out}': must end in {', '.join(OUT_SUFFIXES)}")
-    if not 1 <= cells <= 8:
-        raise InputError(f"cells = {cells}: must be in 1..8")
+    suffix = out.suffix.lower()
+    if suffix not in OUT_SUFFIXES + MESH_SUFFIXES:
+        raise InputError(f"out = '{out}': must end in {', '.join(OUT_SUFFIXES + MESH_SUFFIXES)}")
+    if cells is not None and not all(1 <= c <= MAX_CELLS for c in _cells(cells)):
+        nx, ny = _cells(cells)
+        given = f"{nx}" if nx == ny else f"{nx}x{ny}"
+        raise InputError(f"cells = {given}: must be in 1..{MAX_CELLS} (each way)")
     if radius is not None and not radius > 0.0:
         raise InputError(f"radius = {radius}: must be > 0 (mm)")
     if radius is not None and radius > MAX_RADIUS:
@@ -362,35 +329,16 @@ def render(
         raise InputError(f"side = {side!r}: must be one of {', '.join(SIDES)}")
     if not 100 <= width_px <= 6000:
         raise InputError(f"pixels = {width_px}: must be in 100..6000")
-    if (results is None) == (state is None):
-        raise InputError("give either --results FILE --task ID, or --state FILE")
+    if results is not None and state is not None:
+        raise InputError("give either --results FILE --task ID, or --state FILE, or neither "
+                         "(the stitch relaxed at the parameters given)")  # fmt: skip
     check_writable(out, "--out")  # before any compute, as in every command
-    stitch = stitch_to_draw(results, task, step, state, params)
+    stitch = stitch_to_draw(results, task, step, state, params, preset, starts)
+    if suffix in MESH_SUFFIXES:
+        from .export3d import write_tile
+
+        nx, ny = default_cells(stitch) if cells is None else _cells(cells)
+        return write_tile(stitch, out, (nx, ny), tube_radius(stitch, radius, core)), stitch
     path = draw_stitch(stitch, out, cells, radius, elevation_deg=elevation_deg, side=side,
-                       width_px=width_px, highlight=highlight)  # fmt: skip
+                       width_px=width_px, highlight=highlight, core=core)  # fmt: skip
     return path, stitch
-
-
-def stitch_to_draw(
-    results: Path | None,
-    task: str | None,
-    step: int | None,
-    state: Path | None,
-    params: StitchParams | None,
-) -> Stitch:
-    """The picture's stitch: a task of a results file (at a sweep's ``step``), or a state
-    file at ``params`` (default paper Table 1); exactly one of ``results`` and ``state``."""
-    if results is not None:
-        if task is None:
-            raise InputError("--results needs --task ID (a point or sweep id)")
-        return stitch_from_results(results, task, step)
-    from ..formats import read_state
-
-    if step is not None:
-        raise InputError("--strain-step applies to a sweep of a results file, not to --state")
-    from ..model import CellModel
-
-    params = params or StitchParams()
-    x = read_state(state, params.stitch)
-    CellModel(params).check_start(x, f"state file {state}")  # before anything is drawn
-    return stitch_from_state(x, params, f"state {Path(state).name}")

@@ -10,8 +10,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import StitchParams
 from ..kernels.bezier import basis_tables
 from ..stitches.base import MIRROR, is_mirrored
+
+ROW_COLOURS = ("#c8553d", "#3a7ca5", "#d9a21b", "#6a994e", "#8e5572")
+"""Base colour of each row (course) of yarn, cycling: one colour along a row's whole
+yarn, through its knit and purl stitches alike (no colour changes at cell boundaries);
+the pictures' and the 3D files' (PLY vertex colours)."""
 
 
 @dataclass(frozen=True)
@@ -20,7 +26,8 @@ class Stitch:
     periods a_x, a_y (mm), the yarn radius r (mm), a one-line description and the
     shift in periods (course, wale) after which the path repeats along its row, and the
     mirror parity (pm, pn) of its images: the copy at lattice offset (m, n) is mirrored
-    (z → −z) when pm m + pn n is odd ((0, 0): translations only)."""
+    (z → −z) when pm m + pn n is odd ((0, 0): translations only); ``params``: the
+    stitch's parameters (the picture's title, the 3D file's metadata), if known."""
 
     control_points: np.ndarray
     a_x: float
@@ -29,6 +36,21 @@ class Stitch:
     label: str
     closing_shift: tuple[int, int] = (1, 0)
     mirror_parity: tuple[int, int] = (0, 0)
+    params: StitchParams | None = None
+
+    @property
+    def name(self) -> str:
+        """The stitch pattern's name ("stitch" when the parameters are unknown)."""
+        return self.params.stitch if self.params is not None else "stitch"
+
+    @property
+    def repeat(self) -> tuple[int, int]:
+        """(copies along a row, rows) after which the fabric repeats itself by a pure
+        translation: 2 along a row whose next copy is mirrored (rib, seed), 2 rows
+        where the next row is (garter, seed), else 1 (stockinette)."""
+        cs = self.closing_shift
+        along = (self.mirror_parity[0] * cs[0] + self.mirror_parity[1] * cs[1]) % 2
+        return 1 + along, 1 + self.mirror_parity[1] % 2
 
     @property
     def t_c(self) -> np.ndarray:
@@ -121,16 +143,24 @@ def frames(path: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, normal, np.cross(t, normal)
 
 
-def dense_cell_path(control_points: np.ndarray, spacing: float) -> np.ndarray:
-    """The cell's yarn centre-line sampled at most ``spacing`` mm apart (roughly), shape
-    (k, 3): each segment gets enough equally spaced t for its control-polygon length
-    (an upper bound on its arc length)."""
+def dense_cell_samples(control_points: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """The cell's yarn centre-line sampled at most ``spacing`` mm apart (roughly): points
+    (k, 3), mm, and their global parameter t in [0, S] (k,); each segment gets enough
+    equally spaced t for its control-polygon length (an upper bound on its arc length),
+    the same count in every copy, so that a tile's sampling repeats with the cell."""
     cp = np.asarray(control_points, dtype=float)
-    parts = []
-    for seg in cp:
+    parts, ts = [], []
+    for s, seg in enumerate(cp):
         polygon = float(np.sum(np.linalg.norm(np.diff(seg, axis=0), axis=1)))
         n = max(8, int(np.ceil(polygon / spacing)))
-        basis = basis_tables(np.linspace(0.0, 1.0, n + 1))[0]
-        parts.append((basis @ seg)[:-1])
+        t = np.linspace(0.0, 1.0, n + 1)
+        parts.append((basis_tables(t)[0] @ seg)[:-1])
+        ts.append(s + t[:-1])
     parts.append(cp[-1, -1:])
-    return np.concatenate(parts)
+    ts.append(np.array([float(len(cp))]))
+    return np.concatenate(parts), np.concatenate(ts)
+
+
+def dense_cell_path(control_points: np.ndarray, spacing: float) -> np.ndarray:
+    """The points of :func:`dense_cell_samples`, shape (k, 3), mm."""
+    return dense_cell_samples(control_points, spacing)[0]

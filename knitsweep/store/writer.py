@@ -15,7 +15,7 @@ the new results, not with the file:
    results *in place* to a private shadow copy of the file
    (``.<file>.shadow``), fsyncs it and publishes it by an atomic rename over
    the file; the file it replaced, kept under a second name, becomes the next
-   shadow and gets the same results appended at the next checkpoint. Each
+   shadow and gets the same results (and their ``sealed`` frames) at the next one. Each
    checkpoint writes the new results twice and copies nothing; the shadow is made
    by one copy per launch of the run. Then the merged journal entries are deleted.
 
