@@ -85,3 +85,23 @@ def test_compile_group_reaches_a_test_point_before_each_kernel():
         compile_group(group, each_kernel=lambda g=group: reached.append(g))
     assert reached.count("geometry") == 1 and reached.count("solver") == 1
     assert reached.count("contact") >= 4  # energy, neighbour list, contacts, forces, ...
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_a_worker_signalled_while_the_master_compiles_stops_the_run_at_once(tmp_path):
+    """SIGTERM to a worker alone (3 s after its MPI_Init) while rank 0 compiles into an
+    empty cache: the worker leaves and tells the master, which stops at its next kernel
+    (it used to compile every kernel first, minutes on a busy machine, while the worker's
+    wait for the job ran out)."""
+    if MPIRUN is None:
+        pytest.fail("mpirun not found: install the mpich wheel")
+    rc, err = run_signalled(tmp_path, "mpi_init+3@1", mpi=2)
+    assert_interrupted(rc, err, "mpi_init+3@1", ranks=2)
+    probe = (
+        "from knitsweep.compilation import kernel_entry_points; "
+        "from knitsweep.kernels import cached; print(cached(kernel_entry_points()))"
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    done = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True)
+    assert done.stdout.strip() == "False", "the master compiled every kernel first"

@@ -4,7 +4,7 @@ the segment of the cell and the image where the cores overlap, exit code 2 (READ
 "Bad input"; ``CellModel.check_start``)."""
 
 import pytest
-from conftest import TINY, one_error_line, run_knitsweep
+from conftest import TINY, run_knitsweep
 
 from knitsweep.config import StitchParams
 from knitsweep.errors import InputError
@@ -12,6 +12,17 @@ from knitsweep.formats import write_state
 from knitsweep.model import CellModel
 
 STITCHES = ["stockinette", "stockinette_free", "garter", "rib", "seed"]
+
+
+def one_error_line(proc, fragment):
+    """Exit 2 and one ``error:`` line holding ``fragment``, no traceback; beside it at most
+    the notice that the kernels compile first (a cold cache: the check needs the stitch's
+    geometry kernel)."""
+    lines = [line for line in proc.stderr.strip().splitlines()
+             if not line.startswith("compiling numerical kernels")]  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    assert fragment in lines[0] and "Traceback" not in proc.stderr, proc.stderr
 
 
 def squeezed(stitch: str, tmp_path):

@@ -63,10 +63,15 @@ def wall_time_budget(seconds: float):
         signal.signal(signal.SIGALRM, previous)
 
 
-def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
+def prepare(
+    job: JobSpec,
+    notice: Callable[[str], None] | None = None,
+    between: Callable[[], None] | None = None,
+) -> float:
     """Compile (or load from numba's cache) the kernels this job's tasks use;
     ``notice`` hears first if that means compiling (see ``compile_kernels``), or
-    waiting for another process that compiles them (``compile_lock``). The lock
+    waiting for another process that compiles them (``compile_lock``). ``between``
+    is called between kernels (the MPI master: has a worker left on a signal?). The lock
     is only taken while the cache lacks the kernels: ranks that find them cached
     load them side by side. Returns the seconds spent compiling (0.0 when every
     kernel was cached)."""
@@ -87,6 +92,8 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
 
     def each_kernel() -> None:
         signals.check()  # a signal whose exception numba swallowed (see below) ends it here
+        if between is not None:
+            between()
         signals.test_point("kernel")
 
     signals.arm_llvm_test_point()
