@@ -193,8 +193,8 @@ def render(
                 check_preset(preset)
             check_range("starts", starts, 1, 64)
         grid = parse_cells(cells)
-        if results is None and state is None:  # a relaxation of the stitch: its kernels
-            compile_notice(params.stitch)
+        if results is None and state is None:
+            compile_notice(params.stitch if params is not None else None)
         if contact_volumes:
             from ..report.contact_volumes import render_contact_volumes
 

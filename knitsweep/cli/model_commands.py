@@ -53,9 +53,9 @@ def energy(
             stitch=stitch, samples=samples, quadrature_nodes=quadrature_nodes, images=images,
         )  # fmt: skip
         x = read_state(state, params.stitch)
-        compile_notice(params.stitch, energy_only=True)
         model = CellModel(params, fidelity)
-        model.check_start(x, f"state file {state}")
+        model.check_start(x, f"state file {state}")  # before the kernels compile
+        compile_notice(params.stitch, energy_only=True)
         result = model.energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
     _print_result(result, as_json, ENERGY_UNITS)
@@ -108,11 +108,11 @@ def relax(
                                  quadrature_nodes=quadrature_nodes, images=images)  # fmt: skip
         settings = StartSettings() if starts is None else StartSettings(count=starts)
         x0 = None if state is None else read_state(state, params.stitch)
+        if x0 is not None:  # before the kernels compile and any relaxation
+            CellModel(params, n.fidelity).check_start(x0, f"state file {state}")
         compile_notice(params.stitch)
         t0 = time.perf_counter()
         with compile_clock() as compiling:  # the kernels compile on first call
-            if x0 is not None:  # before any relaxation
-                CellModel(params, n.fidelity).check_start(x0, f"state file {state}")
             best = zero_force(params, n.fidelity, n.solver, settings, seed, initial=x0).best
         seconds = time.perf_counter() - t0
     result = {
