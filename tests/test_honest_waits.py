@@ -198,3 +198,32 @@ def test_a_cold_relax_and_run_say_they_compile_and_count_it_apart(tmp_path):
     assert lines[0].startswith("compiling numerical kernels (stockinette) once")
     assert "s compiling the kernels, cached from now on;" in lines[-1]
     assert lines[-1].endswith("s computing)")
+
+
+@pytest.mark.parametrize("command", [["render", "--out", "a.png"], ["relax"], ["energy"]])
+def test_every_command_asks_for_its_stitchs_kernels(monkeypatch, tmp_path, command):
+    """render of a relaxation, relax and energy give the notice of the stitch they
+    compute (a pattern's own kernels), not stockinette's."""
+    from typer.testing import CliRunner
+
+    from knitsweep.cli.application import build_app
+    from knitsweep.errors import InputError
+    from knitsweep.report import render as rendering
+    from knitsweep.stitches import get_stitch
+
+    asked = []
+
+    def notice(stitches=("stockinette",), what="run"):
+        asked.append((stitches, what))
+        raise InputError("stopped before computing")
+
+    monkeypatch.setattr(compilation, "compile_notice", notice)
+    monkeypatch.setattr(rendering, "render", notice)
+    state = tmp_path / "rib.dat"
+    state.write_text("\n".join(str(float(v)) for v in get_stitch("rib").start(1)))
+    args = [*command, "--stitch", "rib"] + (["--state", str(state)] if command == ["energy"]
+                                           else [])  # fmt: skip
+    out = CliRunner().invoke(build_app(), args)
+    assert out.exit_code == 2, out.output
+    what = "energy" if command == ["energy"] else "run"
+    assert asked == [(("rib",), what)]

@@ -101,6 +101,8 @@ STITCH_HELP = f"stitch pattern: {STITCH_CHOICES}"
 """The help of every --stitch option, built from the stitch registry."""
 StitchOpt = Annotated[str | None, option("--stitch", help=STITCH_HELP,
                                          default=DEFAULT_STITCH)]  # fmt: skip
+PresetOpt = Annotated[str | None, option("--preset", help="fidelity preset: draft, paper, "
+                                         "converged or fine", default="converged")]  # fmt: skip
 ConfigOpt = Annotated[
     Path | None,
     typer.Option("--config", help="an authors' *key value config file (jammed-knits format)"),

@@ -19,6 +19,7 @@ from .common import (
     LOpt,
     NodesOpt,
     POpt,
+    PresetOpt,
     RcOpt,
     RegOpt,
     ROpt,
@@ -67,8 +68,6 @@ StateOpt = Annotated[
 ]
 StartsOpt = Annotated[int | None, option("--starts", help="starts per point", default="4")]
 SeedOpt = Annotated[int, typer.Option("--seed", help="seed of the perturbed starts")]
-PresetOpt = Annotated[str | None, option("--preset", help="fidelity preset: draft, paper, "
-                                         "converged or fine", default="converged")]  # fmt: skip
 FtolOpt = Annotated[float | None, option("--ftol", help="precision goal on the energy (mJ) of "
                                          "the preset's minimiser (the paper preset's is "
                                          "slsqp, the others' newton): " + "; ".join(
