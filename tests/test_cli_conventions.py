@@ -14,7 +14,7 @@ from knitsweep import __version__
 from knitsweep.cli.application import build_app
 
 # the output, a state file and local workers: one meaning, worded for each command
-WORDED_PER_COMMAND = {"--out", "--state", "--workers"}
+WORDED_PER_COMMAND = {"--out", "--state", "--workers", "--starts"}  # render: 1 start
 OLD_UNIT_NOTATIONS = ("mm^", "mN mm", "mN/mm^", ", mm", ", mJ", ", N/mm", "degrees")
 
 

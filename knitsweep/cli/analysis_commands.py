@@ -27,6 +27,7 @@ from .common import (
     stitch_inputs,
     user_errors,
 )
+from .model_commands import PresetOpt
 
 ThresholdOpt = Annotated[
     float | None,
@@ -138,16 +139,14 @@ def render(
     ] = None,
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
     r_core: RcOpt = None, stitch: StitchOpt = None, config: ConfigOpt = None,
-    preset: Annotated[str | None, option("--preset", help="relaxing (no --state, no "
-                                         "--results): the fidelity preset",
-                                         default="converged")] = None,
-    starts: Annotated[int, typer.Option("--starts", help="relaxing: shipped starts to relax "
-                                        "from, the lowest energy kept")] = 1,
+    preset: PresetOpt = None,
+    starts: Annotated[int, option("--starts", help="starts per point (relaxing: neither "
+                                  "--state nor --results)", default="1")] = 1,
     radius: Annotated[
         float | None,
         option("--radius", help="tube radius to draw (mm)", default="the yarn radius r"),
     ] = None,
-    core: Annotated[bool, typer.Option("--core", help="draw the incompressible cores (radius "
+    core: Annotated[bool, flag("--core", help="draw the incompressible cores (radius "
                                        "r_core) instead of the yarn")] = False,
     cells: Annotated[str | None, option(
         "--cells", help="stitches across and rows: N or NxM",
