@@ -213,6 +213,11 @@ ip -n "$SWITCH" link set br0 up
 # 5. The nodes: namespaces held by a sleeping process each
 # --------------------------------------------------------------------------
 echo "${NAMES[*]}" >"$RUN_DIR/nodes"
+# the machine's mount points of the nodes' own /run/munge and /etc/slurm: on a fresh
+# machine (no .ci/slurm-up.sh run, no systemd-tmpfiles) neither exists, and a bind mount
+# needs its target; empty directories that the machine's own munge/SLURM may use later
+[[ -d /run/munge ]] || install -d -o munge -g munge -m 0755 /run/munge
+[[ -d /etc/slurm ]] || install -d -m 0755 /etc/slurm
 for n in "${NAMES[@]}"; do
     d=$BASE/nodes/$n
     rm -rf "$d"

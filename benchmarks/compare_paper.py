@@ -37,6 +37,7 @@ import sys
 from itertools import pairwise
 from pathlib import Path
 
+import compare_ansatz
 import numpy as np
 import paper_doc
 
@@ -280,6 +281,7 @@ JOBS = {  # job name -> what it computes, in the order docs/paper.md lists them
     "paper_sweeps_rcore": "Y_sec, σ0 against r_core: Fig. S5e-f",
     "paper_linear_regime_L10.7": "stress-strain at L = 10.7 mm over k: Disappearing Linear Elasticity",
     "paper_z_strain": "z strain to σ = 0.5 N/mm: Fig. S12",
+    **compare_ansatz.JOBS,
 }  # fmt: skip
 
 
@@ -298,11 +300,14 @@ def main() -> None:
     ap.add_argument(
         "--k0001-paper", type=Path, help="jobs/paper_table_s4_k0.001_paper_preset.toml's file"
     )
+    ap.add_argument("--ansatz", type=Path, nargs=2, default=[],
+                    help="jobs/ansatz_vs_free.toml's and jobs/ansatz_vs_free_curves.toml's files")  # fmt: skip
     ap.add_argument("--markdown", type=Path, help="also write the whole comparison here")
     ap.add_argument("--test-data", type=Path)
     a = ap.parse_args()
     red = {p: reduce_results(p) for p in [a.k01, *a.s4, a.k06, *a.s2, a.pf, a.btrans, *a.sweeps,
-                                          a.linear, a.zstrain, a.k0001_paper] if p is not None}  # fmt: skip
+                                          a.linear, a.zstrain, a.k0001_paper, *a.ansatz]
+           if p is not None}  # fmt: skip
     k01, s4 = red[a.k01], [red[p] for p in a.s4]
     doc = paper_doc.document(a, red, JOBS, sys.modules[__name__])
     print("\n".join(doc))

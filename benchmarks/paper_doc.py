@@ -52,7 +52,8 @@ def document(a: Any, red: dict, jobs: dict[str, str], base: Any) -> list[str]:
            "--k06 paper_sigma0_k0.6.h5 --s2 paper_table_s2_*.h5 --pf paper_packing_fraction.h5 "
            "--btrans paper_Btrans_adaptive.h5 --sweeps paper_sweeps_*.h5 "
            "--linear paper_linear_regime_L10.7.h5 --zstrain paper_z_strain.h5 "
-           "--k0001-paper paper_table_s4_k0.001_paper_preset.h5 --markdown docs/paper.md")  # fmt: skip
+           "--k0001-paper paper_table_s4_k0.001_paper_preset.h5 "
+           "--ansatz ansatz_vs_free.h5 ansatz_vs_free_curves.h5 --markdown docs/paper.md")  # fmt: skip
     d: list[str] = [
         "# knitsweep against the paper",
         "",
@@ -143,6 +144,11 @@ def document(a: Any, red: dict, jobs: dict[str, str], base: Any) -> list[str]:
           *si.fit_window([k01, *s4]), "",
           "The paper does not state which points it fitted; the table shows how far its slopes "
           "can move with that choice.", ""]  # fmt: skip
+    # ---- the ansatz against the free yarn (beside Table S4) -------------------------
+    if getattr(a, "ansatz", None):
+        import compare_ansatz
+
+        d += compare_ansatz.section(red[a.ansatz[0]], red[a.ansatz[1]])
     # ---- Table S1 ------------------------------------------------------------------
     if a.k06 is not None:
         k06 = red[a.k06]

@@ -1,5 +1,5 @@
-"""Compiling the kernels a command uses, once, before work fans out (README "Compile
-time"): per group of kernels with disjoint sources, in child processes side by side when
+"""Compiling the kernels a command uses, once, before work fans out (docs/performance.md,
+"Compile time"): per group of kernels with disjoint sources, in child processes side by side when
 the cache is cold and cores are idle, each filling numba's shared on-disk cache.
 """
 
@@ -9,21 +9,12 @@ import contextlib
 import time
 from collections.abc import Callable
 
-import numpy as np
 from numba.core import event
 
 from .config import Fidelity, StitchParams
-from .kernels.cell import cell_energy_listed
-from .kernels.checks import compile_checks
-from .kernels.contact import find_contacts
-from .kernels.forces import N_CLASSES
-from .kernels.forces import contact_forces_by_class as _forces_by_class
-from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
-from .kernels.mirrored import mirrored_forces_by_class, mirrored_pair_forces_by_class
-from .kernels.neighbours import NO_LIST, build_neighbour_list
-from .kernels.pattern_cell import pattern_cell_energy
 from .model import CellModel
 from .stitches import DEFAULT_STITCH, get_stitch
+from .stitches.images import Glides, Translations, image_group
 
 KERNEL_GROUPS = {
     "geometry": "the stitch's state -> control points + Jacobian kernel (knitsweep.stitches)",
@@ -43,6 +34,7 @@ def compile_kernels(
     stitches: tuple[str, ...] = (DEFAULT_STITCH,),
     jobs: int | None = None,
     what: str = "run",
+    each_kernel: Callable[[], None] | None = None,
 ) -> dict[str, float]:
     """Compile (or load from numba's cache) every kernel a task of these ``stitches``
     uses, once, before work fans out to other processes; returns the seconds per
@@ -55,7 +47,8 @@ def compile_kernels(
     ``knitsweep energy`` calls). ``jobs``: processes that
     compile groups side by side when the cache is cold (None: as many as there are
     idle cores, at most one a group; 1: all here). Each fills the shared on-disk
-    cache; this process then loads the kernels from it.
+    cache; this process then loads the kernels from it. ``each_kernel`` is called
+    before each kernel this process compiles or loads (``compile_group``).
     """
     message = compile_notice(stitches, what)
     if message and notice is not None:
@@ -66,7 +59,7 @@ def compile_kernels(
         seconds.update(_compile_in_processes(groups, fidelity, stitches, jobs, what))
     for group in groups:
         t0 = time.perf_counter()
-        compile_group(group, fidelity, stitches, what)
+        compile_group(group, fidelity, stitches, what, each_kernel)
         seconds[group] = seconds.get(group, 0.0) + time.perf_counter() - t0
     return seconds
 
@@ -84,30 +77,26 @@ def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,),
     chosen = [get_stitch(name) for name in stitches]
     geometry = tuple(dict.fromkeys(f"{s.geometry_module}.state_to_control_points"
                                    for s in chosen))  # fmt: skip
-    glides = any(s.images == "glides" for s in chosen)
-    pattern = ("knitsweep.kernels.pattern_cell.pattern_cell_energy",) * glides
-    if what == "energy":
-        energy = ("knitsweep.kernels.cell.cell_energy_listed",) * (not all(
-            s.images == "glides" for s in chosen))  # fmt: skip
-        return geometry + energy + pattern
+    groups = [image_group(s) for s in chosen]
+    if what == "energy":  # each group's energy kernel
+        return geometry + tuple(dict.fromkeys(e for g in groups for e in g.energy_entry_points))
+    own = tuple(dict.fromkeys(e for g in groups for e in g.entry_points))
     rows = ("knitsweep.kernels.kkt_rows.kkt_step_rows",) * any(s.n_state >= ROWS_FROM
                                                                for s in chosen)  # fmt: skip
-    return geometry + ENTRY_POINTS + pattern + rows
+    return geometry + ENTRY_POINTS + own + rows
 
 
-COMPILE_SECONDS = {
-    ("run", "translations"): 29,
-    ("run", "glides"): 53,
-    ("energy", "translations"): 17,
-    ("energy", "glides"): 20,
-}
-"""About how long compiling the kernels takes once on an idle machine, s: of what a
+COMPILE_SECONDS = {(what, group.name): seconds for group in (Translations, Glides)
+                   for what, seconds in group.compile_seconds.items()}  # fmt: skip
+"""(what, image group) -> about how long compiling the kernels takes once on an idle machine, s: of what a
 command calls (``run``: a task; ``energy``: one energy) for stitches of translations
 only (stockinette) or with a knit/purl pattern's glides (garter, rib, seed). Measured
 with ``benchmarks/bench_compile.py --jobs 1 --what run|energy --stitch
 stockinette|garter`` (an empty cache, one process) on the 2-core project VM
 (2026-12-04): the CPU seconds of the compiling process, which are its wall time on an
-idle core. On a busy machine the wall time grows with the load: the same runs took
+idle core (numba compiles for the host CPU, here AMD znver5; with
+``NUMBA_CPU_NAME=generic`` stockinette's took 25 s, the same within the noise). On a
+busy machine the wall time grows with the load: the same runs took
 143-304 s (stockinette, load 7.5-10) and 447-526 s (garter, load 14-17), 0.7-2.1 times
 the CPU seconds scaled by load/cores (``compile_notice``'s estimate)."""
 
@@ -122,8 +111,8 @@ def compile_notice(stitches: tuple[str, ...] = (DEFAULT_STITCH,), what: str = "r
 
     if kernels.cached(kernel_entry_points(stitches, what)):
         return None
-    images = "glides" if any(get_stitch(s).images == "glides" for s in stitches) else "translations"
-    idle = COMPILE_SECONDS[("energy" if what == "energy" else "run", images)]
+    kind = "energy" if what == "energy" else "run"
+    idle = max(image_group(get_stitch(s)).compile_seconds[kind] for s in stitches)
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     cores = cores or 1
     load = os.getloadavg()[0]
@@ -169,70 +158,44 @@ def compile_group(
     fidelity: Fidelity | None = None,
     stitches: tuple[str, ...] = (DEFAULT_STITCH,),
     what: str = "run",
+    each_kernel: Callable[[], None] | None = None,
 ) -> None:
-    """Compile (or load) the kernels of one of ``KERNEL_GROUPS`` in this process.
+    """Compile (or load) the kernels of one of ``KERNEL_GROUPS`` in this process,
+    calling ``each_kernel`` (if given) before each one (the signal tests' test point
+    between kernels: ``service.signals.COMPILE_STAGES``).
 
     The contact kernels are compiled for the argument types of the model's calls
     without running them (so without the geometry kernel, which another process
     may be compiling at the same time).
     """  # fmt: skip
+    tick = each_kernel or _nothing
     if group == "solver":
         from .kernels.kkt import ROWS_FROM
         from .kernels.kkt_rows import compile_solver
 
         largest = max(get_stitch(name).n_state for name in stitches)
+        tick()
         compile_solver(ROWS_FROM if what == "all" else largest)
         return
     for name in stitches:
         model = CellModel(StitchParams(stitch=name), fidelity)
         if group == "geometry":
+            tick()
             model._geometry_of(model.stitch.start(1))
         elif group == "contact":
-            _compile_contact(model, what)
+            _compile_contact(model, what, tick)
         else:
             raise ValueError(f"kernel group {group!r}: one of {', '.join(KERNEL_GROUPS)}")
 
 
-def _compile_contact(model: CellModel, what: str) -> None:
-    import numba
+def _nothing() -> None:
+    pass
 
-    def sig(args: tuple) -> tuple:
-        return tuple(numba.typeof(a) for a in args)
 
-    x = model.stitch.start(1)
-    cp, jac = model.stitch.buffers()
-    ip, tab, mode = model.ip, model._ctab, model._mode
-    if model.stitch.images == "glides":  # a knit/purl pattern: its own kernels too
-        pattern_cell_energy.compile(sig((cp, jac, x[-2], x[-1], model._qtab, model._qw, tab,
-                                         model._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p,
-                                         *model.stitch.mirror_parity, True, model._grad_e,
-                                         model._grad_l)))  # fmt: skip
-        if what != "energy":
-            compile_checks()  # the checks after every relaxation
-            forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
-            mirrored_forces_by_class.compile(sig((cp, np.ascontiguousarray(jac[..., -2:]), tab,
-                                                  x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
-                                                  *model.stitch.mirror_parity, forces,
-                                                  energies)))  # fmt: skip
-            if what == "all":  # the post-processing's pair forces
-                mirrored_pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k,
-                                                           ip.p, *model.stitch.mirror_parity,
-                                                           False, forces)))  # fmt: skip
-    # the translations' kernels as well: ``kernels.cached`` looks for them, so a cache
-    # filled by a job of patterns alone must hold them too
-    # with or without a neighbour list (cell_energy is this kernel with NO_LIST)
-    cell_energy_listed.compile(sig(model._energy_args(cp, jac, x, True) + NO_LIST))
-    if what == "energy":
-        return
-    build_neighbour_list.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode, 0.1)))
-    find_contacts.compile(sig((cp, tab, x[-2], x[-1], ip.r, mode)))  # under min_zeta
-    dcp = np.ascontiguousarray(jac[..., -2:])
-    forces, energies = np.empty((N_CLASSES, 3)), np.empty(N_CLASSES)
-    _forces_by_class.compile(sig((cp, dcp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
-                                  forces, energies)))  # fmt: skip
-    if what == "all":  # the post-processing's pair forces: no task calls them
-        _pair_forces_by_class.compile(sig((cp, tab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, mode,
-                                           False, forces)))  # fmt: skip
+def _compile_contact(model: CellModel, what: str, tick: Callable[[], None] = _nothing) -> None:
+    """The contact kernels of ``model``'s image group (``stitches.images``), compiled for
+    the argument types of its calls; ``tick`` is called before each kernel compiles."""
+    model.image_group.compile(model, what, tick)
 
 
 def idle_cores() -> int:
@@ -258,8 +221,11 @@ def _compile_in_processes(groups, fidelity, stitches, jobs, what="run") -> dict[
         min(bins, key=lambda b: sum(_GROUP_WEIGHT[x] for x in b)).append(g)
     spec = json.dumps({"fidelity": (fidelity or Fidelity()).model_dump(mode="json"),
                        "stitches": list(stitches), "what": what})  # fmt: skip
+    # SIGINT/SIGTERM end a compiling child silently (a Ctrl-C reaches the terminal's
+    # whole process group): the process that started it decides what a signal means
     code = (
-        "import sys; from knitsweep.compilation import _compile_child; _compile_child(sys.argv[1:])"
+        "import signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+        "from knitsweep.compilation import _compile_child; _compile_child(sys.argv[1:])"
     )
     procs = [subprocess.Popen([sys.executable, "-c", code, spec, *b], stdout=subprocess.PIPE,
                               text=True) for b in bins]  # fmt: skip

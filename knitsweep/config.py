@@ -35,7 +35,7 @@ from pydantic import (
 
 from .errors import InputError as InputError  # the settings' error, re-exported
 from .plain import plain_value
-from .stitches import DEFAULT_STITCH, STITCH_NAMES
+from .stitches import DEFAULT_STITCH, STITCH_CHOICES, unknown_stitch
 
 STRICT = ConfigDict(
     frozen=True, extra="forbid", allow_inf_nan=False, validate_default=True, strict=True
@@ -53,8 +53,9 @@ Positive = Annotated[float, AfterValidator(_positive)]
 
 
 def _known_stitch(v: str) -> str:
-    if v not in STITCH_NAMES:
-        raise ValueError(f"must be one of {', '.join(STITCH_NAMES)}")
+    why = unknown_stitch(v)
+    if why is not None:
+        raise ValueError(why)
     return v
 
 
@@ -125,7 +126,7 @@ class StitchParams(BaseModel):
         0.9, description="bound c_tw on the crossover twist: cos(tw) >= c_tw"
     )
     stitch: StitchName = Field(
-        DEFAULT_STITCH, description=f"stitch pattern: one of {', '.join(STITCH_NAMES)}"
+        DEFAULT_STITCH, description=f"stitch pattern: one of {STITCH_CHOICES}"
     )
 
     @model_serializer(mode="wrap")
@@ -224,24 +225,68 @@ class Fidelity(BaseModel):
     )
 
 
+# ---- minimisers ----------------------------------------------------------------
+class SolverInfo(NamedTuple):
+    """One minimiser of the solver registry (``SOLVERS``): what it is and what the
+    energy goal ``SolverSettings.ftol`` means for it; ``relax.relaxer`` binds each name
+    to its implementation."""
+
+    name: str
+    description: str
+    energy_goal: str
+    """What ``ftol`` (mJ) bounds when this minimiser stops."""
+    walks: bool
+    """Whether a large change of the fixed period is walked in sub-steps from the chain's
+    last solution (worth it only for a minimiser that carries the curvature there)."""
+
+
+SOLVERS: dict[str, SolverInfo] = {s.name: s for s in (
+    SolverInfo("newton", "Newton–KKT trust region on a finite-difference Hessian of the exact "
+               "gradients, carried along a chain (SLSQP finishes what it cannot)",
+               "the Newton decrement ½ rᵀH⁻¹r, the energy the quadratic model still expects to "
+               "gain", walks=True),
+    SolverInfo("slsqp", "SciPy's SLSQP, the authors' minimiser",
+               "SciPy's ftol: SLSQP stops once the energy changes by less than this from one "
+               "iteration to the next", walks=False),
+)}  # fmt: skip
+"""The solver registry: every minimiser ``SolverSettings.method`` can name. The
+setting's allowed values, its help text and the error messages are built from it."""
+SOLVER_NAMES: tuple[str, ...] = tuple(SOLVERS)
+SolverName = Literal[SOLVER_NAMES]  # type: ignore[valid-type]
+
+
+def zero_force_solvers(stitch: str, method: str) -> str:
+    """Empty if the ``method`` minimiser alone relaxes the zero-force states of ``stitch``,
+    else which minimisers do and why (what a job and ``knitsweep relax`` say before they
+    compute; ``relax.continuation.walk_starts`` runs exactly this). Strain steps always
+    use ``method``."""
+    from .stitches import get_stitch
+
+    if not get_stitch(stitch).rough or method == "slsqp":
+        return ""
+    return (f"{stitch}: zero-force states are relaxed by SLSQP at the intermediate stages of "
+            f"the continuation and by the lower of {method}'s and SLSQP's minima at the target "
+            f"(then {method} from SLSQP's), not by {method} alone: the free yarn's energy has "
+            f"shallow minima in which {method} crawls and each minimiser misses some (docs/"
+            f"model.md §11); its strain steps use {method}")  # fmt: skip
+
+
 class SolverSettings(BaseModel):
     """Constrained minimiser settings (exact Jacobians, docs/model.md §7)."""
 
     model_config = STRICT
 
-    method: Literal["newton", "slsqp"] = Field(
+    method: SolverName = Field(
         "newton",
-        description="'newton': Newton–KKT trust region on a finite-difference Hessian of the "
-        "exact gradients, carried along a chain (SLSQP finishes what it cannot); 'slsqp': "
-        "SciPy's SLSQP, the authors' minimiser",
+        description="; ".join(f"'{s.name}': {s.description}" for s in SOLVERS.values()),
     )
     ftol: float = Field(
         1e-10,
         ge=1e-16,
         le=1e-2,
-        description="precision goal on the energy (mJ): SLSQP's ftol, or the Newton decrement "
-        "(the energy still to gain); the authors' effective value was SciPy's default 1e-6, "
-        "the paper quotes 1e-5",
+        description="precision goal on the energy (mJ): "
+        + "; ".join(f"{s.name}: {s.energy_goal}" for s in SOLVERS.values())
+        + "; the authors' effective value was SciPy's default 1e-6, the paper quotes 1e-5",
     )
     maxiter: int = Field(2000, ge=1, le=1_000_000, description="iteration limit of a minimiser")
     substep_mm: float = Field(
@@ -268,6 +313,22 @@ class SolverSettings(BaseModel):
         0.1, ge=1e-4, le=10.0, description="largest change of p per stage"
     )
 
+    @property
+    def decrement_goal_mJ(self) -> float:
+        """Newton: the largest Newton decrement (mJ) of a converged relaxation (``ftol``)."""
+        return self.ftol
+
+    @property
+    def energy_change_goal_mJ(self) -> float:
+        """SLSQP: the change of the energy between iterations (mJ) below which it stops
+        (``ftol``, SciPy's name)."""
+        return self.ftol
+
+    def loosened(self, energy_goal_mJ: float) -> SolverSettings:
+        """These settings with an energy goal no tighter than ``energy_goal_mJ`` (the
+        unrecorded steps: continuation stages, a strain step's sub-steps)."""
+        return self.model_copy(update={"ftol": max(self.ftol, energy_goal_mJ)})
+
 
 Direction = Literal["x", "y"]
 
@@ -278,6 +339,12 @@ OBSERVABLES: tuple[str, ...] = get_args(Observable)
 curve; Y_sec (needs the curve past 2 % strain); sigma0 (the longest softened regime over
 the sweep: needs the whole curve); the energy gaps (both energy components back above
 their zero-force values, so that their minima along the sweep are known)."""
+
+
+REST_TOLERANCE_MJ = 5e-6
+"""How far (mJ) a sweep's energy may fall below its zero-force energy before the sweep
+takes the lower state as the point's zero-force state (``SweepProtocol.rest_tolerance_mJ``):
+a tenth of the paper's energy-gap threshold."""
 
 
 class SweepProtocol(BaseModel):
@@ -336,6 +403,25 @@ class SweepProtocol(BaseModel):
         description="chains whose energies differ by at most this (mJ) and whose states differ "
         "only along soft modes (energy cost 1/2 dx.H.dx at most this) merge; 0: never",
     )
+
+    rest_tolerance_mJ: float = Field(
+        REST_TOLERANCE_MJ,
+        ge=0.0,
+        le=1.0,
+        description="a sweep whose energy falls more than this (mJ) below its zero-force "
+        "energy relaxes again at zero force from there and starts over from that lower "
+        "minimum, the point's zero-force state from then on (default a tenth of the paper's "
+        "gap threshold; 1 mJ turns it off)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _rest_tolerance_as_before(self, handler) -> dict[str, Any]:
+        # the default is left out of every dump (task ids, the job's hash), so that jobs
+        # from before sweeps checked their zero-force state keep them
+        out = handler(self)
+        if out.get("rest_tolerance_mJ") == REST_TOLERANCE_MJ:
+            del out["rest_tolerance_mJ"]
+        return out
 
     @field_validator("observables", mode="before")
     @classmethod

@@ -9,24 +9,19 @@ are numpy arrays of shape (n,), laid out as the stitch says (stockinette: n = 30
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
+from .analysis.volumes.geometry import fabric_depth
 from .config import Fidelity, InternalParams, StitchParams
-from .kernels.bezier import basis_tables, gauss_legendre, midpoints
-from .kernels.cell import cell_energy, cell_energy_listed
-from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE, min_zeta
+from .kernels.bezier import basis_tables, even_tables, gauss_legendre, midpoints
+from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE
 from .kernels.forces import N_CLASSES
-from .kernels.forces import contact_forces_by_class as _forces_by_class
-from .kernels.forces import contact_pair_forces_by_class as _pair_forces_by_class
-from .kernels.mirrored import mirrored_forces_by_class, mirrored_pair_forces_by_class
 from .kernels.neighbours import build_neighbour_list
-from .kernels.pattern_cell import pattern_cell_energy
 from .stitches import Stitch, get_stitch
-from .stitches.patterns import min_zeta_where
-from .stitches.topology import topology_word
+from .stitches.images import image_group
+from .stitches.patterns import check_start
 
 
 class NeighbourList:
@@ -81,6 +76,9 @@ class CellModel:
         if len(self.stitch.contact_classes) != N_CLASSES:
             raise ValueError(f"stitch {self.stitch.name}: {len(self.stitch.contact_classes)} "
                              f"contact classes, the contact kernel sorts into {N_CLASSES}")  # fmt: skip
+        self.image_group = image_group(self.stitch)
+        """The stitch's image group (``stitches.images``): the contact kernels over its
+        images."""
         self._geometry = self.stitch.control_points
         self._seg_w = self.stitch.segment_weights
         self._cp, self._jac = self.stitch.buffers()
@@ -105,21 +103,7 @@ class CellModel:
     def _call(self, x: np.ndarray, with_grad: bool) -> tuple[float, float, float]:
         x = self._as_state(x)
         cp, jac = self._geometry_of(x)
-        if self.stitch.images == "glides":  # a knit/purl pattern (docs/model.md §11)
-            ip = self.ip
-            return pattern_cell_energy(
-                cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
-                ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.stitch.mirror_parity, with_grad,
-                self._grad_e, self._grad_l,
-            )  # fmt: skip
-        return cell_energy(*self._energy_args(cp, jac, x, with_grad))
-
-    def _energy_args(self, cp, jac, x, with_grad) -> tuple:
-        """The arguments of ``cell_energy`` (and the first ones of ``cell_energy_listed``)."""
-        ip = self.ip
-        return (cp, jac, x[-2], x[-1], self._qtab, self._qw, self._ctab, self._seg_w, ip.bend,
-                ip.reg, ip.r, ip.rc, ip.k, ip.p, self._mode, with_grad, self._grad_e,
-                self._grad_l)  # fmt: skip
+        return self.image_group.energy(self, cp, jac, x, with_grad)
 
     def energies(self, x: np.ndarray) -> Energies:
         """Bending and contact energy (mJ) and yarn length (mm) of state ``x``."""
@@ -135,7 +119,7 @@ class CellModel:
         its pairs: the same numbers, bit for bit, faster; the list rebuilds itself
         when the state has moved too far for it.
         """
-        if neighbours is None or self.stitch.images == "glides":
+        if neighbours is None or not self.image_group.lists_neighbours:
             eb, ec, length = self._call(x, True)
         else:
             eb, ec, length = self._call_listed(self._as_state(x), neighbours)
@@ -149,14 +133,12 @@ class CellModel:
 
     def _rebuild(self, x: np.ndarray, nl: NeighbourList) -> None:
         cp = self.control_points(x)
-        nl.arrays = build_neighbour_list(cp, self._ctab, x[-2], x[-1], self.ip.r, self._mode,
-                                         nl.skin)  # fmt: skip
+        nl.arrays = build_neighbour_list(*self.image_group.neighbour_args(self, cp, x, nl.skin))
         nl.rebuilds += 1
 
     def _call_listed(self, x: np.ndarray, nl: NeighbourList) -> tuple[float, float, float]:
         cp, jac = self._geometry_of(x)
-        eb, ec, length, valid = cell_energy_listed(*self._energy_args(cp, jac, x, True),
-                                                   *nl.arrays)  # fmt: skip
+        eb, ec, length, valid = self.image_group.energy_listed(self, cp, jac, x, nl.arrays)
         if not valid:  # the sums came from the full search; refresh the list here
             self._rebuild(x, nl)
         return eb, ec, length
@@ -173,16 +155,22 @@ class CellModel:
         self._geometry(self._as_state(x), cp, jac)
         return cp, jac
 
+    def check_start(self, x: np.ndarray, label: str = "start") -> float:
+        """min ζ of a start ``x`` of this stitch (at this model's samples per segment),
+        or InputError naming the segment of the cell and the image where the hard cores
+        overlap (``stitches.patterns.check_start``; numpy, so that a command can check a
+        start before any kernel compiles). The same ζ as ``min_zeta``, for every stitch."""
+        ip = self.ip
+        x = self._as_state(x)
+        return check_start(self.control_points(x), x[-2], x[-1], ip.r, ip.rc,
+                           self.stitch.mirror_parity, label, self.fidelity.samples_per_segment,
+                           compiled=False)  # fmt: skip
+
     def min_zeta(self, x: np.ndarray) -> float:
         """Smallest compression zeta over all counted contacts (1.0 if none);
         below 1e-5 the hard cores overlap (docs/model.md §6)."""
-        ip = self.ip
         x = self._as_state(x)
-        if self.stitch.images == "glides":
-            return min_zeta_where(self.control_points(x), x[-2], x[-1], ip.r, ip.rc,
-                                  self.stitch.mirror_parity, self.fidelity.samples_per_segment)[0]  # fmt: skip
-        return min_zeta(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
-                        self._mode)  # fmt: skip
+        return self.image_group.min_zeta(self, self.control_points(x), x)
 
     def resolution_change(self, x: np.ndarray, contact_energy: float | None = None) -> str:
         """For a stitch with mirrored images (a free yarn): "" if the contact sum of state
@@ -193,7 +181,7 @@ class CellModel:
         "Resolution"). Where the cores overlap with twice the samples the answer starts
         with ``CORES_OVERLAP`` (a state too tight to knit, as one whose cores overlap
         at the model's samples). Stitches of translations alone are not checked ("")."""
-        if self.stitch.images != "glides":
+        if not self.image_group.checks_resolution:
             return ""
         fine = self._finer
         if fine is None:
@@ -219,24 +207,10 @@ class CellModel:
     def topology_change(self, x: np.ndarray) -> str:
         """For a stitch with mirrored images: "" if state ``x`` shows the crossings of
         the stitch's first shipped start (``topology.topology_word``: their order for
-        garter, the rows' interlocking for rib; docs/model.md §11), else what changed.
-        Stitches of translations alone are not checked ("")."""
-        if self.stitch.images != "glides":
-            return ""
-        x = self._as_state(x)
-        parity = self.stitch.mirror_parity
-        ref = self.stitch._loaded.get("topology_word")
-        if ref is None:
-            x1 = self.stitch.start(1)
-            ref = topology_word(self.control_points(x1), x1[-2], x1[-1], parity)
-            self.stitch._loaded["topology_word"] = ref
-        got = topology_word(self.control_points(x), x[-2], x[-1], parity)
-        if got == ref:
-            return ""
-        count = sum(len(signs) for _, signs in ref)
-        return (f"topology changed: the rows cross in projection as {_runs(got)} (row offset: "
-                f"signs), the {self.stitch.name} stitch has {count} crossings as "
-                f"{_runs(ref)}")  # fmt: skip
+        garter, the rows' interlocking for rib; docs/model.md §11), else what changed
+        (the image group's check, ``stitches.images``). Stitches of translations alone
+        are not checked ("")."""
+        return self.image_group.topology_change(self, self._as_state(x))
 
     def contact_forces_by_class(self, x: np.ndarray) -> np.ndarray:
         """Contact forces on the cell by class of image offset, shape (5, 3), N.
@@ -257,18 +231,12 @@ class CellModel:
     def contacts_by_class(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(forces (5, 3) N as in ``contact_forces_by_class``, energies (5,) mJ):
         the contact energy of each class; the five add up to E_c."""
-        ip = self.ip
         x = self._as_state(x)
         cp, jac = self.control_points_and_jacobian(x)
         dcp = np.ascontiguousarray(jac[..., -2:])
         forces = np.empty((N_CLASSES, 3))
         energies = np.empty(N_CLASSES)
-        if self.stitch.images == "glides":  # rows: the pattern's MIRROR_CLASSES
-            mirrored_forces_by_class(cp, dcp, self._ctab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
-                                     *self.stitch.mirror_parity, forces, energies)  # fmt: skip
-            return forces, energies
-        _forces_by_class(cp, dcp, self._ctab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
-                         self._mode, forces, energies)  # fmt: skip
+        self.image_group.forces_by_class(self, cp, dcp, x, forces, energies)
         return forces, energies
 
     def contact_pair_forces_by_class(self, x: np.ndarray, weighted: bool = False) -> np.ndarray:
@@ -285,34 +253,30 @@ class CellModel:
         segment); ``weighted=True`` multiplies each pair by ds ds' as in E_c (N mm^2), the
         sampling-independent integral.
         """
-        ip = self.ip
         x = self._as_state(x)
         forces = np.empty((N_CLASSES, 3))
-        if self.stitch.images == "glides":
-            mirrored_pair_forces_by_class(self.control_points(x), self._ctab, x[-2], x[-1], ip.r,
-                                          ip.rc, ip.k, ip.p, *self.stitch.mirror_parity,
-                                          weighted, forces)  # fmt: skip
-            return forces
-        _pair_forces_by_class(self.control_points(x), self._ctab, x[-2], x[-1], ip.r, ip.rc,
-                              ip.k, ip.p, self._mode, weighted, forces)  # fmt: skip
+        self.image_group.pair_forces_by_class(self, self.control_points(x), x, weighted, forces)
         return forces
 
     def _as_state(self, x: np.ndarray) -> np.ndarray:
         return as_state(x, self.stitch)
 
     def thickness(self, x: np.ndarray, samples: int = 64) -> float:
-        """Cell thickness dz = z_max - z_min + 2r of the centre-line (paper SI S4), mm."""
+        """The fabric's thickness dz = z_max - z_min + 2r of the centre-line over the
+        cell and all its images (paper SI S4; ``analysis.volumes.fabric_depth``: the
+        cell's own z-range for a fabric of translations, that of the cell and its mirror
+        image for a pattern with purl stitches), mm."""
+        return fabric_depth(self.control_points(x), self.ip.r, self.stitch.mirror_parity,
+                            samples)  # fmt: skip
+
+    def max_curvature(self, x: np.ndarray, samples: int = 64) -> float:
+        """Largest curvature |r' x r''| / |r'|^3 of the centre-line (1/mm), sampled at
+        ``samples`` evenly spaced parameters of every segment (ends included); above
+        1/r the yarn's tube folds on itself."""
         cp = self.control_points(x)
-        z = np.einsum("ti,si->st", _thickness_basis(samples), cp[:, :, 2])
-        return float(z.max() - z.min() + 2.0 * self.ip.r)
-
-
-@functools.lru_cache(maxsize=8)
-def _thickness_basis(samples: int) -> np.ndarray:
-    """Bernstein basis (samples, 6) at evenly spaced parameters in [0, 1], made once."""
-    b = basis_tables(np.linspace(0.0, 1.0, samples))[0]
-    b.setflags(write=False)
-    return b
+        d1, d2 = np.einsum("dti,sic->dstc", even_tables(samples)[1:3], cp)
+        speed = np.linalg.norm(d1, axis=-1)
+        return float(np.max(np.linalg.norm(np.cross(d1, d2), axis=-1) / speed**3))
 
 
 def as_state(x: np.ndarray, stitch: Stitch) -> np.ndarray:
@@ -325,11 +289,3 @@ def as_state(x: np.ndarray, stitch: Stitch) -> np.ndarray:
     if x[-2] <= 0.0 or x[-1] <= 0.0:
         raise ValueError(f"cell periods must be > 0, got a_x = {x[-2]}, a_y = {x[-1]}")
     return x
-
-
-def _runs(word) -> str:
-    """A ``topology_word`` in one line: runs as ``n:+-`` (sign +1 over, -1 under)."""
-    if not word:
-        return "no crossings"
-    return " ".join(f"{n:+d}:" + "".join("+" if s > 0 else "-" for s in signs)
-                    for n, signs in word)  # fmt: skip

@@ -10,7 +10,11 @@ already (``L_mm``, ``k_mN_per_mm2``). The table of names in docs/units.md is thi
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
 
 from .stitches import DEFAULT_STITCH, TRANSLATION_CLASSES, get_stitch
 
@@ -37,6 +41,7 @@ _SUFFIX = {
     "N": "N",
     "N/mm": "N_per_mm",
     "mJ/mm": "mJ_per_mm",
+    "1/mm": "per_mm",
     "s": "s",
     "rad": "rad",
     "mN/mm2": "mN_per_mm2",
@@ -65,6 +70,90 @@ def column_name(name: str, units: str) -> str:
 
 def _q(name: str, units: str, long_name: str) -> tuple[str, Quantity]:
     return name, Quantity(name, units, long_name)
+
+
+ObservableKind = Literal["point", "step", "sweep"]
+
+
+@dataclass(frozen=True)
+class Observable:
+    """One computed observable of the observable registry (``OBSERVABLE_REGISTRY``; not
+    the protocol's ``config.OBSERVABLES``, what a sweep must determine before it stops), in the spirit
+    of ASE's ``implemented_properties``: its entry alone puts it in the results file (a
+    dataset or attribute with ``units`` and ``long_name``), the pandas and xarray tables,
+    the CSV files and the report.
+
+    ``kind``: ``"point"`` (of a point's winning zero-force state: a points attribute,
+    the points table), ``"step"`` (of every step's state: a sweeps dataset, the curves
+    table, ``knitsweep sweep``'s CSV), ``"sweep"`` (one number a sweep, reduced from its
+    step arrays: the sweeps table). ``method``: the ``model.CellModel`` method that
+    computes a point or step observable from a state ``x``; ``from_steps``: for a sweep
+    observable, the function of a sweep's step arrays (by name) that gives it. ``stored``:
+    computed and written by every run (False: listed, not computed). ``label``: its name
+    in the report's headers (HTML); ``table_name``: its name in the tables where that is
+    not ``name`` (a point's ``thickness`` is the points table's ``thickness0``)."""
+
+    name: str
+    kind: ObservableKind
+    units: str
+    long_name: str
+    method: str = ""
+    from_steps: Callable[[Mapping[str, np.ndarray]], float | None] | None = None
+    stored: bool = True
+    label: str = ""
+    table_name: str = ""
+
+    @property
+    def quantity(self) -> Quantity:
+        """The stored name's quantity (HDF5 dataset or attribute)."""
+        return Quantity(self.name, self.units, self.long_name)
+
+    @property
+    def column(self) -> str:
+        """Its column in the tables (the table name with the unit suffix)."""
+        return column_name(self.table_name or self.name, self.units)
+
+
+OBSERVABLE_REGISTRY: tuple[Observable, ...] = (
+    Observable("thickness", "point", "mm", "fabric thickness at zero force (all images)",
+               "thickness",
+               label="thickness at rest", table_name="thickness0"),
+    Observable("thickness", "step", "mm", "fabric thickness z_max - z_min + 2r of the "
+               "centre-line, all images", "thickness"),
+    Observable("max_curvature", "point", "1/mm", "largest curvature of the yarn centre-line "
+               "at zero force (above 1/r the tube folds on itself)", "max_curvature",
+               label="largest curvature at rest", table_name="max_curvature0"),
+    Observable("max_curvature", "step", "1/mm", "largest curvature of the yarn centre-line "
+               "(above 1/r the tube folds on itself)", "max_curvature"),
+    Observable("peak_curvature", "sweep", "1/mm", "largest curvature of the yarn centre-line "
+               "along the sweep", from_steps=lambda a: np.max(a["max_curvature"]),
+               label="largest curvature"),
+)  # fmt: skip
+"""The observable registry: every observable computed from a state or a sweep, one entry
+each (adding one is an entry here and, for a new computation, a ``CellModel`` method)."""
+
+
+def registered(kind: ObservableKind, stored_only: bool = True) -> tuple[Observable, ...]:
+    """The registered observables of ``kind`` (those computed by every run, or all)."""
+    return tuple(o for o in OBSERVABLE_REGISTRY if o.kind == kind and (o.stored or not stored_only))
+
+
+def sweep_observables(arrays: Mapping[str, np.ndarray]) -> dict[str, float | None]:
+    """Every stored sweep observable of a sweep's step ``arrays`` (by stored name), by
+    table column; None where an array it needs is absent (a file of an earlier
+    schema)."""
+    out: dict[str, float | None] = {}
+    for o in registered("sweep"):
+        try:
+            value = o.from_steps(arrays)
+        except KeyError:
+            value = None
+        out[o.column] = None if value is None else float(value)
+    return out
+
+
+def _registered(kind: ObservableKind) -> list[tuple[str, Quantity]]:
+    return [(o.name, o.quantity) for o in registered(kind, stored_only=False)]
 
 
 PARAMETERS = dict(
@@ -166,7 +255,7 @@ STEP_QUANTITIES = dict(
         _shared("bending_energy"),
         _shared("contact_energy"),
         _q("total_energy", "mJ", "total energy E = E_b + E_c"),
-        _q("thickness", "mm", "thickness z_max - z_min + 2r of the centre-line"),
+        *_registered("step"),
         _q("winner", "1", "start (chain) whose relaxation has the lowest energy"),
         _q("converged", "1", "the winning relaxation converged"),
         _shared("iterations"),
@@ -263,7 +352,7 @@ SCALARS = dict(
         _q("E_c_rest", "mJ", "contact energy at zero force"),
         _q("E_b_min", "mJ", "smallest bending energy of the sweep"),
         _q("E_c_min", "mJ", "smallest contact energy of the sweep"),
-        _q("thickness", "mm", "thickness at zero force"),
+        *_registered("point"),
         _q("seconds", "s", "wall time of the task on its worker"),
         _q("wall_seconds", "s", "wall time of the sweep's computation"),
         _q("relaxations", "1", "relaxations the sweep computed"),
@@ -302,6 +391,7 @@ METRICS = dict(
         _q("bracket_lower", "1", "last jammed L/r below (L/r)_trans"),
         _q("bracket_upper", "1", "(L/r)_trans, the first unjammed L/r"),
         _q("delta_L_over_r", "1", "width of the transition, Delta L/r (paper Fig. 4a)"),
+        *_registered("sweep"),
     )
 )
 """Columns of the post-processor's tables (``knitsweep.report``) with units."""

@@ -116,10 +116,12 @@ def write_results(
     contact_forces: bool = True,
     not_knittable_L: float | None = 9.5,
     stitches: tuple[str, ...] = ("stockinette",),
+    failed_L: float | None = None,
 ) -> Path:
     """A results file with series at every k of ``ks``, both directions, plus (if
-    ``not_knittable_L``) one not-knittable point whose sweeps carry no arrays; each
-    series once per stitch of ``stitches`` (the same data, another pattern's name)."""
+    ``not_knittable_L``) one not-knittable point whose sweeps carry no arrays and (if
+    ``failed_L``) one failed point whose sweeps failed with it; each series once per
+    stitch of ``stitches`` (the same data, another pattern's name)."""
     n_points = 0
     with h5py.File(path, "w") as f:
         f.attrs["schema_version"] = 1
@@ -165,6 +167,16 @@ def write_results(
                     _attrs(sg, _params(not_knittable_L, k, stitch), "not_knittable",
                            "zero-force state: cores overlap")  # fmt: skip
                     sg.attrs["point_id"] = f"{tag}p{k:g}_nk"
+                    sg.attrs["direction"] = d
+            if failed_L is not None:
+                why = "no start converged; best (Init_1): length constraint missed by 1.79 mm"
+                pg = points.create_group(f"{tag}p{k:g}_failed")
+                _attrs(pg, _params(failed_L, k, stitch), "failed", why)
+                n_points += 1
+                for d in ("x", "y"):
+                    sg = sweeps.create_group(f"{tag}s{k:g}_failed_{d}")
+                    _attrs(sg, _params(failed_L, k, stitch), "failed", f"zero-force state: {why}")
+                    sg.attrs["point_id"] = f"{tag}p{k:g}_failed"
                     sg.attrs["direction"] = d
         f.attrs["n_points"] = n_points
         f.attrs["n_sweeps"] = 2 * n_points

@@ -208,6 +208,10 @@ OLD_SECTIONS = sections(OLD_README.read_text())
 
 # Sentences of the old README rewritten on purpose in the move, and where what they said
 # went (each must still be a sentence of its section: a stale entry fails).
+PATTERNS_TABLE = (
+    "docs/patterns.md: the table run again with stockinette_free, the shifts against it and the "
+    "fabric's thickness (issue 34)"
+)
 REWRITTEN = {
     (
         "Install and run the main job (a small example: 4 s on 2 cores, plus ~15–30 s to "
@@ -219,6 +223,11 @@ REWRITTEN = {
         "tests start that cluster themselves, as root, if it is not up, and remove it "
         "afterwards)."
     ): "docs/how-to/tests.md, with 'below' a link to docs/multi-node.md",
+    "pattern (L/r)_trans x (L/r)_trans y a_x, a_y (mm) a_y/a_x thickness (mm) E (mJ) Y_sec x, y (N/mm)": PATTERNS_TABLE,
+    "stockinette 15.535 15.530 2.882, 2.214 0.77 2.36 0.3605 0.127, 0.414": PATTERNS_TABLE,
+    "garter 14.166 unjammed from 12.74 (L = 9.425 mm) on 3.266, 1.462 0.45 4.60 0.3092 0.146, 0.016": PATTERNS_TABLE,
+    "1×1 rib 13.542 12.223 1.583, 2.268 1.43 3.19 0.2476 0.066, 0.133": PATTERNS_TABLE,
+    "seed 15.045 15.270 2.766, 1.676 0.61 3.43 0.3533 0.095, 0.254": PATTERNS_TABLE,
 }
 
 

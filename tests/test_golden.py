@@ -8,6 +8,11 @@ from knitsweep.config import Fidelity
 from knitsweep.model import CellModel
 
 CASES = golden_cases()
+GOLDEN_RTOL = 1e-12
+"""The golden values come from the authors' code on another machine. Measured
+(benchmarks/cpu_spread.py, 22 cases x 2 image sets): knitsweep's kernels compiled for
+this host (AMD EPYC, AVX-512) and for NUMBA_CPU_NAME=generic give identical energies and
+lengths, both within 2.3e-14 (relative) of the golden ones; the tolerance is ~40x that."""
 IDS = [c["name"] for c in CASES]
 
 
@@ -23,10 +28,8 @@ def test_control_points_match_reference(case):
 def test_energies_and_length_match_reference(case, images):
     fid = Fidelity(samples_per_segment=case["params"]["N"], images=images)
     e = CellModel(golden_params(case), fid).energies(np.array(case["x"]))
-    assert e.bending_energy == pytest.approx(case["bending_energy"], rel=1e-10, abs=0)
-    assert e.contact_energy == pytest.approx(case["contact_energy"], rel=1e-10, abs=0)
-    assert e.length == pytest.approx(case["length"], rel=1e-10, abs=0)
-    assert e.total_energy == pytest.approx(case["total_energy"], rel=1e-10, abs=0)
+    for name in ("bending_energy", "contact_energy", "length", "total_energy"):
+        assert getattr(e, name) == pytest.approx(case[name], rel=GOLDEN_RTOL, abs=0), name
 
 
 def test_core_penalty_cases_are_covered():

@@ -15,7 +15,7 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
-from conftest import DATA, TINY, VOLATILE, assert_same_results, stored_meta
+from conftest import DATA, TINY, assert_same_results
 
 import knitsweep
 from knitsweep import service
@@ -75,14 +75,54 @@ def schema2(tmp_path):
     return out
 
 
+INPUTS = {
+    "B_mN_mm2",
+    "L_mm",
+    "L_over_r",
+    "k_mN_per_mm2",
+    "p",
+    "r_core_mm",
+    "r_mm",
+    "regularization_mN_mm4",
+    "twist_bound",
+    "seed",
+    "direction",
+    "point_id",
+    "status",
+}
+"""A task's scalars that its inputs decide, not the numbers it computed.
+
+schema2_tiny.h5 was computed on another machine, and numbers from the kernels and LAPACK differ from CPU to CPU in their
+last bits; a relaxation converged to its tolerance amplifies that (benchmarks/
+cpu_spread.py, the tiny job with the kernels compiled for this host, an AMD EPYC with
+AVX-512, against NUMBA_CPU_NAME=generic: relaxed states 2.5e-5 apart relative to their
+size, stresses along a sweep up to 6e-2, one sweep a step shorter). So no tolerance
+makes a shipped file's numbers a fresh run's: the file is compared with itself read
+raw, and with a fresh run only in what no CPU changes (tasks, parameters, seeds, the
+names and kinds of the stored arrays)."""
+
+
 def test_a_file_of_schema_2_reads_as_the_same_results(schema2, tiny_reference):
     assert read_root(schema2)["schema_version"] == 2
-    assert_same_results(tiny_reference, schema2)
-    for kind in ("points", "sweeps"):
-        old, new = stored_meta(schema2, kind), stored_meta(tiny_reference, kind)
-        for tid, meta in new.items():
-            same = {k: v for k, v in meta.items() if k not in VOLATILE | {"started_at"}}
-            assert {k: old[tid][k] for k in same} == same, (kind, tid)
+    fresh = {(e.kind, e.task_id): e for e in iter_entries(tiny_reference, with_data=True)}
+    old = {(e.kind, e.task_id): e for e in iter_entries(schema2, with_data=True)}
+    assert old.keys() == fresh.keys()
+    compared = 0
+    with h5py.File(schema2, "r") as f:
+        for key, e in old.items():
+            assert e.record.keys() == fresh[key].record.keys(), key
+            group = f[key[0]][key[1]]
+            for name, value in e.record.items():  # as stored, bit for bit
+                raw = group[name][()]
+                raw = raw.astype(str) if raw.dtype.kind == "O" else raw
+                assert np.array_equal(np.asarray(value), raw), (key, name)
+                assert (
+                    np.asarray(value).dtype.kind == np.asarray(fresh[key].record[name]).dtype.kind
+                )
+                compared += 1
+            same = {k: v for k, v in fresh[key].meta.items() if k in INPUTS}
+            assert {k: e.meta[k] for k in same} == same and len(same) >= 10, key
+    assert compared > 100
 
 
 def test_a_flipped_byte_in_a_table_spoils_its_row_only(tiny_reference, tmp_path):
@@ -340,4 +380,4 @@ def test_a_file_of_schema_2_merges_into_one_this_version_resumes(schema2, tiny_r
     assert merged.returncode == 0, merged.stderr
     assert read_root(new)["schema_version"] == 3
     assert service.run(TINY, new, executor="serial", show_progress=False).skipped == 6
-    assert_same_results(tiny_reference, new)
+    assert_same_results(schema2, new)  # what the merge copied, bit for bit (INPUTS)

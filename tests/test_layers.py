@@ -47,8 +47,8 @@ LAYERS = [
 MODULE_ORDER = {
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
                 "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks", "raster"],
-    "stitches": ["base", "topology", "patterns", "stockinette", "stockinette_free", "garter", "rib",
-                 "seed"],
+    "stitches": ["base", "topology", "patterns", "images", "stockinette", "stockinette_free",
+                 "garter", "rib", "seed"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
     "stitches.stockinette_free": ["layout", "geometry", "ansatz", "data"],
     "stitches.garter": ["layout", "geometry", "data"],
@@ -60,8 +60,8 @@ MODULE_ORDER = {
     "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],
     "strain_sweep": ["result", "schedule", "sweep"],
     "studies": ["accuracy"],
-    "service": ["signals", "grid", "jobs", "progress", "worker", "adaptive", "executors",
-                "slurm", "master", "runs", "recovery"],
+    "service": ["signals", "grid", "id_forms", "jobs", "run_plan", "progress", "worker",
+                "adaptive", "executors", "slurm", "master", "runs", "recovery"],
     "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "declutter", "plotting",
                "fig_energy", "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns",
                "figures", "html", "tile", "sources", "tube_mesh", "raster", "export3d", "render",
@@ -203,3 +203,16 @@ def test_a_run_with_nothing_to_compute_loads_no_kernels(tiny_reference, tmp_path
                                "--quiet"], tmp_path)  # fmt: skip
     assert "knitsweep.service.master" in names
     assert not {n for n in names if n.split(".")[0] in ("numba", "scipy")}
+
+
+def test_only_stitches_and_kernels_name_the_image_groups():
+    """Above stitches/ and kernels/ nothing branches on which image group a stitch has:
+    the groups' names appear in no string there (the model calls ``stitches.images``)."""
+    hits = []
+    for path in MODULES:
+        if path.relative_to(PKG).parts[0] in ("stitches", "kernels"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Constant) and node.value in ("glides", "translations"):
+                hits.append(f"{path.relative_to(PKG)}:{node.lineno}")
+    assert hits == []

@@ -41,6 +41,11 @@ def _assert_same(a, b):
         if isinstance(va, np.ndarray):
             assert va.dtype.kind == np.asarray(vb).dtype.kind, field.name
             np.testing.assert_array_equal(va, vb, err_msg=field.name)
+        elif isinstance(va, dict):  # the registered observables, arrays by name
+            assert list(va) == list(vb) and va, field.name
+            for name in va:
+                assert va[name].dtype == vb[name].dtype, name
+                np.testing.assert_array_equal(va[name], vb[name], err_msg=name)
         elif isinstance(va, tuple) and va and dataclasses.is_dataclass(va[0]):
             for ra, rb in zip(va, vb, strict=True):
                 _assert_same(ra, rb)

@@ -202,3 +202,32 @@ def test_contact_volumes_of_a_pattern_touch_their_images(name, mirrored_kinds):
             continue
         d = cKDTree(np.concatenate(near[kind])).query(pts)[0]
         assert d.max() <= r + 0.02, (kind, d.max(), r)
+
+
+@pytest.mark.parametrize("stitch", ["stockinette", "stockinette_free", "garter", "rib", "seed"])
+def test_thickness_is_the_fabrics_over_every_image(stitch):
+    """Δz spans the cell and every image that touches the plane's z-range: for
+    translations alone the cell's own z-range (stockinette: the same bits as that
+    formula), with mirrored images the union of the cell and its mirror image."""
+    from knitsweep.analysis.volumes import fabric_depth
+    from knitsweep.config import StitchParams
+    from knitsweep.kernels.bezier import basis_tables
+    from knitsweep.model import CellModel
+    from knitsweep.stitches.base import image_points
+
+    model = CellModel(StitchParams(stitch=stitch, k_mN_per_mm2=0.1))
+    x = model.stitch.start(1)
+    cp = model.control_points(x)
+    own = np.einsum("ti,si->st", basis_tables(np.linspace(0.0, 1.0, 64))[0], cp[:, :, 2])
+    dz_cell = float(own.max() - own.min() + 2.0 * R_YARN)
+    # the images built point by point, as the contact kernel and the renderer see them
+    pts = np.einsum("ti,sik->stk", basis_tables(np.linspace(0.0, 1.0, 64))[0], cp).reshape(-1, 3)
+    z = np.concatenate([image_points(pts, m, n, x[-2], x[-1], model.stitch.mirror_parity)[:, 2]
+                        for m in (-1, 0, 1) for n in (-1, 0, 1)])  # fmt: skip
+    dz_fabric = float(z.max() - z.min() + 2.0 * R_YARN)
+    assert model.thickness(x) == fabric_depth(cp, R_YARN, model.stitch.mirror_parity)
+    if model.stitch.mirror_parity == (0, 0):
+        assert model.thickness(x) == dz_cell  # bit for bit the cell's own z-range
+    else:
+        assert model.thickness(x) == pytest.approx(dz_fabric, abs=1e-14)
+        assert model.thickness(x) > dz_cell + 0.1  # the purl images stand out of the cell

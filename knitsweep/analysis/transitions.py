@@ -47,7 +47,7 @@ a result in this regime deserves a second look."""
 
 SERIES_KEYS = ("k", "B", "r_core", "r", "p")
 
-TransitionStatus = Literal["transition", "unjammed_at_start", "jammed_throughout"]
+TransitionStatus = Literal["transition", "unjammed_at_start", "jammed_throughout", "failed"]
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,8 @@ class Transition(PlainDict):
     Attributes:
         status: 'transition' (a jammed point is followed by an unjammed one),
             'unjammed_at_start' (the first point is already below the threshold) or
-            'jammed_throughout' (no point is below it).
+            'jammed_throughout' (no point is below it); the post-processor marks a series
+            whose refinement failed 'failed' (no transition, ``report.series.mark_failed``).
         L_over_r_trans: (L/r)_trans, the first L/r whose gap < threshold; for
             'unjammed_at_start' the first sampled L/r (an upper bound); None for
             'jammed_throughout'.

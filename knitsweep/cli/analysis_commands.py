@@ -194,7 +194,7 @@ def render(
             check_range("starts", starts, 1, 64)
         grid = parse_cells(cells)
         if results is None and state is None:
-            compile_notice()
+            compile_notice(params.stitch if params is not None else None)
         if contact_volumes:
             from ..report.contact_volumes import render_contact_volumes
 

@@ -11,14 +11,10 @@ from typing import Annotated
 import typer
 from pydantic import ValidationError
 
+from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
+
 HELP = {"help_option_names": ["-h", "--help"]}
 """Every command takes -h as well as --help."""
-
-
-def _stitch_list() -> str:
-    from ..stitches import STITCH_NAMES
-
-    return ", ".join(STITCH_NAMES)
 
 
 app = typer.Typer(
@@ -27,7 +23,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     context_settings=HELP,
     help="Simulate knitted fabric as a periodic unit cell of yarn: stockinette and knit/purl "
-    f"patterns (stitches: {_stitch_list()}). Energies, relaxations, strain sweeps, MPI "
+    f"patterns (stitches: {STITCH_CHOICES}). Energies, relaxations, strain sweeps, MPI "
     "parameter sweeps, jamming phase diagrams and pictures (Gonzalez et al. 2025, "
     "docs/model.md).",
 )
@@ -101,10 +97,10 @@ NodesOpt = Annotated[int | None, option("--quadrature-nodes", help="Gauss–Lege
                                         "segment", default="32")]  # fmt: skip
 ImagesOpt = Annotated[str | None, option("--images", help="periodic images: cutoff (all that "
                                          "touch) or reference", default="cutoff")]  # fmt: skip
-STITCH_HELP = f"stitch pattern: {_stitch_list()}"
+STITCH_HELP = f"stitch pattern: {STITCH_CHOICES}"
 """The help of every --stitch option, built from the stitch registry."""
 StitchOpt = Annotated[str | None, option("--stitch", help=STITCH_HELP,
-                                         default="stockinette")]  # fmt: skip
+                                         default=DEFAULT_STITCH)]  # fmt: skip
 ConfigOpt = Annotated[
     Path | None,
     typer.Option("--config", help="an authors' *key value config file (jammed-knits format)"),

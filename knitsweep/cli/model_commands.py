@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ..config import SOLVERS
 from .common import (
     ENERGY_UNITS,
     RELAX_UNITS,
@@ -52,8 +53,10 @@ def energy(
             stitch=stitch, samples=samples, quadrature_nodes=quadrature_nodes, images=images,
         )  # fmt: skip
         x = read_state(state, params.stitch)
+        model = CellModel(params, fidelity)
+        model.check_start(x, f"state file {state}")  # before the kernels compile
         compile_notice(params.stitch, energy_only=True)
-        result = CellModel(params, fidelity).energies(x).as_dict()
+        result = model.energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
     _print_result(result, as_json, ENERGY_UNITS)
 
@@ -66,9 +69,12 @@ StartsOpt = Annotated[int | None, option("--starts", help="starts per point", de
 SeedOpt = Annotated[int, typer.Option("--seed", help="seed of the perturbed starts")]
 PresetOpt = Annotated[str | None, option("--preset", help="fidelity preset: draft, paper, "
                                          "converged or fine", default="converged")]  # fmt: skip
-FtolOpt = Annotated[float | None, option("--ftol", help="precision goal on the energy (mJ): "
-                                         "the Newton decrement, or SLSQP's ftol with the "
-                                         "paper preset", default="the preset's")]  # fmt: skip
+FtolOpt = Annotated[float | None, option("--ftol", help="precision goal on the energy (mJ) of "
+                                         "the preset's minimiser (the paper preset's is "
+                                         "slsqp, the others' newton): " + "; ".join(
+                                             f"{s.name}: {s.energy_goal}"
+                                             for s in SOLVERS.values()),
+                                         default="the preset's")]  # fmt: skip
 
 
 @app.command()
@@ -90,9 +96,10 @@ def relax(
     import time
 
     from ..compilation import compile_clock
-    from ..config import StartSettings
+    from ..config import StartSettings, zero_force_solvers
     from ..errors import InputError, check_seed
     from ..formats import check_writable, read_state, write_state
+    from ..model import CellModel
     from ..presets import Numerics
     from ..zero_force import zero_force
 
@@ -106,6 +113,11 @@ def relax(
                                  quadrature_nodes=quadrature_nodes, images=images)  # fmt: skip
         settings = StartSettings() if starts is None else StartSettings(count=starts)
         x0 = None if state is None else read_state(state, params.stitch)
+        if x0 is not None:  # before the kernels compile and any relaxation
+            CellModel(params, n.fidelity).check_start(x0, f"state file {state}")
+        note = zero_force_solvers(params.stitch, n.solver.method)  # the input is good
+        if note:
+            typer.echo(f"note: {note}", err=True)
         compile_notice(params.stitch)
         t0 = time.perf_counter()
         with compile_clock() as compiling:  # the kernels compile on first call

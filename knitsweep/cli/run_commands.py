@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from ..stitches import DEFAULT_STITCH, check_stitch_name
 from .common import (
     HELP,
     STITCH_HELP,
@@ -45,7 +46,7 @@ def run(
     3 interrupted (run it again to resume); 4 finished, but some tasks failed."""
     from .. import service
     from ..errors import InputError
-    from ..service.master import EXIT_TASKS_FAILED
+    from ..service.run_plan import EXIT_TASKS_FAILED
 
     with user_errors():
         if executor not in ("auto", "serial", "processes", "mpi"):
@@ -58,9 +59,11 @@ def run(
     if summary.storage_error:  # the one line is printed; the run stopped as interrupted
         raise typer.Exit(summary.exit_code)
     c = summary.counts
+    redone = (f"; {summary.redone} sweeps computed again from a lower zero-force state that "
+              "another sweep of their point found" if summary.redone else "")  # fmt: skip
     typer.echo(f"{summary.out}: {c['done']} done, {c['failed']} failed, {c['not_knittable']} not "
-               f"knittable of {summary.total} tasks ({summary.skipped} already finished) in "
-               f"{summary.seconds:.1f} s{time_split(summary.seconds, summary.compile_seconds)}",
+               f"knittable of {summary.total} tasks ({summary.skipped} already finished{redone}) "
+               f"in {summary.seconds:.1f} s{time_split(summary.seconds, summary.compile_seconds)}",
                err=True)  # fmt: skip
     for line in summary.failures[:10]:
         typer.echo(f"  failed: {line}", err=True)
@@ -123,6 +126,8 @@ def status(
             typer.echo(f"  {name} = {value}: {listing}")
     for line in s["failures"][:20]:
         typer.echo(f"  failed {line}")
+    for line in s["failed_series"]:
+        typer.echo(f"  failed series {line}")
     for line in s["journal_problems"]:
         typer.echo(f"  malformed journal entry {line}: its task is recomputed on resume")
     for line in s["check"]:
@@ -261,7 +266,7 @@ def compile_(
     jobs: Annotated[int | None, option("--jobs", help="processes compiling side by side",
                     default="as many as idle cores, at most 3")] = None,
     stitch: Annotated[list[str] | None, option("--stitch", help=STITCH_HELP,
-                      default="stockinette")] = None,
+                      default=DEFAULT_STITCH)] = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
     """Compile every kernel a `run` uses (and the pair forces `report` computes) into
@@ -281,12 +286,7 @@ def compile_(
                 raise InputError(f"cache_dir = {cache_dir}: set before the kernels are imported")
             cache_dir.mkdir(parents=True, exist_ok=True)
             os.environ["NUMBA_CACHE_DIR"] = str(cache_dir.resolve())
-        from ..stitches import DEFAULT_STITCH, STITCH_NAMES
-
-        stitches = tuple(stitch or (DEFAULT_STITCH,))
-        for name in stitches:
-            if name not in STITCH_NAMES:
-                raise InputError(f"stitch = {name!r}: one of {', '.join(STITCH_NAMES)}")
+        stitches = tuple(check_stitch_name(name) for name in stitch or (DEFAULT_STITCH,))
         from .. import kernels
         from ..compilation import KERNEL_GROUPS, compile_kernels, kernel_entry_points
 

@@ -6,6 +6,7 @@ tables as arguments so that no kernel recomputes a binomial in its hot loop.
 
 from __future__ import annotations
 
+import functools
 from math import comb
 
 import numpy as np
@@ -43,6 +44,16 @@ def basis_tables(t: np.ndarray) -> np.ndarray:
         scale = float(np.prod(np.arange(DEGREE - d + 1, DEGREE + 1)))
         out[d] = scale * lower @ fd
     return out
+
+
+@functools.lru_cache(maxsize=8)
+def even_tables(samples: int) -> np.ndarray:
+    """``basis_tables`` at ``samples`` evenly spaced parameters in [0, 1] (ends included),
+    shape (4, samples, 6), made once and read-only: the sampling of the thickness and the
+    largest curvature of a centre-line."""
+    table = basis_tables(np.linspace(0.0, 1.0, samples))
+    table.setflags(write=False)
+    return table
 
 
 def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -31,7 +31,7 @@ from .result import Relaxation
 @dataclass
 class Chain:
     """One start's relaxations in sequence: its index among the point's starts, its
-    latest state (30,) and relaxation, and its solver (neighbour list, curvature)."""
+    latest state (n,) and relaxation, and its solver (neighbour list, curvature)."""
 
     start: int
     x: np.ndarray

@@ -15,6 +15,9 @@ from .chains import Chain, merge_chains
 from .relaxer import Relaxer
 from .result import Relaxation, with_status
 
+STAGE_FTOL = 1e-7
+"""Energy goal (mJ, ``SolverSettings.ftol``) of a continuation's intermediate stages, at
+least: they are not recorded, only walked through."""
 ROUGH_SLSQP_MAXITER = 10
 """SLSQP's iteration limit in ``relax_rough``, in units of ``SolverSettings.maxiter``."""
 
@@ -73,7 +76,7 @@ def walk_starts(
     settings: SolverSettings | None = None,
     merge_tolerance: float = 0.0,
 ) -> tuple[list[tuple[Relaxation, int]], np.ndarray, np.ndarray]:
-    """Zero-force relaxations at ``target`` from several starts (state (30,), the
+    """Zero-force relaxations at ``target`` from several starts (state (n,), the
     parameters it was relaxed at), each walked there in small parameter stages
     (docs/model.md §7).
 
@@ -88,7 +91,7 @@ def walk_starts(
     overlapping cores stops that start's walk, and that stage's status is kept.
     """
     settings = settings or SolverSettings()
-    loose = settings.model_copy(update={"ftol": max(settings.ftol, 1e-7)})
+    loose = settings.loosened(STAGE_FTOL)
     n = len(starts)
     merged_into = np.full(n, -1, dtype=np.int64)
     merged_at = np.full(n, -1, dtype=np.int64)

@@ -33,11 +33,12 @@ Newton step is taken before any evaluation (from the extrapolated KKT conditions
 the first evaluation lands within O(h²) of the new minimum.
 
 Converged when the length residual is below both 1e-3 of ``length_tol_mm`` and
-ftol/|λ|, the reduced Hessian has no negative mode, the Newton decrement ½ rᵀ H_r⁻¹ r
-(the energy the model still expects to gain) is at most ``ftol``, and, at zero force
+goal/|λ|, the reduced Hessian has no negative mode, the Newton decrement ½ rᵀ H_r⁻¹ r
+(the energy the model still expects to gain) is at most the decrement goal
+(``SolverSettings.decrement_goal_mJ``, the setting ``ftol``), and, at zero force
 (both periods free), so is what the largest component of ∇E − λ∇ℓ (over the entries not
 held at a bound) would gain along a mode of curvature 1e-3 mJ/mm²:
-|∇L|_max <= sqrt(2 · 1e-3 · ftol), which keeps the period forces there below 5e-7 N
+|∇L|_max <= sqrt(2 · 1e-3 · goal), which keeps the period forces there below 5e-7 N
 (a soft mode can hide a larger gradient from the decrement alone).
 """
 
@@ -278,15 +279,16 @@ def newton_minimise(
             continue
         previous = step
         lam = step.lam
-        c_tol = min(1e-3 * settings.length_tol_mm, settings.ftol / max(abs(lam), 1e-300))
+        goal = settings.decrement_goal_mJ
+        c_tol = min(1e-3 * settings.length_tol_mm, goal / max(abs(lam), 1e-300))
         # at zero force, the stationarity a soft mode hides from the decrement (there the
         # period components of ∇L are the period forces, an output): ∇L along a mode of
-        # curvature SOFTEST leaves at most ftol to gain
-        g_tol = math.sqrt(2.0 * SOFTEST * settings.ftol)
+        # curvature SOFTEST leaves at most the decrement goal to gain
+        g_tol = math.sqrt(2.0 * SOFTEST * goal)
         stationary = prob.free.size < prob.x.size or g_tol >= float(
             np.max(np.abs(np.where(active, 0.0, pt.g - lam * pt.a)))
         )
-        if (abs(pt.c) <= c_tol and step.decrement <= settings.ftol and step.negative is None
+        if (abs(pt.c) <= c_tol and step.decrement <= goal and step.negative is None
                 and stationary):  # fmt: skip
             curvature.radius = radius
             curvature.anchor = Anchor(prob.full(pt.z), pt.ge, pt.gl, pt.c, pt.energy)

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from ..config import Direction, SolverSettings
+from ..config import SOLVERS as REGISTERED
+from ..config import Direction, SolverInfo, SolverSettings
 from ..model import CellModel, NeighbourList
 from ..stitches import Stitch
 from .newton import Curvature, newton_minimise
@@ -34,7 +35,8 @@ from .slsqp import slsqp_minimise
 
 _BLAS: list[ThreadpoolController] = []  # made on first use: inspecting the libraries costs ~1 ms
 SUBSTEP_FTOL = 1e-8
-"""Energy tolerance (mJ) of the unrecorded sub-steps of a large strain step."""
+"""Energy goal (mJ, ``SolverSettings.ftol``) of the unrecorded sub-steps of a large strain
+step."""
 _DEPTH = [0]  # how many single_threaded() blocks are open in this process
 
 
@@ -69,13 +71,20 @@ Minimiser = Callable[[Problem, np.ndarray, SolverSettings, object], Minimum]
 
 @dataclass(frozen=True)
 class Solver:
-    """A minimiser by name; ``walks`` says whether a large change of the fixed period
-    is walked in sub-steps from the chain's last solution (worth it only for a
-    minimiser that carries the curvature there)."""
+    """A registered minimiser (``config.SOLVERS``: its name, what ``ftol`` means for it,
+    whether it walks a large change of the fixed period in sub-steps) bound to its
+    implementation."""
 
-    name: str
+    info: SolverInfo
     minimise: Minimiser
-    walks: bool
+
+    @property
+    def name(self) -> str:
+        return self.info.name
+
+    @property
+    def walks(self) -> bool:
+        return self.info.walks
 
 
 def _slsqp(prob: Problem, x0: np.ndarray, settings: SolverSettings, carried) -> Minimum:
@@ -93,9 +102,13 @@ def _newton(prob: Problem, x0: np.ndarray, settings: SolverSettings, carried) ->
                    got.iterations + more.iterations, None)  # fmt: skip
 
 
-SOLVERS = {s.name: s for s in (Solver("newton", _newton, walks=True),
-                               Solver("slsqp", _slsqp, walks=False))}  # fmt: skip
-"""The minimisers ``SolverSettings.method`` names."""
+_IMPLEMENTATIONS: dict[str, Minimiser] = {"newton": _newton, "slsqp": _slsqp}
+if set(_IMPLEMENTATIONS) != set(REGISTERED):  # a registered name without a minimiser
+    raise ImportError(f"minimisers {sorted(_IMPLEMENTATIONS)} != the registry's "
+                      f"{sorted(REGISTERED)} (knitsweep.config.SOLVERS)")  # fmt: skip
+SOLVERS = {name: Solver(info, _IMPLEMENTATIONS[name]) for name, info in REGISTERED.items()}
+"""The registered minimisers (``config.SOLVERS``, the names ``SolverSettings.method``
+takes), each with its implementation."""
 
 
 class Relaxer:
@@ -165,7 +178,7 @@ class Relaxer:
         n = math.ceil(abs(change) / settings.substep_mm - 1e-9)
         if n <= 1 or not np.array_equal(anchor.x[free], x0[free]):
             return None
-        loose = settings.model_copy(update={"ftol": max(settings.ftol, SUBSTEP_FTOL)})
+        loose = settings.loosened(SUBSTEP_FTOL)
         x, iterations, evaluations = anchor.x.copy(), 0, 0
         for k in range(1, n):
             x[i] = anchor.x[i] + change * k / n

@@ -31,7 +31,7 @@ def slsqp_minimise(
             method="SLSQP",
             bounds=bounds,
             constraints=constraints,
-            options={"ftol": settings.ftol, "maxiter": settings.maxiter},
+            options={"ftol": settings.energy_change_goal_mJ, "maxiter": settings.maxiter},
         )
     return Minimum(np.asarray(res.x, dtype=float), bool(res.success), str(res.message),
                    int(res.nit))  # fmt: skip

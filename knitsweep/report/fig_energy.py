@@ -78,6 +78,7 @@ def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, 
         _fit_line(ax, t, CONTACT_COLOUR if d == "x" else BENDING_COLOUR, float(x[0]), red.threshold)
     if t is not None and t.status != "transition":
         text = ("jammed at every L" if t.status == "jammed_throughout"
+                else "failed: no transition" if t.status == "failed"
                 else "unjammed from the first L")  # fmt: skip
         if narrow():
             text = text.replace(" at ", "\nat ").replace(" from ", "\nfrom ")
@@ -271,8 +272,9 @@ def fig4b_deltaL_vs_k(red: Reduction, notes: list[str]) -> Any:
 
 def _trans_value(t: dict | None, top: float, bottom: float) -> float:
     """(L/r)_trans for drawing: above the axis if jammed throughout, below if
-    unjammed from the start, NaN if the direction was not run."""
-    if t is None:
+    unjammed from the start, NaN if the direction was not run or its series failed (no
+    transition: ``series.mark_failed``)."""
+    if t is None or str(t["status"]).startswith("failed"):
         return np.nan
     if t["status"] == "jammed_throughout":
         return top
@@ -314,7 +316,7 @@ def _transition_marks(ax: Any, xs: np.ndarray, rows: list[dict | None], d: str,
             ms=10 if wide else 5.5, zorder=4 if wide else 5, clip_on=False,
             label=rf"$(L/r)_{{\rm trans}}$, {d}" if label else None)  # fmt: skip
     for xi, t in zip(xs, rows, strict=True):
-        if t is None:
+        if t is None or str(t["status"]).startswith("failed"):
             continue
         if t["status"] == "transition":
             step = t["L_over_r_trans"] - t["bracket_lower"]

@@ -24,7 +24,7 @@ from .plotting import (
     title,
 )
 from .reduce import Reduction
-from .series import series_key
+from .series import REFERENCE_STITCH, series_key
 
 STITCH_COLOUR = {
     "stockinette": "#444444",
@@ -58,21 +58,30 @@ def _one_series_per_stitch(red: Reduction, notes: list[str]) -> dict[str, tuple[
     return chosen
 
 
+FAILED_COLOUR = "#c00000"
+"""The mark of a series whose refinement failed (no transition)."""
+
+
 def figP_patterns(red: Reduction, notes: list[str]) -> Any:
     """(a) (L/r)_trans of each pattern in x and y, the bar its bracket (a triangle at the
-    range's end: jammed throughout ▲, unjammed from the first L ▼); (b) Y_sec against
-    L/r, one colour per pattern, x solid and y dashed; (c) the zero-force aspect ratio
-    a_y0/a_x0 against L/r."""
+    range's end: jammed throughout ▲, unjammed from the first L ▼; a red × where the
+    series failed and has no transition), the free stockinette yarn's as lines across;
+    (b) each pattern's shift of (L/r)_trans against the free stockinette yarn (the paper's
+    ansatz among them), the bar the two brackets together; (c) Y_sec against L/r, one
+    colour per pattern, x solid and y dashed; (d) the zero-force aspect ratio a_y0/a_x0
+    against L/r."""
     chosen = _one_series_per_stitch(red, notes)
     if len(chosen) < 2:
         raise SkipFigure("needs sweeps of two or more stitch patterns")
     from matplotlib.lines import Line2D
 
     stitches = list(chosen)
-    fig = new_figure(12.0, 4.4, wide=True)  # three panels: page-wide in a journal
-    ax_t, ax_y, ax_a = fig.subplots(1, 3)
+    fig = new_figure(11.0, 8.4, wide=True)  # four panels: page-wide in a journal
+    (ax_t, ax_s), (ax_y, ax_a) = fig.subplots(2, 2)
     trans = {(series_key(t), t["direction"]): t for t in red.transitions}
-    beyond = False
+    _reference_lines(ax_t, trans, chosen)
+    shifted = _shifts(ax_s, trans, chosen, stitches)
+    beyond = failed = False
     curves: list[tuple[list, list, dict]] = []  # Y_sec against L/r, drawn once the scale is known
     for i, stitch in enumerate(stitches):
         key = chosen[stitch]
@@ -87,6 +96,14 @@ def figP_patterns(red: Reduction, notes: list[str]) -> Any:
                 value, lower = t["L_over_r_trans"], t["bracket_lower"]
                 ax_t.errorbar([pos], [value], yerr=[[value - lower], [0.0]], marker=marker,
                               ms=6, capsize=3, **style)  # fmt: skip
+            elif t is not None and str(t["status"]).startswith("failed"):
+                failed = True  # never shown as a transition: a cross where it was looked for
+                at = t.get("failed_L_over_r") or (rows[len(rows) // 2]["L_over_r"] if rows
+                                                  else None)  # fmt: skip
+                if at is not None:
+                    ax_t.plot([pos], [at], marker="x", ms=9, mew=2.2, color=FAILED_COLOUR,
+                              ls="none")  # fmt: skip
+                notes.append(f"patterns: {stitch} in {d}: {t['status']}")
             elif t is not None and rows:  # no crossing inside the L range: an arrow out of it
                 up, beyond = t["status"] == "jammed_throughout", True
                 edge = rows[-1 if up else 0]["L_over_r"]  # the largest L/r, or the smallest
@@ -106,8 +123,15 @@ def figP_patterns(red: Reduction, notes: list[str]) -> Any:
     ax_t.set_xlim(-0.6, len(stitches) - 0.4)
     ax_t.set_ylabel(r"$(L/r)_{\rm trans}$")
     ax_t.set_title(
-        "(a) unjamming transition\nbar: bracket" + ("; ▲▼: beyond the L range" if beyond else "")
+        "(a) unjamming transition\nbar: bracket"
+        + ("; ▲▼: beyond the L range" if beyond else "")
+        + ("; ×: failed" if failed else "")
     )
+    if not shifted:
+        notes.append(f"patterns: no {REFERENCE_STITCH} transition to quote the patterns against")
+        ax_s.text(0.5, 0.5, f"no {REFERENCE_STITCH} transition\nin these results",
+                  ha="center", va="center", transform=ax_s.transAxes, color="0.4")  # fmt: skip
+        ax_s.set_yticks([])
     ax_y.set_xlabel(L_OVER_R)
     ax_y.set_ylabel(r"secant modulus $Y_{\rm sec}$ (N/mm)")
     positive = [v for _, ys, _ in curves for v in ys if v > 0]
@@ -127,17 +151,57 @@ def figP_patterns(red: Reduction, notes: list[str]) -> Any:
         ax_y.set_ylim(bottom=0.0)
     else:
         ax_y.axhline(0.0, color="0.55", lw=0.8, zorder=0)
-    panel_title(ax_y, r"(b) $Y_{\rm sec} = \sigma(0.02)/0.02$")
+    panel_title(ax_y, r"(c) $Y_{\rm sec} = \sigma(0.02)/0.02$")
     ax_a.set_xlabel(L_OVER_R)
     ax_a.set_ylabel(r"aspect ratio $a_{y0}/a_{x0}$")
-    panel_title(ax_a, "(c) zero-force stitch shape")
-    ax_t.legend(handles=[Line2D([], [], color=DIRECTION_COLOUR[d], marker=DIRECTION_STYLE[d][1],
-                                ls="none", label=f"pulled in {d}") for d in ("x", "y")],
-                loc="best", frameon=False)  # fmt: skip
+    panel_title(ax_a, "(d) zero-force stitch shape")
+    handles = [Line2D([], [], color=DIRECTION_COLOUR[d], marker=DIRECTION_STYLE[d][1],
+                      ls="none", label=f"pulled in {d}") for d in ("x", "y")]  # fmt: skip
+    if any((chosen.get(REFERENCE_STITCH), d) in trans for d in ("x", "y")):
+        handles.append(Line2D([], [], color=STITCH_COLOUR[REFERENCE_STITCH], lw=1.0,
+                              label="free stockinette (x ─, y ‑‑)"))  # fmt: skip
+    ax_t.legend(handles=handles, loc="best", frameon=False)
     ax_y.legend(handles=[Line2D([], [], color="0.3", ls=DIRECTION_STYLE[d][0],
                                 marker=DIRECTION_STYLE[d][1], ms=4, label=f"pulled in {d}")
                          for d in ("x", "y")], loc="best", frameon=False)  # fmt: skip
     ax_a.legend(handles=[Line2D([], [], color=_colour(s, i), marker="o", ms=4, label=s)
                          for i, s in enumerate(stitches)], loc="best", frameon=False)  # fmt: skip
-    title(fig, red, "Stitch patterns: transition, stiffness and shape")
+    title(fig, red, "Stitch patterns against the free stockinette yarn: transition, stiffness "
+          "and shape")  # fmt: skip
     return fig
+
+
+def _reference_lines(ax: Any, trans: dict, chosen: dict[str, tuple[Any, ...]]) -> None:
+    """The free stockinette yarn's (L/r)_trans in x (solid) and y (dashed) across panel (a)."""
+    key = chosen.get(REFERENCE_STITCH)
+    for d in ("x", "y"):
+        t = trans.get((key, d))
+        if t is not None and t["status"] == "transition":
+            ax.axhline(t["L_over_r_trans"], color=STITCH_COLOUR[REFERENCE_STITCH], lw=1.0,
+                       ls=DIRECTION_STYLE[d][0], zorder=0)  # fmt: skip
+
+
+def _shifts(ax: Any, trans: dict, chosen: dict[str, tuple[Any, ...]], stitches: list[str]) -> bool:
+    """Panel (b): (L/r)_trans − that of the free stockinette yarn (``shift_vs_free``) for
+    every other stitch, x and y, the bar the two brackets' widths added; whether any."""
+    drawn = False
+    ref = chosen.get(REFERENCE_STITCH)
+    others = [s for s in stitches if s != REFERENCE_STITCH]
+    for i, stitch in enumerate(others):
+        colour = _colour(stitch, stitches.index(stitch))
+        for j, d in enumerate(("x", "y")):
+            t, r = trans.get((chosen[stitch], d)), trans.get((ref, d))
+            if t is None or r is None or t.get("shift_vs_free") is None:
+                continue
+            err = sum(v["L_over_r_trans"] - v["bracket_lower"] for v in (t, r))
+            ax.errorbar([i + (j - 0.5) * 0.3], [t["shift_vs_free"]], yerr=[[err], [err]],
+                        marker=DIRECTION_STYLE[d][1], ms=6, capsize=3, ls="none",
+                        color=DIRECTION_COLOUR[d], mfc=colour)  # fmt: skip
+            drawn = True
+    ax.axhline(0.0, color=STITCH_COLOUR[REFERENCE_STITCH], lw=1.0, zorder=0)
+    ax.set_xticks(range(len(others)))
+    ax.set_xticklabels(others, rotation=30 if narrow() or len(others) > 3 else 0)
+    ax.set_xlim(-0.6, len(others) - 0.4)
+    ax.set_ylabel(r"$(L/r)_{\rm trans} - (L/r)_{\rm trans,\,free}$")
+    ax.set_title("(b) against the free stockinette yarn\nbar: both brackets")
+    return drawn

@@ -20,9 +20,11 @@ from typing import Any
 
 from .._version import __version__
 from ..analysis.transitions import GAP_THRESHOLD
+from ..config import FAILED
 from ..errors import InputError
 from ..formats import check_writable, replace_file
 from ..plain import plain_value
+from ..quantities import OBSERVABLE_REGISTRY, registered
 from .plotting import FigureOptions
 from .results import Results, load
 from .tables import TRANSITION_SUMMARY
@@ -64,10 +66,12 @@ _TRANSITION_COLUMNS = ("direction", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_
                        *(f for c in TRANSITION_SUMMARY for f in c.fields))  # fmt: skip
 _SWEEP_COLUMNS = ("direction", "L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm",
                   "r_core_mm", "Y_sec_N_per_mm", "sigma0_N_per_mm", "delta_E_b_mJ",
-                  "delta_E_c_mJ", "jammed", "regime", "n_steps", "max_strain")  # fmt: skip
+                  "delta_E_c_mJ", "jammed", "regime", "n_steps", "max_strain",
+                  *(o.column for o in registered("sweep")))  # fmt: skip
 _POINT_COLUMNS = ("L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm",
                   "status", "a_x0_mm", "a_y0_mm", "aspect_ratio", "E_b_rest_mJ",
-                  "E_c_rest_mJ", "thickness0_mm", "regime")  # fmt: skip
+                  "E_c_rest_mJ", *(o.column for o in registered("point")), "rest_found_by",
+                  "rest_fall_mJ", "regime")  # fmt: skip
 _PROBLEM_COLUMNS = ("kind", "status", "direction", "L_mm", "k_mN_per_mm2", "message", "task_id")
 _PROVENANCE = ("job_name", "run_status", "started_at", "finished_at", "run_seconds",
                "knitsweep_version", "git_commit", "host", "slurm_job_id", "python_version",
@@ -102,8 +106,9 @@ _NAMES = {"L_over_r": "L/r", "L_over_r_trans": "(L/r)<sub>trans</sub>", "delta_L
           "delta_E_b": "ΔE<sub>b</sub>", "delta_E_c": "ΔE<sub>c</sub>", "sigma0": "σ<sub>0</sub>",
           "Y_sec": "Y<sub>sec</sub>", "k": "k", "B": "B", "r": "r", "r_core": "r<sub>core</sub>",
           "a_x0": "a<sub>x0</sub>", "a_y0": "a<sub>y0</sub>", "E_b_rest": "E<sub>b</sub> at rest",
-          "E_c_rest": "E<sub>c</sub> at rest", "thickness0": "thickness at rest",
-          "L_trans": "L<sub>trans</sub>", "L": "L"}  # fmt: skip
+          "E_c_rest": "E<sub>c</sub> at rest", "L_trans": "L<sub>trans</sub>", "L": "L",
+          **{o.table_name or o.name: html.escape(o.label) for o in OBSERVABLE_REGISTRY
+             if o.label}}  # fmt: skip
 _UNITS = {"mN/mm2": "mN/mm²", "mN mm2": "mN·mm²", "mN mm4": "mN·mm⁴"}
 
 
@@ -171,6 +176,26 @@ def _figures(
     return blocks, skipped
 
 
+def _headline(red: Any) -> str:
+    """Whether the results are partial, and how many tasks failed and how many series
+    they leave without a transition: a complete run can hold failed tasks."""
+    failed = [p for p in red.problems if p["status"] == FAILED]
+    series = [t for t in red.transitions if str(t["status"]).startswith("failed")]
+    counts = ""
+    if failed or series:
+        counts = (f"{len(failed)} of {red.n_found} tasks failed and {len(series)} of "
+                  f"{len(red.transitions)} series have no transition because of a failure "
+                  "(<a href='#transitions'>Transitions</a>, <a href='#problems'>Failed and "
+                  "not knittable</a>)")  # fmt: skip
+    if red.partial:
+        tail = f"; {counts}" if counts else ""
+        return (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}"
+                f"{tail}.</p>")  # fmt: skip
+    if counts:
+        return f"<p class='partial'>Every run is complete, but {counts}.</p>"
+    return "<p>All planned tasks are present; every run is complete; no task failed.</p>"
+
+
 def report_html(
     results: Results, title: str | None = None, progress: Callable[[str], None] | None = None
 ) -> str:
@@ -182,8 +207,7 @@ def report_html(
     options = FigureOptions(formats=("png",), style="knitsweep")
     blocks, skipped = _figures(results, options, progress)
     roots = red.roots
-    status = (f"<p class='partial'>PARTIAL RESULTS: {html.escape(red.partial_reason or '')}</p>"
-              if red.partial else "<p>All planned tasks are present; every run is complete.</p>")  # fmt: skip
+    status = _headline(red)
     files = "".join(f"<li><code>{html.escape(str(p))}</code></li>" for p in results.paths)
     jobs = "".join(
         f"<h3>{html.escape(r.get('job_name', ''))} (<code>{html.escape(r['file'])}</code>)</h3>"

@@ -38,7 +38,7 @@ from ..analysis.transitions import Transition
 from ..config import Fidelity
 from ..errors import InputError
 from ..plain import plain_value
-from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS
+from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS, registered, sweep_observables
 from ..stitches import DEFAULT_STITCH
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
@@ -50,7 +50,14 @@ from .force_columns import (
     job_fidelity,
     pair_force_columns,
 )
-from .series import add_adaptive_brackets, series_key, series_values, transition_rows
+from .series import (
+    add_adaptive_brackets,
+    add_reference_shifts,
+    mark_failed,
+    series_key,
+    series_values,
+    transition_rows,
+)
 
 MIN_THRESHOLD, MAX_THRESHOLD = 1e-12, 1.0
 """The energy-gap thresholds (mJ) a reduction accepts (the paper's: GAP_THRESHOLD)."""
@@ -187,8 +194,11 @@ def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dic
             "aspect_ratio": a_y0 / a_x0,
             "E_b_rest_mJ": float(rec["bending_energy"][winner]),
             "E_c_rest_mJ": float(rec["contact_energy"][winner]),
-            "thickness0_mm": plain_value(meta.get("thickness")),
+            # a lower minimum a sweep found from this point and started over from
+            "rest_found_by": plain_value(meta.get("rest_found_by")),
+            "rest_fall_mJ": plain_value(meta.get("rest_fall_mJ")),
         }
+        row |= {o.column: plain_value(meta.get(o.name)) for o in registered("point")}
         phi = rec.get("packing_fraction")
         if phi is not None and len(phi) > winner:
             row["packing_fraction"] = plain_value(phi[winner])
@@ -220,6 +230,7 @@ def _analyse_sweep(
     row = _base_row(entry, meta)
     row |= {
         "sweep_status": str(meta.get("sweep_status", "")),
+        "rest_restarts": int(meta.get("rest_restarts", 0)),
         "n_steps": m.n_steps,
         "max_strain": m.max_strain,
         "max_stress_N_per_mm": m.max_stress,
@@ -251,6 +262,7 @@ def _analyse_sweep(
         "thickness_strain_max": m.thickness_strain_max,
         "thickness_strain_at_secant": m.thickness_strain_at,
         "jammed": m.jamming_gap >= threshold,
+        **sweep_observables(rec),
     }
     stored = rec.get("contact_forces")
     zero_forces = np.asarray(stored)[0] if stored is not None and len(stored) else point_forces
@@ -376,6 +388,8 @@ def reduce_results(
             notes.append(f"{Path(r['file']).name}: {check.unverified} task(s) written without "
                          "checksums (a knitsweep before checksums): read unverified")  # fmt: skip
     add_adaptive_brackets([e for e in entries if e.kind not in tasks], transitions, notes)
+    mark_failed(transition_of, transitions, problems)
+    add_reference_shifts(transitions)
     for row in (*points, *sweeps):
         row["regime"] = _regime(row, transition_of) if row["status"] == "done" else None
     n_found = len(tasks[POINTS]) + len(tasks[SWEEPS])
@@ -422,6 +436,6 @@ def _regime(row: Mapping[str, Any], transition_of: Mapping) -> str | None:
     """Regime of a point from its series' transitions in x and y (None if one is absent)."""
     key = series_key(row)
     tx, ty = transition_of.get((key, "x")), transition_of.get((key, "y"))
-    if tx is None or ty is None:
+    if tx is None or ty is None or "failed" in (tx.status, ty.status):
         return None
     return regime(row["L_over_r"], tx, ty)

@@ -5,13 +5,17 @@ adaptive run recorded beside it."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 from ..analysis.metrics import JAMMING_GAP
 from ..analysis.transitions import Transition, series_transitions
+from ..config import FAILED
 from ..plain import plain_value
 from ..quantities import NUMERIC_SERIES_PARAMS, PARAM_SYMBOLS, SERIES_PARAMS, value_text
+from ..service.adaptive import failure_status
 from ..stitches import DEFAULT_STITCH
 from ..store.journal import Entry
 
@@ -111,6 +115,7 @@ def add_adaptive_brackets(
         if meta is None:
             continue
         row["adaptive_status"] = meta.get("status")
+        row["adaptive_message"] = meta.get("message")
         row["adaptive_bracket_lower"] = meta.get("bracket_lower")
         row["adaptive_bracket_upper"] = meta.get("bracket_upper")
         hi = meta.get("bracket_upper")
@@ -121,6 +126,71 @@ def add_adaptive_brackets(
                     f"(L/r)_trans at {float(hi):.4f}, this threshold gives "
                     f"{row['L_over_r_trans']:.4f}"
                 )
+
+
+NO_TRANSITION = ("L_over_r_trans", "bracket_lower", "bracket_upper", "L_trans_mm",
+                 "delta_L_over_r", "delta_L_mm", "fit_zero_L_over_r", "fit_zero_L_mm")  # fmt: skip
+"""The transition's fields that a failed series leaves empty."""
+
+
+def mark_failed(transition_of: dict, rows: list[dict[str, Any]],
+                problems: list[dict[str, Any]]) -> None:  # fmt: skip
+    """A series whose refinement failed is never shown as a transition: one with a
+    failed point (its sweep in that direction, or its zero-force state) at or below the
+    L where it unjams (anywhere, if it never does), or whose adaptive refinement
+    failed (``/series`` status 'failed': a point without a gap, or a bracket still wider
+    than the tolerance), gets the status 'failed: point L=… mm (why)' (or 'failed:
+    <the refinement's message>'), no (L/r)_trans, bracket or ΔL/r (``failed_L_over_r``:
+    the failed point's L/r), and its Transition the status
+    'failed' (so that no figure draws it and no regime is read from it); ``failure``
+    holds the whole message."""
+    failed: dict[tuple, list[tuple[float, str]]] = {}
+    for p in problems:
+        if p["status"] != FAILED:
+            continue
+        for d in [p["direction"]] if p["kind"] == "sweep" else ["x", "y"]:
+            failed.setdefault((series_key(p), d), []).append((float(p["L_mm"]), p["message"]))
+    for row in rows:
+        key = (series_key(row), row["direction"])
+        t = transition_of[key]
+        limit = math.inf if row["L_trans_mm"] is None else row["L_trans_mm"] * (1.0 + 1e-12)
+        inside = sorted(f for f in failed.get(key, []) if f[0] <= limit)
+        at = None
+        if inside:
+            status, why = failure_status(*inside[0]), inside[0][1]
+            at = inside[0][0] / row["r_mm"]
+        elif row.get("adaptive_status") == "failed":
+            why = str(row.get("adaptive_message") or "adaptive refinement failed")
+            status = why if why.startswith("failed: ") else f"failed: {why}"
+        else:
+            continue
+        row |= {"status": status, "failure": why, "failed_L_over_r": at,
+                **dict.fromkeys(NO_TRANSITION)}  # fmt: skip
+        transition_of[key] = replace(t, status="failed", L_over_r_trans=None,
+                                     L_over_r_intercept=None, delta_L_over_r=None)  # fmt: skip
+
+
+REFERENCE_STITCH = "stockinette_free"
+"""The stitch every pattern is quoted against: the free periodic yarn (docs/model.md §11),
+the patterns' own representation; the paper's ansatz (the default stitch) beside it."""
+SHIFTS = {"shift_vs_free": REFERENCE_STITCH, "shift_vs_ansatz": DEFAULT_STITCH}
+"""Transition fields: (L/r)_trans minus that of the same series of this stitch."""
+
+
+def add_reference_shifts(rows: list[dict[str, Any]]) -> None:
+    """Each transition row's (L/r)_trans minus that of the free stockinette yarn
+    (``shift_vs_free``) and of the paper's ansatz (``shift_vs_ansatz``) in the same
+    direction and with the same other parameters; None where either has no transition
+    (or the study has no such series)."""
+    trans = {(series_key(r), r["direction"]): r["L_over_r_trans"] for r in rows
+             if r["status"] == "transition"}  # fmt: skip
+    at = SERIES_PARAMS.index("stitch")
+    for row in rows:
+        mine = trans.get((series_key(row), row["direction"]))
+        for field, stitch in SHIFTS.items():
+            key = series_key(row)
+            ref = trans.get(((*key[:at], stitch, *key[at + 1 :]), row["direction"]))
+            row[field] = None if mine is None or ref is None else mine - ref
 
 
 def series_text(row: Mapping[str, Any]) -> str:

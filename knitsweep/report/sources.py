@@ -52,7 +52,7 @@ def drawn(cp: np.ndarray, a_x: float, a_y: float, params: StitchParams, label: s
 
     geometry = get_stitch(params.stitch)
     order = list(geometry.path_order)
-    parity = tuple(geometry.mirror_parity) if geometry.images == "glides" else (0, 0)
+    parity = tuple(geometry.mirror_parity)  # (0, 0) for translations alone
     return Stitch(np.asarray(cp, dtype=float)[order], a_x, a_y, params.r_mm, label,
                   geometry.closing_shift, parity, params)  # fmt: skip
 
@@ -150,6 +150,8 @@ def stitch_to_draw(
     if state is None:
         return relaxed_stitch(params, preset, starts)
     from ..formats import read_state
+    from ..model import CellModel
 
-    return stitch_from_state(read_state(state, params.stitch), params,
-                             f"{FROM_FILE}{Path(state).name}")  # fmt: skip
+    x = read_state(state, params.stitch)
+    CellModel(params).check_start(x, f"state file {state}")  # before anything is drawn
+    return stitch_from_state(x, params, f"{FROM_FILE}{Path(state).name}")

@@ -95,6 +95,7 @@ class SummaryColumn:
     header: str
     fields: tuple[str, ...]
     spec: str = ""
+    optional: bool = False  # shown only where some row has a value (the text table)
 
 
 TRANSITION_SUMMARY = (
@@ -103,6 +104,8 @@ TRANSITION_SUMMARY = (
     SummaryColumn("bracket", ("bracket_lower", "bracket_upper"), ".3f"),
     SummaryColumn("L_trans (mm)", ("L_trans_mm",), ".3f"),
     SummaryColumn("ΔL/r", ("delta_L_over_r",), ".3f"),
+    SummaryColumn("vs free", ("shift_vs_free",), "+.3f", optional=True),
+    SummaryColumn("vs ansatz", ("shift_vs_ansatz",), "+.3f", optional=True),
     SummaryColumn("fit slope (mJ/mm)", ("fit_slope_mJ_per_mm",), ".3e"),
     SummaryColumn("fit intercept (mJ)", ("fit_intercept_mJ",), ".3e"),
     SummaryColumn("fit L (mm)", ("fit_L_lo_mm", "fit_L_hi_mm"), ".2f"),
@@ -143,10 +146,11 @@ def transitions_text(red: Reduction) -> str:
     lines = []
     if red.constants:
         lines.append("fixed: " + series_label(red.constants, red.constants))
-    head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying),
-            *(c.header for c in TRANSITION_SUMMARY)]  # fmt: skip
+    shown = [c for c in TRANSITION_SUMMARY if not c.optional
+             or any(t.get(f) is not None for t in red.transitions for f in c.fields)]  # fmt: skip
+    head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying), *(c.header for c in shown)]
     body = [[t["direction"], *(value_text(t[k]) for k in red.varying),
-             *(summary_cell(c, t) for c in TRANSITION_SUMMARY)]
+             *(summary_cell(c, t) for c in shown)]
             for t in red.transitions]  # fmt: skip
     widths = [max(len(r[i]) for r in [head, *body]) for i in range(len(head))]
     for r in [head, *body]:
@@ -155,6 +159,12 @@ def transitions_text(red: Reduction) -> str:
         f"gap: ΔE_c (mJ) for x, ΔE_b (mJ) for y; threshold {red.threshold:g} mJ; "
         "bracket = (last jammed, first unjammed L/r); fit = jamming gap against L over its "
         "linear jammed run (Table S4)"
+        + (
+            "; vs free, vs ansatz: (L/r)_trans minus that of the free stockinette yarn and of "
+            "the paper's ansatz in the same direction"
+            if len(shown) > len(TRANSITION_SUMMARY) - 2
+            else ""
+        )
     )
     return "\n".join(lines)
 

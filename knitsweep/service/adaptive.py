@@ -61,6 +61,17 @@ class SeriesState:
         return self.status in FINISHED
 
 
+def failure_status(L_mm: float, message: str, limit: int = 72) -> str:
+    """'failed: point L=9.3 mm (why)': the status of a series that a failed point
+    leaves without a transition, its reason cut to the message's first clause."""
+    why = str(message).removeprefix("failed: ").strip()
+    for stop in ("; ", " ["):
+        why = why.split(stop, 1)[0]
+    if len(why) > limit:
+        why = why[: limit - 1].rstrip() + "…"
+    return f"failed: point L={L_mm:g} mm ({why})" if why else f"failed: point L={L_mm:g} mm"
+
+
 def _on_lattice(L: float) -> float:
     """Proposals on a 1e-6 mm lattice: reproducible ids, no 11.600000000000001."""
     return round(L, 6)
@@ -173,6 +184,9 @@ class Refiner:
             gap = JAMMED_GAP
         else:
             gap = None
+            self.series[key].setdefault("why", {})[params.L_mm] = str(sweep_meta.get("message", ""))
+        if gap is not None:
+            self.series[key].get("why", {}).pop(params.L_mm, None)
         self.series[key]["gaps"][params.L_mm] = gap
         self._states.pop(key, None)
 
@@ -197,9 +211,14 @@ class Refiner:
         base: StitchParams = series["base"]
         r = base.r_mm
         flat = base.model_dump(mode="json", exclude={"L_mm"})
+        message = state.message
+        why = series.get("why", {})
+        if state.status == "failed" and why and state.message.startswith("no energy gap"):
+            L = min(why)
+            message = f"{failure_status(L, why[L])}; {message}"
         return {
             "status": state.status,
-            "message": state.message,
+            "message": message,
             "direction": series["direction"],
             **flat,
             "lo_mm": state.lo,

@@ -25,7 +25,7 @@ from pydantic import (
 )
 
 from ..errors import describe_validation_error
-from ..stitches import STITCH_NAMES
+from ..stitches import STITCH_CHOICES, unknown_stitch
 
 _STRICT = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, strict=True)
 MAX_POINTS = 1_000_000
@@ -126,7 +126,7 @@ class Grid(BaseModel):
     stitch: tuple[str, ...] | None = Field(
         None,
         description="stitch pattern(s): a name or a list of distinct names, one of "
-        f"{', '.join(STITCH_NAMES)}; every point is computed for every stitch",
+        f"{STITCH_CHOICES}; every point is computed for every stitch",
     )
     zip: list[list[str]] = Field(
         default_factory=list, description="groups of axes that vary together, not crossed"
@@ -141,11 +141,11 @@ class Grid(BaseModel):
         names = [v] if isinstance(v, str) else v
         if not isinstance(names, (list, tuple)) or not names:
             raise ValueError(f"expected a stitch name or a non-empty list of names, one of "
-                             f"{', '.join(STITCH_NAMES)}")  # fmt: skip
+                             f"{STITCH_CHOICES}")  # fmt: skip
         for name in names:
-            if not isinstance(name, str) or name not in STITCH_NAMES:
-                raise ValueError(f"{name!r} is not a stitch: must be one of "
-                                 f"{', '.join(STITCH_NAMES)}")  # fmt: skip
+            why = unknown_stitch(name)
+            if why is not None:
+                raise ValueError(f"{name!r} is not a stitch: {why}")
         if len(set(names)) != len(names):
             raise ValueError("repeated values")
         return tuple(names)

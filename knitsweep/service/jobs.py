@@ -39,12 +39,14 @@ from ..config import (
     StitchName,
     StitchParams,
     SweepProtocol,
+    zero_force_solvers,
 )
 from ..errors import MAX_SEED, describe_validation_error
 from ..formats import read_text
 from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
-from ..stitches import DEFAULT_STITCH, STITCH_NAMES
+from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
 from .grid import MAX_POINTS, Grid
+from .id_forms import id_form
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -154,7 +156,7 @@ class JobSpec(BaseModel):
     preset: str = DEFAULT_PRESET
     stitch: StitchName = Field(
         DEFAULT_STITCH,
-        description=f"stitch pattern of every point: one of {', '.join(STITCH_NAMES)} "
+        description=f"stitch pattern of every point: one of {STITCH_CHOICES} "
         "(several: the grid axis grid.stitch)",
     )
     mode: Literal["grid", "adaptive"] = Field(
@@ -263,6 +265,13 @@ class JobSpec(BaseModel):
         one ``stitch``."""
         return self.grid.stitch if self.grid.stitch is not None else (self.stitch,)
 
+    def solver_notes(self) -> list[str]:
+        """Where the job's minimiser does not relax a stitch's zero-force states alone,
+        which ones do and why (``config.zero_force_solvers``), one line a stitch: what a
+        run says before it computes."""
+        notes = (zero_force_solvers(name, self.solver.method) for name in self.stitches)
+        return [note for note in notes if note]
+
     def points(self) -> list[StitchParams]:
         """Every grid point, in a fixed order (stitch, k, B, r_core, r, p, reg, then L)."""
         order = ("k_mN_per_mm2", "B_mN_mm2", "r_core_mm", "r_mm", "p", "regularization_mN_mm4",
@@ -280,25 +289,27 @@ class JobSpec(BaseModel):
                                      f"{describe_validation_error(e)}") from None  # fmt: skip
         return out
 
-    def canonical(self) -> dict[str, Any]:
-        """Everything that determines the results (name, description and run
-        settings excluded), with effective settings after the preset."""
+    def full_form(self) -> dict[str, Any]:
+        """Everything that determines the results (name, description and run settings
+        excluded), with effective settings after the preset, every field written: the
+        job format's newest form (``id_forms.FORM_VERSION``)."""
         d = self.model_dump(mode="json", exclude={"name", "description", "run", "preset"})
         d.pop("stitch", None)  # one stitch where it was before, several as an axis of the grid
         stitches = self.stitches
-        if len(stitches) == 1 and stitches[0] != DEFAULT_STITCH:
-            d["stitch"] = stitches[0]  # (absent for stockinette: the hashes of its jobs stay)
         d["grid"] = self.grid.axes() | {"twist_bound": self.grid.twist_bound}
-        if len(stitches) > 1:
+        if len(stitches) == 1:
+            d["stitch"] = stitches[0]
+        else:
             d["grid"]["stitch"] = list(stitches)
-        ties = {n: str(tie) for n, tie in self.grid.ties().items()}
-        if ties:  # (absent when empty: the hashes of plain grids stay what they were)
-            d["grid"]["ties"] = ties
-        if self.grid.zip:
-            d["grid"]["zip"] = self.grid.zip
-        if not self.store.packing_fraction:  # (absent when off: earlier job hashes stay)
-            del d["store"]["packing_fraction"]
+        d["grid"]["ties"] = {n: str(tie) for n, tie in self.grid.ties().items()}
+        d["grid"]["zip"] = self.grid.zip
         return d
+
+    def canonical(self) -> dict[str, Any]:
+        """The dict the job's id hashes: its full form migrated down to the earliest
+        form of the job format that holds it (``id_forms.id_form``), so that a job
+        using nothing a later form added keeps the id it had then."""
+        return id_form(self.full_form())
 
     @property
     def job_hash(self) -> str:

@@ -26,7 +26,6 @@ import socket
 import sys
 import time
 from collections import deque
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -37,68 +36,15 @@ from ..store.journal import StorageError, atomic_write_bytes
 from ..store.writer import ResultWriter
 from . import signals
 from .adaptive import Refiner
-from .jobs import JobSpec, PointTask, SweepTask, plan, point_task, series_key, sweep_task
+from .jobs import JobSpec, PointTask, SweepTask, point_task, series_key, sweep_task
 from .progress import RunProgress, task_line
-from .signals import EXIT_INTERRUPTED, Interrupted
-from .worker import Reply
+from .run_plan import RunSummary, shard_tasks, varying_parameters
+from .signals import Interrupted
+from .worker import REST_POINT, Reply
 
 COMMIT_AGE_S = 0.2
 """A result waits at most about this long for its batch's commit while replies keep
 arriving (the master commits at once when it has nothing else to do)."""
-
-EXIT_TASKS_FAILED = 4
-"""Exit code of a run that finished but whose file holds failed tasks (docs/how-to/runs.md)."""
-
-
-@dataclass
-class RunSummary:
-    out: Path
-    total: int
-    counts: dict[str, int] = field(default_factory=lambda: {DONE: 0, FAILED: 0, "not_knittable": 0})
-    skipped: int = 0
-    interrupted: bool = False
-    seconds: float = 0.0
-    failures: list[str] = field(default_factory=list)
-    storage_error: str = ""
-    compile_seconds: float = 0.0  # compiling the kernels before the run (a cold install)
-
-    @property
-    def exit_code(self) -> int:
-        """3 if interrupted, 4 if any task of the file failed (this run's or an earlier
-        one's not retried), else 0; a not-knittable point is a result, not a failure."""
-        if self.interrupted:
-            return EXIT_INTERRUPTED
-        return EXIT_TASKS_FAILED if self.counts.get(FAILED, 0) else 0
-
-
-def parse_shard(text: str | None) -> tuple[int, int] | None:
-    """'i/N' -> (i, N) with 0 <= i < N."""
-    if text is None:
-        return None
-    try:
-        i, n = (int(v) for v in text.split("/"))
-    except ValueError:
-        raise InputError(f"shard = {text!r}: must be i/N with integers, e.g. 0/4") from None
-    if not (n >= 1 and 0 <= i < n):
-        raise InputError(f"shard = {text!r}: need N >= 1 and 0 <= i < N")
-    return i, n
-
-
-def shard_tasks(job: JobSpec, shard: tuple[int, int] | None):
-    """The job's tasks, or one shard of them (points i, i+N, …, with their sweeps;
-    with ``[starts] carry`` series i, i+N, …, whose points carry from one another)."""
-    points, sweeps = plan(job)
-    if shard is None:
-        return points, sweeps
-    i, n = shard
-    if job.starts.carry:
-        series = list(dict.fromkeys(series_key(p.params) for p in points))
-        mine = set(series[i::n])
-        points = [p for p in points if series_key(p.params) in mine]
-    else:
-        points = [p for k, p in enumerate(points) if k % n == i]
-    keep = {p.task_id for p in points}
-    return points, [s for s in sweeps if s.point_id in keep]
 
 
 class _Master:
@@ -130,6 +76,12 @@ class _Master:
         for e in writer.entries():
             if str(e.meta.get("status")) != FAILED or not retry_failed or e.kind == SERIES:
                 self.finished[e.kind][e.task_id] = e.meta
+        self._redone: set[str] = set()  # sweeps to compute again: their point's rest moved
+        for tid, meta in list(self.finished[SWEEPS].items()):
+            point = self.finished[POINTS].get(str(meta.get("point_id")))
+            if point is not None and self._stale(meta, point):
+                del self.finished[SWEEPS][tid]  # pulled from a zero-force state since replaced
+                self._redone.add(tid)
         self.refiner = Refiner(job) if job.mode == "adaptive" else None
         for p in points:
             self._request(p, job.directions)
@@ -231,8 +183,48 @@ class _Master:
         self.finished[SWEEPS][s.task_id] = meta
         self._count(str(meta["status"]))
         if self.refiner is not None:
+            if s.task_id in self._redone:  # its series' stored bracket may have used the old gap
+                params = self.points[s.point_id].params
+                self.finished[SERIES].pop(self.refiner.key(params, s.direction), None)
             self.refiner.observe(meta)
             self._refine()
+        self._redone.discard(s.task_id)
+
+    # -- a lower zero-force state found by a sweep (strain_sweep: "no hidden branch")
+    def _stale(self, sweep_meta: dict[str, Any], point_meta: dict[str, Any]) -> bool:
+        """Whether a sweep was pulled from a zero-force state higher (by more than the
+        protocol's rest tolerance) than its point's present one."""
+        pulled, rest = sweep_meta.get("rest_energy"), point_meta.get("rest_energy")
+        if pulled is None or rest is None:  # written before sweeps checked their rest
+            return False
+        return float(pulled) > float(rest) + self.job.protocol.rest_tolerance_mJ
+
+    def _new_rest(self, pid: str, record: dict[str, Any], found_by: SweepTask) -> None:
+        """A sweep of point ``pid`` found a lower zero-force state and started over from
+        it: ``record`` becomes the point's record (flagged ``rest_found_by``), and the
+        point's other sweeps already recorded are computed again from it (those still
+        running are when they come back, ``_handle``)."""
+        record = dict(record)
+        status, message = record.pop("status"), record.pop("message")
+        arrays, scalars = split_record(record)
+        meta = {**self.finished[POINTS][pid], "status": status, "message": message, **scalars}
+        self.writer.add(POINTS, pid, arrays, meta)
+        self.finished[POINTS][pid] = meta
+        self.zero[pid] = {**arrays, **meta}
+        for s in [s for s in self.sweeps.values() if s.point_id == pid and s is not found_by]:
+            if s.task_id in self.finished[SWEEPS] and self._stale(self.finished[SWEEPS][s.task_id],
+                                                                   meta):  # fmt: skip
+                del self.finished[SWEEPS][s.task_id]
+                self._redo(s)
+
+    def _redo(self, s: SweepTask) -> None:
+        """Compute sweep ``s`` again (from its point's present zero-force state): one
+        more task for the counts and the display."""
+        self._redone.add(s.task_id)
+        self.summary.redone += 1
+        self.summary.total += 1
+        self.progress.add_tasks("sweep")
+        self.ready_sweeps.append((s, self._payload(s.point_id)))
 
     def _refine(self) -> None:
         for key, state in self.refiner.states():
@@ -284,7 +276,10 @@ class _Master:
                 queue = self.ready_sweeps or self.ready_points
                 if not queue:
                     break
-                self.executor.submit(*queue.popleft())
+                task, payload = queue.popleft()
+                if isinstance(task, SweepTask):  # its point's zero-force state as it is now
+                    payload = self._payload(task.point_id)
+                self.executor.submit(task, payload)
             self.progress.setup_s = float(getattr(self.executor, "compile_seconds", 0.0))
             reply = self.executor.next_reply(timeout=0.25, idle=self._commit)
             if reply is not None:
@@ -308,6 +303,13 @@ class _Master:
             else:
                 self.ready_sweeps.appendleft((task, self._payload(task.point_id)))
             return
+        if reply.error is None and isinstance(task, SweepTask):
+            point = self.finished[POINTS].get(task.point_id, {})
+            if REST_POINT not in reply.record and self._stale(reply.record, point):
+                # pulled from a zero-force state that another sweep of the point has since
+                # replaced by a lower one: not a result; compute it again from that one
+                self.ready_sweeps.append((task, self._payload(task.point_id)))
+                return
         if reply.error is not None:
             status = FAILED
             message = f"failed: {reply.error['kind']}: {reply.error['message']}"
@@ -319,6 +321,9 @@ class _Master:
             record = dict(reply.record)
             status = record.pop("status")
             message = record.pop("message")
+            rest = record.pop(REST_POINT, None)
+            if rest is not None:
+                self._new_rest(task.point_id, rest, task)
         record, scalars = split_record(record)
         meta = self._meta(task, status, message, reply) | scalars
         kind = "sweep" if isinstance(task, SweepTask) else "point"
@@ -360,14 +365,6 @@ class _Master:
         with contextlib.suppress(StorageError):  # only a display; the results matter
             atomic_write_bytes(progress_path(self.writer.path), json.dumps(counts).encode())
         self.progress.summary(counts, force=force)
-
-
-def varying_parameters(job: JobSpec) -> tuple[str, ...]:
-    """The grid parameters that take more than one value (ties and the stitch included)."""
-    axes = job.grid.axes()
-    tied = tuple(n for n, tie in job.grid.ties().items() if len(axes.get(tie.to, ())) > 1)
-    stitch = ("stitch",) if len(job.stitches) > 1 else ()
-    return stitch + tuple(n for n, v in axes.items() if len(v) > 1) + tied
 
 
 def _on_disk(out: Path, master: _Master | None) -> int:
@@ -420,6 +417,8 @@ def _run_job(job, out, executor, shard, retry_failed, show_progress) -> RunSumma
     except BaseException:
         executor.shutdown(abort=False)  # nothing was handed out; release the workers
         raise
+    for note in job.solver_notes():
+        print(f"note: {note}", file=sys.stderr, flush=True)
     for path, why in writer.malformed:
         print(f"warning: journal entry {path.name} was malformed ({why}): its task is "
               "recomputed", file=sys.stderr, flush=True)  # fmt: skip

@@ -75,7 +75,10 @@ def remove_stale_builds(path: Path) -> None:
         *path.parent.glob(f"..{path.name}.*.recover.tmp.*"),
     ):  # (killed as it began)
         with contextlib.suppress(OSError):
-            shutil.rmtree(stale) if stale.is_dir() and not stale.is_symlink() else stale.unlink()
+            if stale.is_dir() and not stale.is_symlink():
+                shutil.rmtree(stale)
+            else:
+                stale.unlink()
 
 
 def _remove_build(build: Path) -> None:

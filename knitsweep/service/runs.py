@@ -83,7 +83,7 @@ def run(
 
 def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
     """(job, shard, out) after every check that needs no compute."""
-    from .master import parse_shard
+    from .run_plan import parse_shard
 
     job = load_job(job_path)
     shard_t = parse_shard(shard)
@@ -92,7 +92,18 @@ def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
     check_output(out)
     adopt_empty(out)
     check_label(job, out, relabel)
+    if not out.exists():  # (a resume was checked when its file began, and may need no kernel)
+        check_job_starts(job)
     return job, shard_t, out
+
+
+def check_job_starts(job: JobSpec) -> None:
+    """The shipped starts of every stitch of the job (docs/patterns.md: an
+    overlapping start is refused, naming the segments), before any task's kernels
+    compile (this loads the geometry kernels)."""
+    from ..zero_force import check_shipped_starts
+
+    check_shipped_starts(job.stitches, job.fidelity)
 
 
 def adopt_empty(out: Path) -> Path | None:
@@ -196,7 +207,8 @@ def status(path: str | Path, by: str | None = None, tasks: bool = False) -> dict
             group = groups.setdefault(plain_value(value), {})
             group[s] = group.get(s, 0) + 1
         if s == FAILED:
-            failures.append(f"{e.kind[:-1]} {e.task_id}: {e.meta.get('message', '')}")
+            failures.append(f"{e.kind[:-1]} {e.task_id} ({_where(e.meta)}): "
+                            f"{e.meta.get('message', '')}")  # fmt: skip
         if tasks and e.kind in (POINTS, SWEEPS):
             listed.append(task_row(e))
     live = read_progress(path)
@@ -243,8 +255,23 @@ def status(path: str | Path, by: str | None = None, tasks: bool = False) -> dict
             "done": sum(m.get("status") == "done" for m in series),
             "total": len(series),
         },
+        "failed_series": [
+            f"{_where(m)}: {m.get('message', '')}" for m in series if m.get("status") == FAILED
+        ],
         **({"tasks": sorted(listed, key=_task_order)} if tasks else {}),
     }
+
+
+def _where(meta: dict[str, Any]) -> str:
+    """'x, L = 9.3 mm, stitch = seed, k = 0.1': a task's or a series' direction and the
+    parameters that tell it from its neighbours in a study."""
+    parts = [str(meta["direction"])] if meta.get("direction") else []
+    if meta.get("L_mm") is not None:
+        parts.append(f"L = {plain_value(meta['L_mm']):g} mm")
+    parts.append(f"stitch = {meta.get('stitch', DEFAULT_STITCH)}")
+    if meta.get("k_mN_per_mm2") is not None:
+        parts.append(f"k = {plain_value(meta['k_mN_per_mm2']):g}")
+    return ", ".join(parts)
 
 
 def task_row(e) -> dict[str, Any]:

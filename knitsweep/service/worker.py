@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 
 from ..config import CONVERGED, DONE, FAILED, NOT_KNITTABLE
+from ..quantities import registered
+from . import signals
 from .jobs import JobSpec, PointTask, SweepTask
 
 _STATUS = {CONVERGED: DONE, NOT_KNITTABLE: NOT_KNITTABLE}
@@ -61,10 +63,15 @@ def wall_time_budget(seconds: float):
         signal.signal(signal.SIGALRM, previous)
 
 
-def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
+def prepare(
+    job: JobSpec,
+    notice: Callable[[str], None] | None = None,
+    between: Callable[[], None] | None = None,
+) -> float:
     """Compile (or load from numba's cache) the kernels this job's tasks use;
     ``notice`` hears first if that means compiling (see ``compile_kernels``), or
-    waiting for another process that compiles them (``compile_lock``). The lock
+    waiting for another process that compiles them (``compile_lock``). ``between``
+    is called between kernels (the MPI master: has a worker left on a signal?). The lock
     is only taken while the cache lacks the kernels: ranks that find them cached
     load them side by side. Returns the seconds spent compiling (0.0 when every
     kernel was cached)."""
@@ -83,12 +90,29 @@ def prepare(job: JobSpec, notice: Callable[[str], None] | None = None) -> float:
         if notice is not None:
             notice(message)
 
+    def each_kernel() -> None:
+        signals.check()  # a signal whose exception numba swallowed (see below) ends it here
+        if between is not None:
+            between()
+        signals.test_point("kernel")
+
+    signals.arm_llvm_test_point()
     t0 = time.perf_counter()
-    if not kernels_cached(job):
-        with compile_lock(notice, job):
-            if not kernels_cached(job):  # nobody compiled them while this one waited
-                compile_kernels(job.fidelity, heard, job.stitches)
-    compile_kernels(job.fidelity, heard, job.stitches)  # loads them (at once if just compiled)
+    try:
+        if not kernels_cached(job):
+            with compile_lock(notice, job):
+                if not kernels_cached(job):  # nobody compiled them while this one waited
+                    compile_kernels(job.fidelity, heard, job.stitches, each_kernel=each_kernel)
+        # loads them (at once if just compiled)
+        compile_kernels(job.fidelity, heard, job.stitches, each_kernel=each_kernel)
+    except Exception:
+        # A signal that lands while LLVM emits code is raised inside llvmlite's ctypes
+        # callback, which swallows it: numba then misses that module's code and fails
+        # later ("RuntimeError: no compiled object yet"). The signal was recorded:
+        # the compile was interrupted, whatever numba raises after it.
+        if signals.received() is None:
+            raise
+        raise signals.Interrupted(signals.received()) from None
     return time.perf_counter() - t0 if compiled else 0.0
 
 
@@ -195,19 +219,30 @@ def _signal_cause(e: Exception) -> Exception:
 
 def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dict[str, Any]:
     """The zero-force record of one point (``ZeroForce.to_record`` plus the task
-    status, the winner's thickness and, if stored, its contact forces). ``carried``
+    status, the winner's registered point observables (``quantities.registered``) and, if
+    stored, its contact forces). ``carried``
     (``[starts] carry``): the state ``x`` and ``params`` of the point it starts from."""
-    from ..model import CellModel
     from ..zero_force import zero_force
 
     start = None if carried is None else (np.asarray(carried["x"]), carried["params"])
     zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed, carried=start)
+    return point_record(job, task.params, zf)
+
+
+def point_record(job: JobSpec, params: Any, zf: Any) -> dict[str, Any]:
+    """A point's record from its zero-force state ``zf`` (``ZeroForce``): its
+    ``to_record`` plus the task status, the winner's energy (``rest_energy``, mJ) and
+    thickness and, if stored, its contact forces and the packing fractions."""
+    from ..model import CellModel
+
     record = zf.to_record()
     record["status"] = _STATUS.get(zf.status, FAILED)
     best = zf.best
-    model = CellModel(task.params, job.fidelity)
+    model = CellModel(params, job.fidelity)
     if np.all(np.isfinite(best.x)):
-        record["thickness"] = model.thickness(best.x)
+        record["rest_energy"] = best.total_energy
+        for observable in registered("point"):  # the winner's (``thickness`` …)
+            record[observable.name] = getattr(model, observable.method)(best.x)
         if job.store.contact_forces:
             record["contact_forces"] = model.contact_forces_by_class(best.x)
     if job.store.packing_fraction:
@@ -237,6 +272,10 @@ def _packing_fractions(model: Any, states: Any) -> dict[str, np.ndarray]:
 
 # ---- sweeps ---------------------------------------------------------------------
 
+REST_POINT = "rest_point"
+"""Key of a sweep record that holds its point's new record: the sweep found a lower
+zero-force state and started over from it (``strain_sweep``)."""
+
 _SWEEP_STATUS = {"done": DONE, "incomplete": DONE, "not_knittable": NOT_KNITTABLE}
 """Task status of a sweep: an 'incomplete' sweep (step limit) still holds valid
 steps; its ``sweep_status`` says so."""
@@ -254,6 +293,13 @@ def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, 
     result = strain_sweep(params, zf, task.direction, job.protocol, job.fidelity, job.solver)
     record = result.to_record()
     record["status"] = _SWEEP_STATUS.get(result.status, FAILED)
+    if result.rest is not None:  # the point's zero-force state from now on (master)
+        record[REST_POINT] = point_record(job, params, result.rest) | {
+            "rest_found_by": f"{task.direction} sweep",
+            "rest_fall_mJ": zf.best.total_energy - result.rest.best.total_energy,
+        }
+        record["message"] += (f"; started over {result.rest_restarts}x from a lower "
+                              "zero-force state")  # fmt: skip
     states = record.pop("states")
     if job.store.states:
         record["states"] = states

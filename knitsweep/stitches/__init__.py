@@ -14,18 +14,33 @@ from ..errors import InputError
 from .base import TRANSLATION_CLASSES, Stitch
 
 STITCH_NAMES = ("stockinette", "stockinette_free", "garter", "rib", "seed")
-"""Every stitch knitsweep knows, by name (each a subpackage with a ``STITCH``)."""
+"""The stitch registry: every stitch knitsweep knows, by name (each a subpackage with a
+``STITCH``). Registering a stitch is adding its name here: the settings' validation,
+the CLI's help, the error messages and the contract test (tests/test_stitch_contract.py)
+are built from this tuple."""
 DEFAULT_STITCH = "stockinette"
+STITCH_CHOICES = ", ".join(STITCH_NAMES)
+"""The registered names as the help texts and error messages list them."""
 
-__all__ = ["DEFAULT_STITCH", "STITCH_NAMES", "TRANSLATION_CLASSES", "Stitch",
-           "check_stitch_name", "get_stitch"]  # fmt: skip
+__all__ = ["DEFAULT_STITCH", "STITCH_CHOICES", "STITCH_NAMES", "TRANSLATION_CLASSES", "Stitch",
+           "check_stitch_name", "get_stitch", "unknown_stitch"]  # fmt: skip
 
 
-def check_stitch_name(name: object) -> str:
-    """``name`` if it names a stitch; InputError listing the known ones otherwise."""
-    if not isinstance(name, str) or name not in STITCH_NAMES:
-        raise InputError(f"stitch = {name!r}: must be one of {', '.join(STITCH_NAMES)}")
-    return name
+def unknown_stitch(name: object) -> str | None:
+    """None if ``name`` is a registered stitch, else why not (the text every check of a
+    stitch name gives: the settings', the grid's, the CLI's)."""
+    if isinstance(name, str) and name in STITCH_NAMES:
+        return None
+    return f"must be one of {STITCH_CHOICES}"
+
+
+def check_stitch_name(name: object, field: str = "stitch") -> str:
+    """``name`` if it names a stitch; InputError naming ``field`` and listing the
+    registered ones otherwise."""
+    why = unknown_stitch(name)
+    if why is not None:
+        raise InputError(f"{field} = {name!r}: {why}")
+    return name  # type: ignore[return-value]
 
 
 def get_stitch(name: str = DEFAULT_STITCH) -> Stitch:

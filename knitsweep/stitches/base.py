@@ -56,6 +56,12 @@ same row (n = 0, m != 0), nearest and next-nearest same column (m = 0, |n| = 1, 
 other; the contact kernel's order (``kernels.forces.contact_class``, docs/model.md §9)."""
 
 
+MIRROR_CLASSES = ("self", "same_row", "same_column", "mirrored", "other")
+"""Contact classes of a fabric of translated and mirrored cells (garter, rib, seed): as
+``kernels.mirrored.MIRROR_CLASSES`` (the mirrored class: the images mirrored through the
+fabric plane)."""
+
+
 def is_mirrored(parity: tuple[int, int], m: int, n: int) -> bool:
     """Whether the image at lattice offset (m, n) is mirrored (z -> -z) for mirror
     parity (pm, pn): pm m + pn n odd (docs/model.md §11; the compiled kernels' twin is
@@ -120,6 +126,9 @@ class Stitch:
                              f"{self.n_segments} segments")  # fmt: skip
         if self.state_names[-2:] != ("a_x", "a_y"):
             raise ValueError(f"{self.name}: a state must end with the periods a_x, a_y")
+        if self.images == "translations" and any(self.mirror_parity):
+            raise ValueError(f"{self.name}: a fabric of translations mirrors no image "
+                             f"(mirror_parity {self.mirror_parity})")  # fmt: skip
         if not self.path_order:
             object.__setattr__(self, "path_order", tuple(range(self.n_segments)))
 

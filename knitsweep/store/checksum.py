@@ -1,5 +1,5 @@
 """Checksums of a results file: the root attributes' digest, written with the data and
-verified on every read (README, "The results file"), and the verification of the task
+verified on every read (docs/results-file.md), and the verification of the task
 groups of schema-2 files. (A schema-3 row's digest is ``store.table.row_digest``, which
 shares this module's ``_update`` for arrays.)
 

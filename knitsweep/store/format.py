@@ -1,5 +1,5 @@
 """The results file's format: its schema version, where its parts live, and how a
-task's record becomes an HDF5 group and back (README, "The results file").
+task's record becomes an HDF5 group and back (docs/results-file.md).
 
 A record's arrays become datasets, its scalars attributes of the task's group; every
 dataset carries ``units`` and ``long_name`` and labelled dimension scales

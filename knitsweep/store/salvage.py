@@ -172,11 +172,16 @@ def _child(conn, path: Path, eof: int | None, patches) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent's to handle (it kills us)
     with contextlib.suppress(Exception):
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    _read_source(conn.send, path, eof, patches)
+
+
+def _read_source(send, path: Path, eof: int | None, patches) -> None:
+    """``_read_hdf5`` of ``path`` (through the padded view if ``eof``)."""
     source = _Padded(path, eof, patches) if eof else str(path)
     try:
-        _read_hdf5(source, conn.send)
+        _read_hdf5(source, send)
     except Exception as e:
-        conn.send(("failed", f"{type(e).__name__}: {(str(e).splitlines() or [''])[0]}"))
+        send(("failed", f"{type(e).__name__}: {(str(e).splitlines() or [''])[0]}"))
     finally:
         if isinstance(source, _Padded):
             source.close()
@@ -190,11 +195,11 @@ def _hdf5(path: Path, out: Salvage, eof: int | None, patches) -> None:
     from ..processes import fork_workers
 
     if fork_workers() <= 1:  # threads or no fork: read here, unguarded
-        conn = _Collect(out)
+        collect = _Collect(out)
         try:
-            _child_inline(conn, path, eof, patches)
+            _read_source(collect, path, eof, patches)
         finally:
-            conn.finish()
+            collect.finish()
         return
     r, w = os.pipe()
     pid = os.fork()
@@ -231,17 +236,6 @@ def _hdf5(path: Path, out: Salvage, eof: int | None, patches) -> None:
             os.kill(pid, signal.SIGKILL)
         os.waitpid(pid, 0)
         collect.finish()
-
-
-def _child_inline(conn, path, eof, patches) -> None:
-    source = _Padded(path, eof, patches) if eof else str(path)
-    try:
-        _read_hdf5(source, conn)
-    except Exception as e:
-        conn(("failed", f"{type(e).__name__}: {(str(e).splitlines() or [''])[0]}"))
-    finally:
-        if isinstance(source, _Padded):
-            source.close()
 
 
 class _Collect:

@@ -10,14 +10,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..quantities import STEP_QUANTITIES
+from ..quantities import STEP_QUANTITIES, registered
 
 if TYPE_CHECKING:
     from ..config import StitchParams
 
 COLUMNS = ("strain", "a_x", "a_y", "stress", "stress_envelope", "bending_energy",
-           "contact_energy", "total_energy", "thickness", "winner", "converged")  # fmt: skip
-"""The per-step quantities of the CSV table, in order."""
+           "contact_energy", "total_energy", *(o.name for o in registered("step")), "winner",
+           "converged")  # fmt: skip
+"""The per-step quantities of the CSV table, in order (the registered step observables,
+``quantities.registered("step")``, after the energies)."""
 
 
 INPUTS_PREFIX = "# knitsweep sweep inputs: "

@@ -1,5 +1,5 @@
 """Results as tables: every task of a kind one row of ``/points``, ``/sweeps`` or
-``/series`` (results schema 3; README, "The results file").
+``/series`` (results schema 3; docs/results-file.md).
 
 A checkpoint appends its results to each kind's columns in one write per column, so
 its cost grows with the number of columns, not of results (one HDF5 group per task,

@@ -15,7 +15,7 @@ the new results, not with the file:
    results *in place* to a private shadow copy of the file
    (``.<file>.shadow``), fsyncs it and publishes it by an atomic rename over
    the file; the file it replaced, kept under a second name, becomes the next
-   shadow and gets the same results appended at the next checkpoint. Each
+   shadow and gets the same results (and their ``sealed`` frames) at the next one. Each
    checkpoint writes the new results twice and copies nothing; the shadow is made
    by one copy per launch of the run. Then the merged journal entries are deleted.
 
@@ -26,8 +26,8 @@ deduplicated by task id, the journal winning (it is never older than the file).
 A malformed journal entry is skipped, reported by ``journal_problems`` and its
 task recomputed. Disk use during a run: twice the file, plus the journal.
 
-Schema (``schema_version`` 3, :data:`RESULTS_SCHEMA_VERSION`; documented in the
-README). Files of schema 1 and 2 (one HDF5 group per task) still read; ``merge`` and
+Schema (``schema_version`` 3, :data:`RESULTS_SCHEMA_VERSION`; documented in
+docs/results-file.md). Files of schema 1 and 2 (one HDF5 group per task) still read; ``merge`` and
 ``recover`` rewrite schema 2 into 3; a schema-2 file is not resumed.
 
 * root attributes: ``schema_version``, ``knitsweep_version``, ``git_commit``,

@@ -26,6 +26,8 @@ from typing import Any
 import numpy as np
 
 from ..analysis.metrics import EnergyGaps, energy_gaps
+from ..quantities import registered
+from ..zero_force import ZeroForce
 
 
 def first_grid_value(a0: float, h: float, sign: float) -> float:
@@ -44,7 +46,10 @@ class SweepResult:
     ``stopped_by`` says which rule ended it: ``stop_stress``, ``max_strain``,
     ``observables`` (everything the protocol asked for was determined),
     ``not_knittable``, ``max_steps`` or ``no_finite_relaxation``; ``stop_reason`` says it
-    in words.
+    in words. ``rest_restarts``: how often the sweep fell below its zero-force energy by
+    more than the protocol's ``rest_tolerance_mJ`` and started over from the lower
+    minimum relaxed from there; ``rest`` is then that zero-force state (step 0, the
+    point's zero-force state from then on) and ``rest_found`` says where each was found.
     """
 
     direction: str
@@ -56,7 +61,9 @@ class SweepResult:
     stress_envelope: np.ndarray = field(default_factory=lambda: np.empty(0))
     bending_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
     contact_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
-    thickness: np.ndarray = field(default_factory=lambda: np.empty(0))
+    observed: dict[str, np.ndarray] = field(default_factory=dict)
+    """The registered step observables (``quantities.registered("step")``: ``thickness``
+    …) by name, each (n,); read as attributes too (``result.thickness``)."""
     winner: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     converged: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=bool))
     iterations: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
@@ -75,6 +82,15 @@ class SweepResult:
     relaxations: int = 0
     evaluations_total: int = 0
     wall_seconds: float = 0.0
+    rest_restarts: int = 0
+    rest_found: str = ""
+    rest: ZeroForce | None = None
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        observed = self.__dict__.get("observed", {})
+        if name in observed:
+            return observed[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
     def total_energy(self) -> np.ndarray:
@@ -86,8 +102,15 @@ class SweepResult:
         return energy_gaps(self.bending_energy, self.contact_energy)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The per-step arrays by name (for tables and storage)."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name in _STEP_ARRAYS}
+        """The per-step arrays by name (for tables and storage), the registered step
+        observables after the energies."""
+        out = {}
+        for f in fields(self):
+            if f.name in _STEP_ARRAYS:
+                out[f.name] = getattr(self, f.name)
+            elif f.name == "observed":
+                out |= self.observed
+        return out
 
     def to_record(self) -> dict[str, Any]:
         """Every field as storable values: the per-step and per-start arrays,
@@ -106,6 +129,9 @@ class SweepResult:
             "relaxations": self.relaxations,
             "evaluations_total": self.evaluations_total,
             "wall_seconds": self.wall_seconds,
+            "rest_energy": float(self.total_energy[0]),
+            "rest_restarts": self.rest_restarts,
+            "rest_found": self.rest_found,
             "delta_E_b": gaps.delta_E_b,
             "delta_E_c": gaps.delta_E_c,
             "jamming_gap": gaps.jamming_gap(self.direction),
@@ -116,17 +142,22 @@ class SweepResult:
         """The inverse of ``to_record`` (extra keys are ignored; a record stored
         without ``states`` gets an empty (0, 0) array; one written before starts could
         merge or sweeps could stop early gets empty per-start arrays and empty
-        ``stopped_by``/0 total evaluations)."""
+        ``stopped_by``/0 total evaluations; one written before an observable was
+        registered lacks it)."""
         arrays = {k: np.asarray(rec[k]) for k in (*_STEP_ARRAYS, *_START_ARRAYS) if k in rec}
-        return cls(direction=str(rec["direction"]), **arrays, status=str(rec["sweep_status"]),
+        observed = {o.name: np.asarray(rec[o.name]) for o in registered("step") if o.name in rec}
+        return cls(direction=str(rec["direction"]), **arrays, observed=observed,
+                   status=str(rec["sweep_status"]),
                    stop_reason=str(rec["message"]), stopped_by=str(rec.get("stopped_by", "")),
                    relaxations=int(rec["relaxations"]),
                    evaluations_total=int(rec.get("evaluations_total", 0)),
-                   wall_seconds=float(rec["wall_seconds"]))  # fmt: skip
+                   wall_seconds=float(rec["wall_seconds"]),
+                   rest_restarts=int(rec.get("rest_restarts", 0)),
+                   rest_found=str(rec.get("rest_found", "")))  # fmt: skip
 
 
 _STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "bending_energy",
-                "contact_energy", "thickness", "winner", "converged", "iterations", "evaluations",
+                "contact_energy", "winner", "converged", "iterations", "evaluations",
                 "min_zeta", "length_residual", "kkt_residual", "relax_seconds", "states")  # fmt: skip
 _START_ARRAYS = ("carried", "merged_into", "merged_at")
 

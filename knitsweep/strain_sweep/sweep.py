@@ -34,13 +34,17 @@ from ..config import (
     SweepProtocol,
 )
 from ..model import CellModel
+from ..quantities import registered
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
-from ..zero_force import ZeroForce, pick_lowest, zero_force
+from ..stitches.topology import topology_word
+from ..zero_force import ZeroForce, pick_lowest, relax_at_rest, zero_force
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
 
 STOP_OVERSHOOT = 1.1
 """A sweep ends at most this factor above its stop stress (unless at the small step)."""
+MAX_REST_RESTARTS = 5
+"""A sweep starts over from a lower zero-force state it finds at most this often."""
 STOP_WATCH = 0.5
 """From this fraction of the stop stress on (envelope stress), each step can be taken
 again shorter."""
@@ -65,8 +69,33 @@ def strain_sweep(
 
 
 def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> SweepResult:
+    """The sweep, started over from each lower zero-force state it finds (``_pull``)."""
     t_start = time.perf_counter()
     model = CellModel(params, fidelity)
+    notes: list[str] = []
+    restarts = 0
+    spent = [0, 0]  # relaxations and energy evaluations of every pull
+    while True:
+        result, found, note = _pull(model, zero, direction, protocol, solver, progress, t_start,
+                                    restarts < MAX_REST_RESTARTS, spent)  # fmt: skip
+        if note:
+            notes.append(note)
+        if found is None:
+            break
+        zero, restarts = found, restarts + 1
+    result.rest = zero if restarts else None
+    result.rest_restarts = restarts
+    result.rest_found = "; ".join(notes)
+    result.wall_seconds = time.perf_counter() - t_start
+    return result
+
+
+def _pull(model, zero, direction, protocol, solver, progress, t_start, check_rest, spent):
+    """One pull from ``zero``: (the sweep, None, a note or ""); or, with ``check_rest``,
+    as soon as a step's energy falls more than ``protocol.rest_tolerance_mJ`` below the
+    zero-force energy and relaxing that step at zero force finds a minimum lower by as
+    much, (None, the zero-force state with that minimum, a note saying so). If it finds
+    none, the pull goes on unchecked and its note says so."""
     idx = model.stitch.period_index(direction)
     other = model.stitch.period_index("y" if direction == "x" else "x")
     along = 0 if direction == "x" else 1  # the period force along the pull
@@ -89,7 +118,9 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
     eb, ec = [best.bending_energy], [best.contact_energy]
     control = StepControl(protocol, direction, a0, sign)
     a_next = control.first()
-    status, stopped_by, reason, n_relax, n_eval = "done", "", "", 0, 0
+    status, stopped_by, reason = "done", "", ""
+    n_relax, n_eval = spent
+    unfound = ""
     stop = protocol.stop_stress_N_per_mm
     sigma_last = 0.0
     while True:
@@ -134,6 +165,14 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
             a_next = a_values[-1] + sign * max(h / 2.0, protocol.step_mm)
             continue
         sigma_last = sign * envelope[-1]
+        fall = steps[0].total_energy - win.total_energy
+        if check_rest and win.status == CONVERGED and fall > protocol.rest_tolerance_mJ:
+            found, note = _lower_rest(model, zero, chains[w].start, win, direction, strain, fall,
+                                      solver, protocol.rest_tolerance_mJ)  # fmt: skip
+            if found is not None:
+                spent[:] = n_relax, n_eval
+                return None, found, note
+            unfound, check_rest = note, False
         if progress is not None:
             progress(i, strain, sigma_ref)
         chains = merge_chains(chains, model, direction, protocol.merge_tolerance_mJ, i,
@@ -156,9 +195,37 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
         if stopped_by:
             break
         a_next = control.next(a_values, envelope, eb, ec)
-    return _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
-                     stopped_by, n_relax, n_eval, (carried, merged_into, merged_at),
-                     time.perf_counter() - t_start)  # fmt: skip
+    result = _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
+                       stopped_by, n_relax, n_eval, (carried, merged_into, merged_at),
+                       time.perf_counter() - t_start)  # fmt: skip
+    return result, None, unfound
+
+
+def _lower_rest(model, zero, start, step, direction, strain, fall, solver, tolerance):
+    """(the zero-force state with the minimum relaxed at zero force from sweep step
+    ``step`` of chain ``start``, or None if that is not lower by the tolerance, and a
+    note saying what was found)."""
+    rest = zero.best.total_energy
+    lower = relax_at_rest(model, step.x, solver)
+    where = (f"the {direction} sweep fell {fall:.3g} mJ below the zero-force energy "
+             f"{rest:.7f} mJ at strain {strain:.4g}")  # fmt: skip
+    if lower.status != CONVERGED or not rest - lower.total_energy > tolerance:
+        return None, (f"{where}; relaxed again at zero force from there: "
+                      f"{lower.total_energy:.7f} mJ ({lower.status}), kept the first")  # fmt: skip
+    if _crossings(model, lower.x) != _crossings(model, zero.best.x):
+        # another fabric (a free yarn pulled straight, rows apart): not this point's rest
+        return None, (f"{where}; relaxed again at zero force from there: "
+                      f"{lower.total_energy:.7f} mJ with other crossings than the zero-force "
+                      "state's (another fabric), kept the first")  # fmt: skip
+    note = (f"{where}; relaxed again at zero force from there: {lower.total_energy:.7f} mJ, "
+            "the zero-force state from then on")  # fmt: skip
+    return zero.with_lower_minimum(start, lower, note), note
+
+
+def _crossings(model: CellModel, x: np.ndarray) -> tuple:
+    """How the rows of state ``x`` cross one another in projection (``topology_word``: the
+    word a relaxation of a pattern must keep), for any stitch."""
+    return topology_word(model.control_points(x), x[-2], x[-1], model.stitch.mirror_parity)
 
 
 def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettings) -> list[Chain]:
@@ -190,7 +257,7 @@ def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, r
         stress_envelope=forces / a_perp0,
         bending_energy=eb,
         contact_energy=ec,
-        thickness=np.array([model.thickness(s.x) for s in steps]),
+        observed=_step_observables(model, steps),
         winner=np.array(winners, dtype=np.int64),
         converged=np.array([s.status == CONVERGED for s in steps]),
         iterations=np.array([s.iterations for s in steps], dtype=np.int64),
@@ -210,6 +277,13 @@ def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, r
         evaluations_total=n_eval,
         wall_seconds=wall,
     )
+
+
+def _step_observables(model: CellModel, steps: list[Relaxation]) -> dict[str, np.ndarray]:
+    """Every registered step observable (``quantities.registered("step")``) of every
+    step's state, (n,) each, by name."""
+    return {o.name: np.array([getattr(model, o.method)(s.x) for s in steps])
+            for o in registered("step")}  # fmt: skip
 
 
 class NoRestState(RuntimeError):

@@ -19,7 +19,7 @@ from .estimators import (
     tube_samples,
     voxel_volumes,
 )
-from .geometry import Pieces, arc_length, build_pieces, cell_depth, centre_line
+from .geometry import Pieces, arc_length, build_pieces, centre_line, fabric_depth
 
 __all__ = [
     "STORED_SAMPLES",
@@ -29,10 +29,10 @@ __all__ = [
     "Volumes",
     "arc_length",
     "build_pieces",
-    "cell_depth",
     "centre_line",
     "contact_class",
     "contact_classes",
+    "fabric_depth",
     "packing_fraction",
     "qmc_volumes",
     "tube_samples",

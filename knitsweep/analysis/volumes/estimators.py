@@ -38,7 +38,7 @@ from ...kernels.bezier import basis_tables
 from ...kernels.contact import EXCLUSION_FACTOR
 from ...kernels.mirrored import MIRROR_CLASSES, is_mirrored, mirror_class
 from ...stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
-from .geometry import Pieces, arc_length, build_pieces, cell_depth, distances
+from .geometry import Pieces, arc_length, build_pieces, distances, fabric_depth
 
 VOXEL_BATCH = 1 << 18
 """Voxel centres tested per batch (bounds the memory of the voxel method)."""
@@ -144,7 +144,7 @@ def voxel_volumes(cp: np.ndarray, a_x: float, a_y: float, r: float, voxel_mm: fl
     cell = voxel_mm**3
     v_unc, v_comp = n_unc * cell, n_comp * cell
     v_total = v_unc - 0.5 * v_comp
-    v_cell = a_x * a_y * cell_depth(cp, r)
+    v_cell = a_x * a_y * fabric_depth(cp, r, parity)
     return Volumes("voxel", voxel_mm, v_unc, v_comp, v_total, v_cell, v_total / v_cell, None,
                    None, {k: v * cell for k, v in comp_by.items()})  # fmt: skip
 
@@ -225,7 +225,7 @@ def qmc_volumes(cp: np.ndarray, a_x: float, a_y: float, r: float, samples: int =
     est = np.asarray(rows)
     mean = est.mean(axis=0)
     err = est.std(axis=0, ddof=1) / np.sqrt(scrambles)
-    v_cell = a_x * a_y * cell_depth(cp, r)
+    v_cell = a_x * a_y * fabric_depth(cp, r, parity)
     classes = {k: float(np.mean([c[k] for c in by_class])) for k in contact_classes(parity)}
     return Volumes("qmc", float(samples), float(mean[0]), float(mean[1]), float(mean[2]), v_cell,
                    float(mean[2] / v_cell), float(err[2]), float(err[2] / v_cell), classes)  # fmt: skip

@@ -14,12 +14,11 @@ told from a different part of the yarn by arc length, as the contact energy does
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...kernels.bezier import basis_tables, gauss_legendre
+from ...kernels.bezier import basis_tables, even_tables, gauss_legendre
 from ...stitches.base import image_points
 
 CHUNK = 16
@@ -95,16 +94,21 @@ def arc_length(cp: np.ndarray, nodes: int = 32) -> float:
     return float(np.sum(speed @ w))
 
 
-@functools.lru_cache(maxsize=4)
-def _thickness_basis(samples: int) -> np.ndarray:
-    return basis_tables(np.linspace(0.0, 1.0, samples))[0]
+def fabric_depth(cp: np.ndarray, r: float, parity: tuple[int, int] = (0, 0),
+                 samples: int = 64) -> float:  # fmt: skip
+    """The fabric's thickness Δz = z_max − z_min + 2r of the centre-line over the cell
+    and all its images (paper SI S4 and "Contact Volumes"; docs/model.md §9, §11), from
+    ``samples`` evenly spaced points of each segment, mm.
 
-
-def cell_depth(cp: np.ndarray, r: float, samples: int = 64) -> float:
-    """The cell's depth Δz = z_max − z_min + 2r of the centre-line (paper SI "Contact
-    Volumes"; the same sampling as ``CellModel.thickness``: 64 per segment), mm."""
-    z = np.einsum("ti,si->st", _thickness_basis(samples), np.asarray(cp, dtype=float)[:, :, 2])
-    return float(z.max() - z.min() + 2.0 * r)
+    A translated image keeps the cell's z, so for a fabric of translations alone
+    (stockinette, ``parity`` (0, 0)) this is the cell's own z-range; where some images
+    are mirrored through the fabric plane (z -> -z, ``image_points``: garter, rib, seed)
+    the fabric spans the cell's z-range and its mirror image's."""
+    z = np.einsum("ti,si->st", even_tables(samples)[0], np.asarray(cp, dtype=float)[:, :, 2])
+    hi, lo = z.max(), z.min()
+    if any(parity):  # some image (m, n) has pm m + pn n odd: a mirrored copy of the cell
+        hi, lo = max(hi, -lo), min(lo, -hi)
+    return float(hi - lo + 2.0 * r)
 
 
 def build_pieces(cp: np.ndarray, a_x: float, a_y: float, r: float, spacing: float = 0.01,

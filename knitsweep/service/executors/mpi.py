@@ -83,13 +83,26 @@ class MPIExecutor:
         with signals.interruptible():  # compile once, into numba's cache, before the workers
             signals.test_point("compile")
             if not kernels_cached(self.job):  # (cached: the workers load them, all at once)
-                self.compile_seconds = prepare(self.job, stderr_notice)
+                self.compile_seconds = prepare(self.job, stderr_notice, self._worker_left)
             signals.test_point("broadcast")
         with signals.deferred():
             for rank in self._outstanding:
                 self.comm.send(self.job.model_dump_json(), dest=rank, tag=JOB)
         signals.mpi_handshake_done()
         self._started = True
+
+    def _worker_left(self) -> None:
+        """While this rank compiles (minutes on a cold cache): a worker that a signal of
+        its own ended (LEFT) stops the run now, not once the compile is over (it waits
+        for the job's hand-out only LEAVE_WAIT_S)."""
+        from mpi4py import MPI
+
+        status = MPI.Status()
+        if self.comm.Iprobe(source=MPI.ANY_SOURCE, tag=LEFT, status=status):
+            signum = self.comm.recv(source=status.Get_source(), tag=LEFT)
+            self._left.add(status.Get_source())
+            signals.request(signum)
+            raise Interrupted(signum)
 
     @property
     def depth(self) -> int:

@@ -11,30 +11,17 @@ spacings, as stockinette's.
 
 from __future__ import annotations
 
-from ..base import Stitch
-from ..stockinette_free import layout as _free
+from ..base import MIRROR_CLASSES
+from ..stockinette_free import free_yarn_stitch
 from . import layout
 
-MIRROR_CLASSES = ("self", "same_row", "same_column", "mirrored", "other")
-"""As ``kernels.mirrored.MIRROR_CLASSES`` (garter's mirrored class: the rows above and
-below)."""
+__all__ = ["MIRROR_CLASSES", "STITCH"]
 
-STITCH = Stitch(
-    name="garter",
-    description="garter: knit and purl rows alternating (odd rows mirrored)",
-    state_names=layout.STATE_NAMES,
-    n_segments=layout.N_SEGMENTS,
-    segment_weights=_free.SEGMENT_WEIGHTS,
-    bounds=layout.state_bounds,
-    twist_index=None,
-    starts=layout.STARTS,
-    data_package=f"{__name__}.data",
-    geometry_module=f"{__name__}.geometry",
-    images="glides",
-    contact_classes=MIRROR_CLASSES,
-    path_order=tuple(range(layout.N_SEGMENTS)),
-    closing_shift=(1, 0),
+STITCH = free_yarn_stitch(
+    "garter",
+    "garter: knit and purl rows alternating (odd rows mirrored)",
+    __name__,
     mirror_parity=(0, 1),
-    rough=True,
+    state=layout,
 )
 """The garter stitch: one knit stitch, its odd rows mirrored."""

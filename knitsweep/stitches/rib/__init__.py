@@ -15,27 +15,13 @@ fabric repeats every 2 a_x along the course).
 
 from __future__ import annotations
 
-from ..base import Stitch
-from ..garter import MIRROR_CLASSES
-from ..stockinette_free import layout
+from ..stockinette_free import free_yarn_stitch
 
-STITCH = Stitch(
-    name="rib",
-    description="1x1 rib: knit and purl columns alternating (odd columns mirrored)",
-    state_names=layout.STATE_NAMES,
-    n_segments=layout.N_SEGMENTS,
-    segment_weights=layout.SEGMENT_WEIGHTS,
-    bounds=layout.state_bounds,
-    twist_index=None,
-    starts=layout.STARTS,
-    data_package=f"{__name__}.data",
-    geometry_module=f"{__name__}.geometry",
-    images="glides",
-    contact_classes=MIRROR_CLASSES,
-    path_order=tuple(range(layout.N_SEGMENTS)),
-    closing_shift=(1, 0),
+STITCH = free_yarn_stitch(
+    "rib",
+    "1x1 rib: knit and purl columns alternating (odd columns mirrored)",
+    __name__,
     mirror_parity=(1, 0),
-    rough=True,
     stage_dL_mm=2.0,
 )
 """The 1×1 rib stitch: one knit stitch, its odd columns mirrored."""

@@ -15,28 +15,14 @@ course and wale spacings (the fabric repeats every 2 a_x and 2 a_y).
 
 from __future__ import annotations
 
-from ..base import Stitch
-from ..garter import MIRROR_CLASSES
-from ..stockinette_free import layout
+from ..stockinette_free import free_yarn_stitch
 
-STITCH = Stitch(
-    name="seed",
-    description="seed: knit and purl alternating in both directions (images with m + n odd "
-    "mirrored)",
-    state_names=layout.STATE_NAMES,
-    n_segments=layout.N_SEGMENTS,
-    segment_weights=layout.SEGMENT_WEIGHTS,
-    bounds=layout.state_bounds,
-    twist_index=None,
-    starts=layout.STARTS,
-    data_package=f"{__name__}.data",
-    geometry_module="knitsweep.stitches.rib.geometry",
-    images="glides",
-    contact_classes=MIRROR_CLASSES,
-    path_order=tuple(range(layout.N_SEGMENTS)),
-    closing_shift=(1, 0),
+STITCH = free_yarn_stitch(
+    "seed",
+    "seed: knit and purl alternating in both directions (images with m + n odd mirrored)",
+    __name__,
     mirror_parity=(1, 1),
-    rough=True,
+    geometry_module="knitsweep.stitches.rib.geometry",
     stage_dL_mm=1.0,
 )
 """The seed stitch: one knit stitch, its images with m + n odd mirrored."""

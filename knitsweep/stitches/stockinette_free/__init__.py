@@ -11,23 +11,48 @@ ansatz exactly (``ansatz.to_free``) and measures how much that ansatz restricts.
 
 from __future__ import annotations
 
-from ..base import TRANSLATION_CLASSES, Stitch
+from types import ModuleType
+from typing import Any
+
+from ..base import MIRROR_CLASSES, TRANSLATION_CLASSES, Stitch
 from . import layout
 
-STITCH = Stitch(
-    name="stockinette_free",
-    description="stockinette as a free periodic yarn (every control point free, G2 joints)",
-    state_names=layout.STATE_NAMES,
-    n_segments=layout.N_SEGMENTS,
-    segment_weights=layout.SEGMENT_WEIGHTS,
-    bounds=layout.state_bounds,
-    twist_index=None,
-    starts=layout.STARTS,
-    data_package=f"{__name__}.data",
-    geometry_module=f"{__name__}.geometry",
-    images="translations",
-    contact_classes=TRANSLATION_CLASSES,
-    path_order=tuple(range(layout.N_SEGMENTS)),
-    closing_shift=(1, 0),
+
+def free_yarn_stitch(name: str, description: str, package: str, *,
+                     mirror_parity: tuple[int, int] = (0, 0), geometry_module: str = "",
+                     state: ModuleType = layout, **options: Any) -> Stitch:  # fmt: skip
+    """A stitch of the free periodic yarn (this package's 8 segments, each counted once,
+    no twist entry): the state, bounds and starts of the layout module ``state`` (this
+    package's ``layout``; garter's adds z0), its starts in ``package + ".data"``, its
+    geometry kernel in ``package + ".geometry"`` (or ``geometry_module``). A
+    ``mirror_parity`` other than (0, 0) makes it a knit/purl pattern: glide images, the
+    mirrored contact classes, and relaxed as a rough stitch (``Stitch.rough``).
+    ``options``: the rest of ``Stitch``'s fields (``stage_dL_mm``)."""
+    glides = any(mirror_parity)
+    return Stitch(
+        name=name,
+        description=description,
+        state_names=state.STATE_NAMES,
+        n_segments=state.N_SEGMENTS,
+        segment_weights=layout.SEGMENT_WEIGHTS,
+        bounds=state.state_bounds,
+        twist_index=None,
+        starts=state.STARTS,
+        data_package=f"{package}.data",
+        geometry_module=geometry_module or f"{package}.geometry",
+        images="glides" if glides else "translations",
+        contact_classes=MIRROR_CLASSES if glides else TRANSLATION_CLASSES,
+        path_order=tuple(range(state.N_SEGMENTS)),
+        closing_shift=(1, 0),
+        mirror_parity=mirror_parity,
+        rough=glides,
+        **options,
+    )
+
+
+STITCH = free_yarn_stitch(
+    "stockinette_free",
+    "stockinette as a free periodic yarn (every control point free, G2 joints)",
+    __name__,
 )
 """The free stockinette yarn: stockinette's path and images, no crossover ansatz."""

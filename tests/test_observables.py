@@ -1,0 +1,91 @@
+"""Integration tier: one entry of the observable registry (``quantities.OBSERVABLE_REGISTRY``)
+puts an observable in the results file, the tables, the CSV files and the report; files
+written before it was registered still read."""
+
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from knitsweep.config import StitchParams
+from knitsweep.model import CellModel
+from knitsweep.quantities import (
+    COLUMN_QUANTITY,
+    OBSERVABLE_REGISTRY,
+    SCALARS,
+    column_name,
+    dataset_quantity,
+    registered,
+)
+
+
+def test_every_registered_observable_is_computable_and_named():
+    for o in OBSERVABLE_REGISTRY:
+        column_name(o.name, o.units)  # a unit with a table suffix
+        if o.kind == "sweep":
+            assert o.from_steps is not None and COLUMN_QUANTITY[o.column].units == o.units
+        else:
+            assert callable(getattr(CellModel, o.method)), o.name
+        if o.kind == "step":
+            assert dataset_quantity("sweeps", o.name) == o.quantity
+        if o.kind == "point":
+            assert SCALARS[o.name] == o.quantity
+    names = [(o.kind, o.name) for o in OBSERVABLE_REGISTRY]
+    assert len(set(names)) == len(names)
+
+
+def test_max_curvature_is_the_sampled_yarns_turning_rate():
+    """Against the circumradius of three consecutive points of the centre-line sampled
+    finely (a curvature measured without derivatives)."""
+    model = CellModel(StitchParams(stitch="rib"))
+    x = model.stitch.start(1)
+    cp = model.control_points(x)
+    t = np.linspace(0.0, 1.0, 4001)
+    from math import comb
+
+    basis = np.stack([comb(5, i) * t**i * (1 - t) ** (5 - i) for i in range(6)], axis=1)
+    pts = np.einsum("ti,sic->stc", basis, cp)
+    a, b, c = pts[:, :-2], pts[:, 1:-1], pts[:, 2:]
+    ab, bc, ca = (np.linalg.norm(v, axis=-1) for v in (b - a, c - b, a - c))
+    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=-1)
+    kappa = float(np.max(2 * area2 / (ab * bc * ca)))
+    assert model.max_curvature(x, samples=4001) == pytest.approx(kappa, rel=1e-5)
+    assert model.max_curvature(x) == pytest.approx(kappa, rel=2e-3)  # 64 samples
+
+
+def test_a_run_stores_and_tabulates_every_registered_observable(tiny_reference, tmp_path):
+    import knitsweep
+    from knitsweep.report.html import header
+    from knitsweep.report.tables import write_tables
+
+    with h5py.File(tiny_reference, "r") as f:
+        sweeps = f["sweeps"]
+        for o in registered("step"):
+            col = next(k for k in sweeps if k == o.name or k.startswith(o.name))
+            assert sweeps[col].attrs["units"] == o.units
+    res = knitsweep.load(tiny_reference)
+    for o in registered("point"):
+        assert np.all(np.isfinite(res.points[o.column].astype(float))), o.column
+    for o in registered("step"):
+        assert np.all(np.isfinite(res.curves[column_name(o.name, o.units)])), o.name
+    peak = res.curves.groupby("task_id")["max_curvature_per_mm"].max()
+    got = res.sweeps.set_index("task_id")["peak_curvature_per_mm"]
+    np.testing.assert_array_equal(got.loc[peak.index].to_numpy(), peak.to_numpy())
+    assert header("peak_curvature_per_mm") == "largest curvature (1/mm)"
+    written = {p.name: p for p in write_tables(res, tmp_path / "tables")}
+    assert "peak_curvature_per_mm" in written["sweeps.csv"].read_text().splitlines()[0]
+    pytest.importorskip("xarray")
+    ds = res.to_xarray()
+    assert ds["peak_curvature_per_mm"].attrs["units"] == "1/mm"
+
+
+def test_a_file_written_before_an_observable_reads_without_it(data_dir, tmp_path):
+    import knitsweep
+
+    old = tmp_path / "old.h5"
+    shutil.copy(data_dir / "schema2_tiny.h5", old)
+    res = knitsweep.load(old)
+    assert len(res.sweeps) and res.sweeps["peak_curvature_per_mm"].isna().all()
+    assert res.points["max_curvature0_per_mm"].isna().all()
+    assert "max_curvature_per_mm" not in res.curves and len(res.curves)
