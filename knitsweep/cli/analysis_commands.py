@@ -28,6 +28,7 @@ from .common import (
     stitch_inputs,
     user_errors,
 )
+from .model_commands import PresetOpt
 
 ThresholdOpt = Annotated[
     float | None,
@@ -140,8 +141,8 @@ def render(
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
     r_core: RcOpt = None, stitch: StitchOpt = None, config: ConfigOpt = None,
     preset: PresetOpt = None,
-    starts: Annotated[int, typer.Option("--starts", help="relaxing: shipped starts to relax "
-                                        "from, the lowest energy kept")] = 1,
+    starts: Annotated[int, option("--starts", help="starts per point (relaxing: neither "
+                                  "--state nor --results)", default="1")] = 1,
     radius: Annotated[
         float | None,
         option("--radius", help="tube radius to draw (mm)", default="the yarn radius r"),
