@@ -28,7 +28,6 @@ from .common import (
     stitch_inputs,
     user_errors,
 )
-from .model_commands import PresetOpt
 
 ThresholdOpt = Annotated[
     float | None,
