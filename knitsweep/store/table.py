@@ -188,6 +188,7 @@ class _Columns:
             for col, (name, role, dtype, dims) in listed.items():
                 if not (isinstance(name, str) and role in ("array", "scalar")):
                     raise ValueError(col)
+                col.encode(), name.encode()  # a flipped byte may leave no UTF-8 (\udcxx)
                 self._register(col, name, role, np.dtype(dtype), tuple(map(str, dims)))
         except Exception as e:  # a JSON that no longer parses, or not a description
             raise Damaged(f"/{kind}: column description unreadable ({type(e).__name__})") from None
@@ -322,7 +323,13 @@ class _Columns:
 
 
 def _rows_of(task_ids: np.ndarray) -> dict[str, int]:
-    return {_decode(t): i for i, t in enumerate(task_ids)}
+    return {_task_id(t): i for i, t in enumerate(task_ids)}
+
+
+def _task_id(v: Any) -> str:
+    """A stored task id; a damaged one (no UTF-8 left) read with U+FFFD in place of
+    its bad bytes, so that its row fails its digest instead of the whole table."""
+    return v.decode("utf-8", "replace") if isinstance(v, bytes) else v
 
 
 def put_rows(group, kind: str, entries: list[Entry], prepared: dict | None = None) -> None:
@@ -408,15 +415,18 @@ def table_entries(group, kind: str, check: FileCheck | None = None,
         if not salvage:
             return
         columns = _Columns(group, kind, described=False)
-    tasks = [_decode(t) for t in group[TASK][()]]
+    tasks = [_task_id(t) for t in group[TASK][()]]
     for start in range(0, len(tasks), READ_ROWS):
         stop = min(start + READ_ROWS, len(tasks))
         block, unreadable = {}, {}
         for name in (ENTRY, DIGEST, *columns.dims):
             try:
                 block[name] = group[name][start:stop]
-            except Exception as e:  # HDF5 raises OSError, RuntimeError … on damage
+            except Exception as e:  # HDF5 raises OSError, KeyError, RuntimeError … on damage
                 unreadable[name] = f"column {name} unreadable ({type(e).__name__})"
+        if check is not None:  # a column HDF5 cannot read cannot be written either
+            check.structure += [f"/{kind}: {why}" for why in unreadable.values()
+                                if f"/{kind}: {why}" not in check.structure]  # fmt: skip
         for i, tid in enumerate(tasks[start:stop]):
             if not tid or (kind, tid) in skip:
                 continue
@@ -448,8 +458,8 @@ def find_row(group, kind: str, task_id: str) -> Entry | None:
 
 def _row_entry(kind: str, task_id: str, block: dict, i: int, columns: _Columns) -> Entry:
     """The verified entry of row ``i`` of ``block`` (the columns' rows read); ``Damaged``."""
-    entry_json, digest = _decode(block[ENTRY][i]), _decode(block[DIGEST][i])
-    try:
+    try:  # a flipped byte may leave a string that is no UTF-8
+        entry_json, digest = _decode(block[ENTRY][i]), _decode(block[DIGEST][i])
         listed = json.loads(entry_json)
         attrs, placed = listed["attrs"], listed["arrays"]
         arrays = {}
