@@ -326,9 +326,7 @@ def _rows_of(task_ids: np.ndarray) -> dict[str, int]:
     return {_task_id(t): i for i, t in enumerate(task_ids)}
 
 
-def _task_id(v: Any) -> str:
-    """A stored task id; a damaged one (no UTF-8 left) read with U+FFFD in place of
-    its bad bytes, so that its row fails its digest instead of the whole table."""
+def _task_id(v: Any) -> str:  # a damaged id's bad bytes read as U+FFFD: its row fails its digest
     return v.decode("utf-8", "replace") if isinstance(v, bytes) else v
 
 
@@ -424,9 +422,9 @@ def table_entries(group, kind: str, check: FileCheck | None = None,
                 block[name] = group[name][start:stop]
             except Exception as e:  # HDF5 raises OSError, KeyError, RuntimeError … on damage
                 unreadable[name] = f"column {name} unreadable ({type(e).__name__})"
-        if check is not None:  # a column HDF5 cannot read cannot be written either
-            check.structure += [f"/{kind}: {why}" for why in unreadable.values()
-                                if f"/{kind}: {why}" not in check.structure]  # fmt: skip
+        for why in unreadable.values():  # a column HDF5 cannot read cannot be written either
+            if check is not None and f"/{kind}: {why}" not in check.structure:
+                check.structure.append(f"/{kind}: {why}")
         for i, tid in enumerate(tasks[start:stop]):
             if not tid or (kind, tid) in skip:
                 continue
