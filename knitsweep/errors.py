@@ -27,6 +27,11 @@ class StorageError(OSError):
     read-only or missing directory, permissions): one line for the user."""
 
 
+HDF5_DAMAGE = ("B-tree", "signature", "object header", "heap", "checksum", "not aligned",
+               "addr overflow")  # fmt: skip
+"""Words of HDF5's reports of a write that met damaged metadata (not a disk's fault)."""
+
+
 def storage_error(what: Any, e: BaseException) -> StorageError:
     """A one-line StorageError for a failed write of ``what``; a symbolic link found in
     place of another file than ``what`` (a shadow or journal swapped for one) is named
@@ -47,6 +52,9 @@ def storage_error(what: Any, e: BaseException) -> StorageError:
         reason = "the disk quota is exceeded"
     elif code == errno.ELOOP:
         reason = "it is a symbolic link (knitsweep never writes through one)"
+    elif any(sign in text for sign in HDF5_DAMAGE):
+        code, reason = errno.EBADMSG, f"the file is damaged ({text.splitlines()[0]})"
+        return StorageError(code, f"cannot write {what}: {reason}", str(what))
     else:
         reason = getattr(e, "strerror", None) or (text.splitlines() or [type(e).__name__])[0]
     return StorageError(code or errno.EIO, f"cannot write {what}: {reason}")
@@ -61,6 +69,8 @@ def remedy(e: BaseException) -> str:
         return "make the directory writable (or move the files to one that is)"
     if code == errno.ELOOP:
         return "remove the symbolic link"
+    if code == errno.EBADMSG and getattr(e, "filename", None):
+        return f"run `knitsweep recover {e.filename}` (it rebuilds the file from its intact tasks)"
     return "fix the cause"
 
 

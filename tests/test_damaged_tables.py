@@ -14,7 +14,7 @@ import shutil
 import h5py
 import pytest
 from conftest import TINY, assert_same_results
-from test_integrity import knitsweep_cli
+from test_integrity import flip, knitsweep_cli
 
 from knitsweep.store.checksum import FileCheck
 from knitsweep.store.read import iter_entries
@@ -22,11 +22,7 @@ from knitsweep.store.read import iter_entries
 
 def xor(path, offset: int, n: int) -> None:
     """The campaign's flip: ``n`` bytes at ``offset`` XOR 0xA5."""
-    with open(path, "r+b") as fh:
-        fh.seek(offset)
-        data = fh.read(n)
-        fh.seek(offset)
-        fh.write(bytes(b ^ 0xA5 for b in data))
+    flip(path, offset, n, mask=0xA5)
 
 
 def assert_refused(out) -> None:
@@ -113,3 +109,27 @@ def test_a_spoilt_chunk_index_is_refused_naming_recover(tiny_reference, tmp_path
     assert f"/sweeps: column {column} unreadable (OSError)" in check.structure
     assert len([e for e in kept if e.kind == "points"]) == 2  # the other table reads
     assert_recovers(out, tiny_reference)
+
+
+def test_a_write_that_meets_damaged_metadata_names_recover(tiny_reference, tmp_path,
+                                                           monkeypatch, capsys):  # fmt: skip
+    """Damage that reading did not see but a write meets (HDF5's "wrong B-tree
+    signature" while a recomputed row is written) names ``knitsweep recover``, not
+    "fix the cause" (rerunning alone meets it again)."""
+    from knitsweep import service
+    from knitsweep.store import writer
+
+    out = tmp_path / "f.h5"
+    shutil.copy(tiny_reference, out)
+    with h5py.File(out, "r+") as f:  # one row's entry changed: that sweep is recomputed
+        f["sweeps/entry"][0] = f["sweeps/entry"][0].decode().replace("{", "{ ", 1)
+
+    def put(*args):
+        raise RuntimeError("Can't synchronously write data (wrong B-tree signature)")
+
+    monkeypatch.setattr(writer, "_put", put)
+    summary = service.run(TINY, out, executor="serial", show_progress=False)
+    assert summary.interrupted and "the file is damaged" in summary.storage_error
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and f"run `knitsweep recover {out}`" in errors[0], errors
+    assert "fix the cause" not in errors[0]

@@ -32,12 +32,12 @@ def knitsweep_cli(*args, timeout=600):
                           capture_output=True, text=True, timeout=timeout, env=env)  # fmt: skip
 
 
-def flip(path, offset, n=64):
+def flip(path, offset, n=64, mask=0x5A):
     with open(path, "r+b") as fh:
         fh.seek(offset)
         data = fh.read(n)
         fh.seek(offset)
-        fh.write(bytes(b ^ 0x5A for b in data))
+        fh.write(bytes(b ^ mask for b in data))
 
 
 def data_offset(ds) -> int:
