@@ -133,3 +133,22 @@ def test_a_write_that_meets_damaged_metadata_names_recover(tiny_reference, tmp_p
     errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and f"run `knitsweep recover {out}`" in errors[0], errors
     assert "fix the cause" not in errors[0]
+
+
+def test_a_string_column_left_without_utf8_is_a_damaged_row(tiny_reference, tmp_path):
+    out = tmp_path / "f.h5"
+    shutil.copy(tiny_reference, out)
+    with h5py.File(out, "r") as f:
+        tid, message = f["sweeps/task"].asstr()[0], f["sweeps/message"][0]
+    data = out.read_bytes()
+    # the column's cell in its heap (not the copy inside the entry's JSON, in quotes)
+    at = [m.start() for m in re.finditer(re.escape(message) + rb"\0", data)
+          if data[m.start() - 1 : m.start()] != b'"']  # fmt: skip
+    assert len(at) == 1
+    xor(out, at[0] + len(message) // 2, 1)
+    status = knitsweep_cli("status", out)
+    assert status.returncode == 0 and "Traceback" not in status.stderr, status.stderr
+    assert f"damaged sweep {tid}: its message column disagrees" in status.stdout
+    run = knitsweep_cli("run", TINY, "--out", out, "--quiet")
+    assert run.returncode == 0 and "(5 already finished)" in run.stderr, run.stderr
+    assert_same_results(tiny_reference, out)

@@ -323,10 +323,10 @@ class _Columns:
 
 
 def _rows_of(task_ids: np.ndarray) -> dict[str, int]:
-    return {_task_id(t): i for i, t in enumerate(task_ids)}
+    return {_text(t): i for i, t in enumerate(task_ids)}
 
 
-def _task_id(v: Any) -> str:  # a damaged id's bad bytes read as U+FFFD: its row fails its digest
+def _text(v: Any) -> str:  # bad bytes (damage) read as U+FFFD: the row fails its checks
     return v.decode("utf-8", "replace") if isinstance(v, bytes) else v
 
 
@@ -413,7 +413,7 @@ def table_entries(group, kind: str, check: FileCheck | None = None,
         if not salvage:
             return
         columns = _Columns(group, kind, described=False)
-    tasks = [_task_id(t) for t in group[TASK][()]]
+    tasks = [_text(t) for t in group[TASK][()]]
     for start in range(0, len(tasks), READ_ROWS):
         stop = min(start + READ_ROWS, len(tasks))
         block, unreadable = {}, {}
@@ -482,7 +482,7 @@ def _row_entry(kind: str, task_id: str, block: dict, i: int, columns: _Columns) 
         want = v if v is not None and _scalar_dtype(v) == columns.dtype[col] else None
         got = block[col][i]
         if columns.dtype[col].kind == "O":
-            ok = _decode(got) == (want if want is not None else "")
+            ok = _text(got) == (want if want is not None else "")
         else:
             w = np.nan if want is None else float(want)
             ok = bool(got == w or (np.isnan(got) and np.isnan(w)))
