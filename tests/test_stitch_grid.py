@@ -173,8 +173,9 @@ def test_progress_lines_name_the_stitch_when_a_job_has_several(two):
 
 def test_the_patterns_figure_sets_the_stitches_side_by_side(two, tiny_reference):
     """figP_patterns: a tick per stitch with its x and y transitions (the marker at
-    (L/r)_trans, the bar down to the bracket's lower end), a Y_sec curve per stitch and
-    direction, an aspect-ratio curve per stitch; a one-stitch study skips it."""
+    (L/r)_trans, the bar down to the bracket's lower end), each stitch's shift against the
+    free yarn, a Y_sec curve per stitch and direction, an aspect-ratio curve per stitch; a
+    one-stitch study skips it."""
     from knitsweep.report.fig_patterns import figP_patterns
     from knitsweep.report.plotting import SkipFigure, style
 
@@ -182,7 +183,7 @@ def test_the_patterns_figure_sets_the_stitches_side_by_side(two, tiny_reference)
     red = reduce_results(out)
     with style():
         fig = figP_patterns(red, [])
-        ax_t, ax_y, ax_a = fig.axes[:3]
+        ax_t, _shift, ax_y, ax_a = fig.axes[:4]  # (b): each stitch against the free yarn
         assert [t.get_text() for t in ax_t.get_xticklabels()] == list(STITCHES)
         drawn = sorted(round(float(c.lines[0].get_ydata()[0]), 9) for c in ax_t.containers)
         want = sorted(round(t["L_over_r_trans"], 9) for t in red.transitions
