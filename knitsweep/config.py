@@ -347,6 +347,14 @@ takes the lower state as the point's zero-force state (``SweepProtocol.rest_tole
 a tenth of the paper's energy-gap threshold."""
 
 
+def _without_default(out: dict[str, Any], name: str, default: Any) -> dict[str, Any]:
+    """A settings dump ``out`` without field ``name`` where it holds ``default`` (a field
+    added later, left out of task ids and job hashes so that earlier jobs keep theirs)."""
+    if name in out and type(out[name]) is type(default) and out[name] == default:
+        del out[name]
+    return out
+
+
 class SweepProtocol(BaseModel):
     """The strain schedule; defaults are the authors' (docs/model.md §8)."""
 
@@ -418,10 +426,7 @@ class SweepProtocol(BaseModel):
     def _rest_tolerance_as_before(self, handler) -> dict[str, Any]:
         # the default is left out of every dump (task ids, the job's hash), so that jobs
         # from before sweeps checked their zero-force state keep them
-        out = handler(self)
-        if out.get("rest_tolerance_mJ") == REST_TOLERANCE_MJ:
-            del out["rest_tolerance_mJ"]
-        return out
+        return _without_default(handler(self), "rest_tolerance_mJ", REST_TOLERANCE_MJ)
 
     @field_validator("observables", mode="before")
     @classmethod
@@ -477,7 +482,4 @@ class StartSettings(BaseModel):
     def _uncarried_as_before(self, handler) -> dict[str, Any]:
         # carry = false is left out of every dump (task ids, the job's hash, the
         # results file's job_json), so that jobs from before it existed keep them
-        out = handler(self)
-        if out.get("carry") is False:
-            del out["carry"]
-        return out
+        return _without_default(handler(self), "carry", False)
