@@ -32,7 +32,7 @@ from .config import (
 from .model import CellModel
 from .plain import plain_value
 from .relax import Relaxation, Relaxer, single_threaded, walk_starts
-from .relax.continuation import relax_rough
+from .relax.continuation import relax_zero_force
 from .stitches import DEFAULT_STITCH
 
 # the parameters the shipped Init files were made for (the authors' k = 0.1 mN/mm^2
@@ -198,13 +198,11 @@ class ZeroForce:
 def relax_at_rest(model: CellModel, x: np.ndarray, solver: SolverSettings | None = None
                   ) -> Relaxation:  # fmt: skip
     """The zero-force relaxation (both periods free) from state ``x`` at the model's own
-    parameters, as the last stage of a continuation relaxes it (a rough stitch's by
-    ``relax.continuation.relax_rough``: the lower of two descents)."""
+    parameters, as the last stage of a continuation relaxes it
+    (``relax.continuation.relax_zero_force``), on one thread."""
     solver = solver or SolverSettings()
     with single_threaded():
-        if model.stitch.rough:
-            return relax_rough(Relaxer(solver), model, x, solver)
-        return Relaxer(solver).relax(model, x, None)
+        return relax_zero_force(Relaxer(solver), model, x, solver)
 
 
 def pick_lowest(results: list[Relaxation] | tuple[Relaxation, ...]) -> tuple[int, str]:

@@ -120,10 +120,8 @@ def walk_starts(
                 stage = settings if last else loose
                 if rough and not last:
                     c.last = Relaxer(_slsqp(stage)).relax(model, c.x, None)
-                elif rough:
-                    c.last = relax_rough(c.relaxer, model, c.x, stage)
                 else:
-                    c.last = c.relaxer.relax(model, c.x, None, stage)
+                    c.last = relax_zero_force(c.relaxer, model, c.x, stage)
                 r = c.last
                 if not np.all(np.isfinite(r.x)) or (not last and r.status == NOT_KNITTABLE):
                     where = (
@@ -145,6 +143,16 @@ def walk_starts(
         note = f"merged into start {j} at continuation stage {merged_at[i]}/{total}: same minimum"
         done[int(i)] = replace(r, message=note, iterations=0, evaluations=0, seconds=0.0), total
     return [done[i] for i in range(n)], merged_into, merged_at
+
+
+def relax_zero_force(relaxer: Relaxer, model: CellModel, x: np.ndarray,
+                     settings: SolverSettings) -> Relaxation:  # fmt: skip
+    """The zero-force relaxation (both periods free) from ``x`` at the model's own
+    parameters, as a walk's last stage relaxes it: a ``Stitch.rough`` stitch by
+    ``relax_rough`` (the lower of two descents), any other by ``relaxer``."""
+    if model.stitch.rough:
+        return relax_rough(relaxer, model, x, settings)
+    return relaxer.relax(model, x, None, settings)
 
 
 def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
