@@ -194,7 +194,8 @@ def test_recover_answers_signals_and_leaves_no_temporary_file(small, tmp_path, h
     size = small.stat().st_size
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     ended = []
-    for delay in (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0):  # (from when knitsweep handles them)
+    delays = (0.0, 0.05, 0.1, 0.2, 0.35, 0.5, 1.0)  # from when knitsweep catches the signals
+    for delay in delays:
         d = tmp_path / f"{how}{delay}"
         d.mkdir()
         f = d / "x.h5"
@@ -202,6 +203,7 @@ def test_recover_answers_signals_and_leaves_no_temporary_file(small, tmp_path, h
         before = f.read_bytes()
         proc = subprocess.Popen([sys.executable, "-m", "knitsweep", "recover", str(f)], env=env,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+        _wait_until_it_catches_sigterm(proc)
         time.sleep(delay)
         sent = time.monotonic()
         proc.send_signal(getattr(signal, how))
@@ -221,7 +223,22 @@ def test_recover_answers_signals_and_leaves_no_temporary_file(small, tmp_path, h
         assert sorted(p.name for p in d.iterdir()) == ["x.h5"], (delay, list(d.iterdir()))
         assert f.read_bytes() == before
     assert ended, "every recover finished before its signal"
-    print(f"{how}: {len(ended)} of 7 recovers interrupted, at {ended} s")
+    print(f"{how}: {len(ended)} of {len(delays)} recovers interrupted, at {ended} s")
+
+
+def _wait_until_it_catches_sigterm(proc) -> None:
+    """Until the process's SIGTERM handler is installed (its caught-signal mask in
+    /proc), so that the instants count from then on a fast machine as on a slow one:
+    before it, the interpreter still starts and the promise is not yet made."""
+    bit = 1 << (signal.SIGTERM - 1)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and proc.poll() is None:
+        status = Path(f"/proc/{proc.pid}/status").read_text()
+        caught = next(line for line in status.splitlines() if line.startswith("SigCgt:"))
+        if int(caught.split()[1], 16) & bit:
+            return
+        time.sleep(0.002)
+    raise AssertionError("recover never installed its SIGTERM handler")
 
 
 # ---- a damaged column description ------------------------------------------------------
