@@ -15,6 +15,7 @@ import numpy as np
 
 from .analysis.volumes.geometry import fabric_depth
 from .config import Fidelity, InternalParams, StitchParams
+from .kernels.arclength import arclength_rule
 from .kernels.bezier import basis_tables, even_tables, gauss_legendre, midpoints
 from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE
 from .kernels.forces import N_CLASSES
@@ -63,6 +64,9 @@ RESOLUTION_RTOL = 0.25
 at most this fraction (measured at relaxed states with speeds within
 ``stockinette_free.layout.SPEED_BOUNDS``: 4–9 %; a yarn whose cores pass between sparse
 samples: 12-fold, docs/model.md §11)."""
+ARC_PANELS, ARC_NODES = 2, 8
+"""The composite Gauss rule (panels, nodes per panel) of a segment's arclength S(t) when
+the contact samples are placed by arclength (``kernels.arclength``)."""
 
 
 class CellModel:
@@ -89,6 +93,15 @@ class CellModel:
         self._ctab = np.ascontiguousarray(
             basis_tables(midpoints(self.fidelity.samples_per_segment))[:2]
         )
+        self._aq = np.empty((2, 0))
+        """The arclength rule of contact samples placed by arclength (a pattern's free
+        yarn with ``Fidelity.contact_sampling = "arclength"``, ``kernels.arclength``);
+        empty: the samples sit at the curve parameters of ``_ctab``."""
+        if self.fidelity.contact_sampling == "arclength" and self.image_group.checks_resolution:
+            self._aq = arclength_rule(ARC_PANELS, ARC_NODES)
+        self.sampling = "arclength" if self._aq.shape[1] > 0 else "parameter"
+        """Where this model's contact samples sit: "parameter" or "arclength" (its state
+        bounds follow, ``relax.problem``)."""
         self._mode = IMAGES_CUTOFF if self.fidelity.images == "cutoff" else IMAGES_REFERENCE
         self._grad_e = np.empty(self.stitch.n_state)
         self._grad_l = np.empty(self.stitch.n_state)

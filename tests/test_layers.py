@@ -45,8 +45,9 @@ LAYERS = [
 # inside each subpackage, its modules bottom to top (a module may import those before it);
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
-    "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
-                "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks", "raster"],
+    "kernels": ["bezier", "elementary", "arclength", "partition", "bending", "contact",
+                "neighbours", "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell",
+                "checks", "raster"],
     "stitches": ["base", "topology", "patterns", "images", "stockinette", "stockinette_free",
                  "garter", "rib", "seed"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
