@@ -87,7 +87,7 @@ def main() -> None:
     ap.add_argument("--k", type=float, default=0.1)
     ap.add_argument(
         "--sampling",
-        choices=("parameter", "arclength"),
+        choices=("parameter", "arclength", "yarn_arclength"),
         default="parameter",
         help="where the contact samples sit (Fidelity.contact_sampling)",
     )

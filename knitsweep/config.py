@@ -205,7 +205,7 @@ class StitchParams(BaseModel):
 
 
 ImageMode = Literal["cutoff", "reference"]
-ContactSampling = Literal["parameter", "arclength"]
+ContactSampling = Literal["parameter", "arclength", "yarn_arclength"]
 
 
 class Fidelity(BaseModel):
@@ -229,7 +229,8 @@ class Fidelity(BaseModel):
         description="where a pattern's (garter, rib, seed) contact samples sit in each "
         "segment: 'parameter' (at the curve parameters (j + 1/2)/N, the paper's) or "
         "'arclength' (at those fractions of the segment's arclength, whatever its end "
-        "speeds; docs/model.md §11); every other stitch samples by parameter",
+        "speeds) or 'yarn_arclength' (evenly spaced along the whole yarn, wherever its "
+        "joints sit; docs/model.md §11); every other stitch samples by parameter",
     )
 
     @model_serializer(mode="wrap")

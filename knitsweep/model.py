@@ -97,9 +97,12 @@ class CellModel:
         """The arclength rule of contact samples placed by arclength (a pattern's free
         yarn with ``Fidelity.contact_sampling = "arclength"``, ``kernels.arclength``);
         empty: the samples sit at the curve parameters of ``_ctab``."""
-        if self.fidelity.contact_sampling == "arclength" and self.image_group.checks_resolution:
+        sampling = self.fidelity.contact_sampling
+        if sampling != "parameter" and self.image_group.checks_resolution:
             self._aq = arclength_rule(ARC_PANELS, ARC_NODES)
-        self.sampling = "arclength" if self._aq.shape[1] > 0 else "parameter"
+            if sampling == "yarn_arclength":  # a third row asks for the whole yarn's
+                self._aq = np.ascontiguousarray(np.vstack([self._aq, self._aq[:1]]))
+        self.sampling = sampling if self._aq.shape[1] > 0 else "parameter"
         """Where this model's contact samples sit: "parameter" or "arclength" (its state
         bounds follow, ``relax.problem``)."""
         self._mode = IMAGES_CUTOFF if self.fidelity.images == "cutoff" else IMAGES_REFERENCE

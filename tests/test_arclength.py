@@ -19,7 +19,9 @@ from knitsweep.relax.problem import _state_box
 from knitsweep.stitches.stockinette_free.layout import SEG0
 
 ARC = Fidelity(contact_sampling="arclength")
+YARN = Fidelity(contact_sampling="yarn_arclength")
 PATTERNS = ("garter", "rib", "seed")
+SAMPLINGS = [(name, f) for name in PATTERNS for f in (ARC, YARN)]
 
 
 def _model(name, fidelity=ARC, L=11.0):
@@ -57,9 +59,9 @@ def test_samples_sit_at_equal_arclength_fractions():
     assert np.max(np.abs(t[3] - (np.arange(n) + 0.5) / n)) > 0.05
 
 
-@pytest.mark.parametrize("name", PATTERNS)
-def test_gradient_matches_central_differences(name):
-    m = _model(name)
+@pytest.mark.parametrize(("name", "fid"), SAMPLINGS)
+def test_gradient_matches_central_differences(name, fid):
+    m = _model(name, fid)
     x = m.stitch.start(2)
     e, g, _ = m.energy_and_gradients(x)
     assert e.contact_energy > 0.0
@@ -73,11 +75,11 @@ def test_gradient_matches_central_differences(name):
     np.testing.assert_allclose(g, fd, rtol=0, atol=1e-7 * np.max(np.abs(g)))
 
 
-@pytest.mark.parametrize("name", PATTERNS)
-def test_class_forces_are_minus_the_period_derivatives(name):
+@pytest.mark.parametrize(("name", "fid"), SAMPLINGS)
+def test_class_forces_are_minus_the_period_derivatives(name, fid):
     """Each class's force on a period is -dE_c(class)/da at fixed shape (through the
     samples' parameters too), by central differences of the class energies."""
-    m = _model(name)
+    m = _model(name, fid)
     x = m.stitch.start(1)
     forces, _ = m.contacts_by_class(x)
     h = 1e-6
@@ -89,9 +91,9 @@ def test_class_forces_are_minus_the_period_derivatives(name):
         np.testing.assert_allclose(forces[:, col], fd, rtol=1e-6, atol=1e-11)
 
 
-@pytest.mark.parametrize("name", PATTERNS)
-def test_culled_sum_is_the_exhaustive_one(name):
-    m = _model(name)
+@pytest.mark.parametrize(("name", "fid"), SAMPLINGS)
+def test_culled_sum_is_the_exhaustive_one(name, fid):
+    m = _model(name, fid)
     x = m.stitch.start(1)
     cp = m.control_points(x)
     ip = m.ip
@@ -132,3 +134,21 @@ def test_min_zeta_uses_the_same_samples():
     x = m.stitch.start(1)
     z_arc, z_par = m.min_zeta(x), _model("seed", Fidelity()).min_zeta(x)
     assert 0.0 < z_arc < 1.0 and z_arc != z_par
+
+
+def test_yarn_samples_are_evenly_spaced_along_the_yarn():
+    """With "yarn_arclength" the samples sit at (i + 1/2)/(S N) of the whole yarn: their
+    arclengths along it are exact multiples, however unequal the segments."""
+    from knitsweep.kernels.arclength import yarn_sample_cell
+
+    m = _model("garter", YARN)
+    cp = m.control_points(m.stitch.start(1))
+    _, _, _, speed, _, total, st = yarn_sample_cell(cp, 10, m._aq)
+    ell = np.array([_arclength(cp[s], 1.0) for s in range(8)])
+    assert total == pytest.approx(ell.sum(), rel=1e-8)
+    before = np.concatenate([[0.0], np.cumsum(ell)])
+    for i in range(80):
+        s, t = int(st[i, 0]), st[i, 1]
+        assert before[s] + _arclength(cp[s], t) == pytest.approx((i + 0.5) / 80 * total, rel=1e-8)
+    assert np.all(speed == total / 8)
+    assert len(set(st[:, 0].astype(int))) == 8

@@ -194,3 +194,101 @@ def project_arclength_gradient(g, cp, r1, t, aq, grad_cp):
         for c in range(6):
             for d in range(3):
                 grad_cp[s, c, d] += gl * dl[c, d]
+
+
+# ---- samples evenly spaced along the whole yarn --------------------------------------
+# With a rule ``aq`` of three rows (the third is not read) the S N samples sit at the
+# fractions (i + 1/2)/(S N) of the whole yarn's arclength, each in the segment that holds
+# it, so that neither the speeds nor where the joints sit along the yarn move them. Each
+# carries ℓ_tot / S as its "speed" (the pair weight (ℓ_tot / (S N))²), and with
+# F_i = S_{s_i}(t_i) − (f_i ℓ_tot − Σ_{s < s_i} ℓ_s):
+#     dt_i/dP_s = ([f_i − (s < s_i)] ∂ℓ_s/∂P − (s = s_i) ∂S_s(t_i)/∂P) / ∂S(t_i)/∂t.
+
+
+@njit(cache=True)
+def yarn_sample_cell(cp, n, aq):
+    """``arclength_sample_cell``'s arrays for samples evenly spaced along the whole yarn
+    (above); the parameters are returned as (S N, 2): segment, t."""
+    nseg = cp.shape[0]
+    ns = nseg * n
+    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    seglen = np.empty(nseg)
+    for s in range(nseg):
+        seglen[s] = _arc(cp, s, 1.0, aq, b, d1, d2, False)[0]
+    total = seglen.sum()
+    pts, r1, pos = np.empty((ns, 3)), np.empty((ns, 3)), np.empty((3, ns))
+    speed, s_mid, st = np.empty(ns), np.empty(ns), np.empty((ns, 2))
+    s, before, tj = 0, 0.0, 0.0
+    for i in range(ns):
+        goal = (i + 0.5) / ns * total
+        while s < nseg - 1 and goal - before > seglen[s]:
+            before += seglen[s]
+            s += 1
+            tj = 0.0
+        local = goal - before
+        tj = max(tj, min(local / seglen[s], 1.0 - 1e-12))
+        for _ in range(NEWTON_STEPS):
+            val, der = _arc(cp, s, tj, aq, b, d1, d2, True)
+            step = (val - local) / der
+            tn = tj - step
+            if tn <= 0.0:
+                tn = 0.5 * tj
+            elif tn >= 1.0:
+                tn = 0.5 * (tj + 1.0)
+            tj = tn
+            if abs(step) < 1e-11:
+                break
+        st[i, 0], st[i, 1] = s, tj
+        _basis(tj, b, d1, d2)
+        for d in range(3):
+            x = 0.0
+            y = 0.0
+            for c in range(6):
+                x += b[c] * cp[s, c, d]
+                y += d1[c] * cp[s, c, d]
+            pts[i, d] = x
+            pos[d, i] = x
+            r1[i, d] = y
+        speed[i] = total / nseg
+        s_mid[i] = goal
+    return pts, pos, r1, speed, s_mid, total, st
+
+
+@njit(cache=True)
+def project_yarn_gradient(g, cp, r1, st, aq, grad_cp):
+    """dE/dcp (S, 6, 3) from dE/dp_i and dE/dv_i (``g`` (S N, 4)) at the samples of
+    ``yarn_sample_cell`` (``st`` their segments and parameters)."""
+    nseg = cp.shape[0]
+    ns = st.shape[0]
+    grad_cp[:] = 0.0
+    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    ds = np.empty((6, 3))
+    coef = np.zeros(nseg)  # the coefficient of ∂ℓ_s/∂P
+    after = np.zeros(nseg)  # Σ A_i over the samples in segments after s
+    gv = 0.0
+    for i in range(ns):
+        s = int(st[i, 0])
+        tj = st[i, 1]
+        gv += g[i, 3]
+        gr = g[i, 0] * r1[i, 0] + g[i, 1] * r1[i, 1] + g[i, 2] * r1[i, 2]
+        if gr != 0.0:
+            a = gr / _arc(cp, s, tj, aq, b, d1, d2, True)[1]
+            f = (i + 0.5) / ns
+            for q in range(nseg):
+                coef[q] += a * f
+            for q in range(s):
+                after[q] += a
+            _arc_gradient(cp, s, tj, aq, b, d1, d2, ds)
+            for c in range(6):
+                for d in range(3):
+                    grad_cp[s, c, d] -= a * ds[c, d]
+        _basis(tj, b, d1, d2)
+        for c in range(6):
+            for d in range(3):
+                grad_cp[s, c, d] += b[c] * g[i, d]
+    for s in range(nseg):
+        _arc_gradient(cp, s, 1.0, aq, b, d1, d2, ds)
+        w = coef[s] - after[s] + gv / nseg
+        for c in range(6):
+            for d in range(3):
+                grad_cp[s, c, d] += w * ds[c, d]

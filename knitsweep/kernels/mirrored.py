@@ -46,7 +46,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .arclength import arclength_sample_cell, project_arclength_gradient
+from .arclength import (
+    arclength_sample_cell,
+    project_arclength_gradient,
+    project_yarn_gradient,
+    yarn_sample_cell,
+)
 from .contact import (
     EXCLUSION_FACTOR,
     accumulate_pairs,
@@ -244,8 +249,12 @@ def _fold_gradient(g2, speed, r1, tab, cp, t, aq, grad_cp):
 @njit(cache=True)
 def _samples(cp, tab, aq):
     """``contact.sample_cell``'s arrays and the samples' parameters (S, N): at the fixed
-    parameters of ``tab`` (``aq`` empty; the parameters then an empty array) or at
-    arclength fractions of each segment by the rule ``aq`` (``arclength``)."""
+    parameters of ``tab`` (``aq`` empty; the parameters then an empty array), at
+    arclength fractions of each segment by the rule ``aq`` (``arclength``; parameters
+    (S, N)), or with a third row in ``aq`` evenly spaced along the whole yarn
+    (``arclength.yarn_sample_cell``; (S N, 2) segments and parameters)."""
+    if aq.shape[1] > 0 and aq.shape[0] == 3:
+        return yarn_sample_cell(cp, tab.shape[1], aq)
     if aq.shape[1] > 0:
         return arclength_sample_cell(cp, tab.shape[1], aq)
     pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
@@ -255,7 +264,9 @@ def _samples(cp, tab, aq):
 @njit(cache=True)
 def _project(g, speed, r1, tab, cp, t, aq, grad_cp):
     """dE/dcp from dE/dp and dE/dv at the samples of ``_samples``."""
-    if aq.shape[1] > 0:
+    if aq.shape[1] > 0 and aq.shape[0] == 3:
+        project_yarn_gradient(g, cp, r1, t, aq, grad_cp)
+    elif aq.shape[1] > 0:
         project_arclength_gradient(g, cp, r1, t, aq, grad_cp)
     else:
         project_gradient(g, speed, r1, tab, grad_cp)

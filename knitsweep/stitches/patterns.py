@@ -19,7 +19,7 @@ from math import comb
 import numpy as np
 
 from ..errors import InputError
-from ..kernels.arclength import arclength_sample_cell
+from ..kernels.arclength import arclength_sample_cell, yarn_sample_cell
 from ..kernels.checks import pattern_min_zeta
 from .base import image_points
 
@@ -94,10 +94,11 @@ def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10, arc_rule=
     Compiled (``kernels.checks.pattern_min_zeta``): bit for bit what
     ``min_zeta_where_reference`` finds (which samples that are not finite are left to).
     With a non-empty ``arc_rule`` (2, K) the samples sit at arclength fractions of each
-    segment (``kernels.arclength``), as the contact sum's then do."""
+    segment, or with a third row evenly along the whole yarn (``kernels.arclength``), as
+    the contact sum's then do."""
     if arc_rule is not None and arc_rule.shape[1] > 0:
-        pts, _, _, _, s_mid, s_tot, _ = arclength_sample_cell(np.asarray(cp, dtype=float),
-                                                              samples, arc_rule)  # fmt: skip
+        place = yarn_sample_cell if arc_rule.shape[0] == 3 else arclength_sample_cell
+        pts, _, _, _, s_mid, s_tot, _ = place(np.asarray(cp, dtype=float), samples, arc_rule)
         if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(s_mid))):
             return (-np.inf, None, None, None)
     else:

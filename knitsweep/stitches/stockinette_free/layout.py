@@ -91,10 +91,10 @@ def state_bounds(L: float, r: float, sampling: str = "parameter") -> tuple[np.nd
     """Bounds (lower, upper), each (87,), for yarn length L and radius r (mm); ±inf where
     free (angles): curvature components within 10/r, joint points within L of joint 0,
     periods in [r/2, L]; speeds in ``SPEED_BOUNDS`` L and offsets within ``OFFSET_BOUND`` L
-    (the box that keeps samples at fixed parameters resolved), or with ``sampling`` =
-    "arclength" in ``ARCLENGTH_SPEED_BOUNDS`` L and within ``ARCLENGTH_OFFSET_BOUND`` L."""
+    (the box that keeps samples at fixed parameters resolved), or with samples placed by
+    arclength (``sampling`` "arclength" or "yarn_arclength") in ``ARCLENGTH_SPEED_BOUNDS`` L and within ``ARCLENGTH_OFFSET_BOUND`` L."""
     speeds, offset = SPEED_BOUNDS, OFFSET_BOUND
-    if sampling == "arclength":
+    if sampling != "parameter":  # "arclength" or "yarn_arclength"
         speeds, offset = ARCLENGTH_SPEED_BOUNDS, ARCLENGTH_OFFSET_BOUND
     lo = np.full(N_STATE, -np.inf)
     hi = np.full(N_STATE, np.inf)
