@@ -191,10 +191,10 @@ class CellModel:
     def resolution_change(self, x: np.ndarray, contact_energy: float | None = None) -> str:
         """For a stitch with mirrored images (a free yarn): "" if the contact sum of state
         ``x`` holds with twice the samples per segment (no hard-core overlap there, and
-        E_c within ``RESOLUTION_RTOL`` of this model's), else what it finds. The samples
-        sit at fixed curve parameters, so a free yarn can space them out where it
-        crosses itself and let hard cores pass between them (docs/model.md §11,
-        "Resolution"). Where the cores overlap with twice the samples the answer starts
+        E_c within ``RESOLUTION_RTOL`` of this model's), else what it finds. By default
+        the samples sit at fixed curve parameters, so a free yarn can space them out where
+        it crosses itself and let hard cores pass between them (docs/model.md §11,
+        "Resolution"); the finer model keeps this one's ``contact_sampling``. Where the cores overlap with twice the samples the answer starts
         with ``CORES_OVERLAP`` (a state too tight to knit, as one whose cores overlap
         at the model's samples). Stitches of translations alone are not checked ("")."""
         if not self.image_group.checks_resolution:
