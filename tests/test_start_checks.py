@@ -108,3 +108,42 @@ def test_run_refuses_a_shipped_start_that_overlaps_before_compute(monkeypatch, t
                                          r"yarn: .* segment \d+ of its image"):  # fmt: skip
         service.run(job, out, executor="serial", show_progress=False)
     assert not out.exists()
+
+
+def test_a_stitch_added_on_resume_has_its_starts_checked(monkeypatch, tmp_path, tiny_reference):
+    """A job grown by a stitch runs into its old file; the new stitch's shipped starts are
+    checked before compute (here garter's Init_3, squeezed), the file left as it was; the
+    stitches already in the file are not checked again."""
+    import shutil
+
+    from knitsweep import service
+    from knitsweep.service import runs
+    from knitsweep.service.jobs import load_job
+    from knitsweep.stitches.base import Stitch
+
+    out = tmp_path / "t.h5"
+    shutil.copy(tiny_reference, out)
+    before = out.read_bytes()
+    assert runs.stitches_in_file(out) == ("stockinette",)
+    start = Stitch.start
+
+    def damaged(self, index=1):
+        x = start(self, index)
+        if self.name == "garter" and index == 3:
+            x = x.copy()
+            x[-2:] *= 0.6
+        return x
+
+    monkeypatch.setattr(Stitch, "start", damaged)
+    grown = tmp_path / "grown.toml"
+    grown.write_text(
+        TINY.read_text().replace("[grid]", '[grid]\nstitch = ["stockinette", "garter"]')
+    )
+    with pytest.raises(InputError, match=r"shipped start Init_3(\.dat)? of garter = overlapping"):
+        service.run(grown, out, executor="serial", show_progress=False)
+    assert out.read_bytes() == before
+    checked = []
+    monkeypatch.setattr("knitsweep.zero_force.check_shipped_starts",
+                        lambda stitches, fidelity=None: checked.append(stitches))  # fmt: skip
+    runs.check_job_starts(load_job(grown), already=runs.stitches_in_file(out))
+    assert checked == [("garter",)]
