@@ -55,7 +55,7 @@ MODULE_ORDER = {
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper",
                  "volumes"],
     "analysis.volumes": ["_nearest", "geometry", "estimators"],
-    "store": ["checksum", "format", "journal", "provenance", "table", "sealed", "read",
+    "store": ["checksum", "format", "journal", "provenance", "columns", "table", "sealed", "read",
               "compatible", "failed_writes", "writer", "salvage", "sweep_file"],
     "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],
     "strain_sweep": ["result", "schedule", "sweep"],

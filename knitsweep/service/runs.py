@@ -102,10 +102,10 @@ def check_job_starts(job: JobSpec, already: tuple[str, ...] = ()) -> None:
     """The shipped starts of every stitch of the job not in ``already`` (docs/patterns.md:
     an overlapping start is refused, naming the segments), before any task's kernels
     compile (this loads the geometry kernels of the stitches it checks)."""
-    from ..zero_force import check_shipped_starts
-
     new = tuple(s for s in job.stitches if s not in already)
     if new:
+        from ..zero_force import check_shipped_starts
+
         check_shipped_starts(new, job.fidelity)
 
 
