@@ -262,7 +262,7 @@ def _analyse_sweep(
         "thickness_strain_max": m.thickness_strain_max,
         "thickness_strain_at_secant": m.thickness_strain_at,
         "jammed": m.jamming_gap >= threshold,
-        **sweep_observables(rec),
+        **sweep_observables(rec, direction),
     }
     stored = rec.get("contact_forces")
     zero_forces = np.asarray(stored)[0] if stored is not None and len(stored) else point_forces
