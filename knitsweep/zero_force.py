@@ -30,10 +30,10 @@ from .config import (
     StitchParams,
 )
 from .model import CellModel
-from .plain import plain_value
 from .relax import Relaxation, Relaxer, single_threaded, walk_starts
 from .relax.continuation import relax_zero_force
 from .stitches import DEFAULT_STITCH
+from .util.plain_values import plain_value
 
 # the parameters the shipped Init files were made for (the authors' k = 0.1 mN/mm^2
 # study, paper Table 1 otherwise); their length is measured, not assumed

@@ -18,10 +18,9 @@ PKG = Path(__file__).resolve().parents[1] / "knitsweep"
 # first entry that is a prefix of its name
 LAYERS = [
     ["_version"],
-    ["plain"],
     ["errors"],
     ["env"],
-    ["processes"],  # forked helpers (parallel reading and drawing)
+    ["util"],  # small helpers: plain values, forked helpers
     ["kernels"],  # generic numba: knows no stitch, no settings
     ["stitches"],  # geometries behind one interface; their kernels call down into kernels
     ["config"],
@@ -45,6 +44,7 @@ LAYERS = [
 # inside each subpackage, its modules bottom to top (a module may import those before it);
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
+    "util": ["plain_values", "forking"],
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
                 "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks", "raster"],
     "stitches": ["base", "topology", "patterns", "images", "stockinette", "stockinette_free",

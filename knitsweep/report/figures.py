@@ -157,7 +157,7 @@ def render_figures(
     {format: bytes}); each as soon as it (and those before it) is drawn. ``workers``
     (default: the usable cores, at most 4) processes draw in parallel (forked, so
     the reduction is not copied); the bytes are the same as drawn one by one."""
-    from ..processes import fork_workers, forked_map
+    from ..util.forking import fork_workers, forked_map
 
     options = options or FigureOptions()
     names = list(FIGURES)

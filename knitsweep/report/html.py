@@ -23,8 +23,8 @@ from ..analysis.transitions import GAP_THRESHOLD
 from ..config import FAILED
 from ..errors import InputError
 from ..formats import check_writable, replace_file
-from ..plain import plain_value
 from ..quantities import OBSERVABLE_REGISTRY, registered
+from ..util.plain_values import plain_value
 from .plotting import FigureOptions
 from .results import Results, load
 from .tables import TRANSITION_SUMMARY

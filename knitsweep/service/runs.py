@@ -18,13 +18,13 @@ from typing import TYPE_CHECKING, Any
 
 from ..config import DONE, FAILED
 from ..errors import InputError
-from ..plain import plain_value
 from ..stitches import DEFAULT_STITCH
 from ..store.checksum import FileCheck
 from ..store.format import POINTS, REWRITABLE_SCHEMAS, SERIES, SWEEPS, journal_dir, lock_path
 from ..store.journal import scan
 from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root
 from ..store.writer import writer_alive
+from ..util.plain_values import plain_value
 from . import signals
 from .jobs import JobSpec, load_job
 

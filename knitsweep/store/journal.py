@@ -45,7 +45,7 @@ import numpy as np
 
 from ..errors import StorageError, storage_error
 from ..formats import replace_file
-from ..plain import plain_value
+from ..util.plain_values import plain_value
 from .format import renamed
 
 __all__ = ["Entry", "Malformed", "StorageError", "atomic_write_bytes", "decode", "encode",

@@ -1,0 +1,9 @@
+"""Small helpers every layer may use, each module named for what it does:
+
+* ``plain_values``: plain Python values from numpy's, HDF5's and dataclasses' (records,
+  journal entries, tables, JSON);
+* ``forking``: helper processes forked to read or draw in parallel (how many may run,
+  the signals they take).
+
+They know nothing of stitches, settings or files' contents; only ``errors`` is below them.
+"""
