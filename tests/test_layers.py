@@ -20,7 +20,7 @@ LAYERS = [
     ["_version"],
     ["errors"],
     ["env"],
-    ["util"],  # small helpers: plain values, forked helpers
+    ["util"],  # small helpers: plain values, forked helpers, safe file I/O
     ["kernels"],  # generic numba: knows no stitch, no settings
     ["stitches"],  # geometries behind one interface; their kernels call down into kernels
     ["config"],
@@ -44,7 +44,7 @@ LAYERS = [
 # inside each subpackage, its modules bottom to top (a module may import those before it);
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
-    "util": ["plain_values", "forking"],
+    "util": ["plain_values", "forking", "safe_files"],
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
                 "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks", "raster"],
     "stitches": ["base", "topology", "patterns", "images", "stockinette", "stockinette_free",

@@ -164,8 +164,8 @@ def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:
 def check_output(out: Path) -> None:
     """Refuse a results file that cannot be written, or whose lock, journal, shadow,
     spare or progress file is a symbolic link, before any compute (``run``, ``merge``)."""
-    from ..formats import check_writable
     from ..store.writer import check_no_links
+    from ..util.safe_files import check_writable
 
     check_writable(out, "results file")
     check_no_links(out)

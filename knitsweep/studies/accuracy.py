@@ -182,7 +182,7 @@ def accuracy_study(
 
 def write_report(results: list[SettingResult], out: Path) -> list[Path]:
     """accuracy.csv and accuracy.png (relative error against cost) in ``out``."""
-    from ..formats import make_output_dir, replace_file
+    from ..util.safe_files import make_output_dir, replace_file
 
     out = make_output_dir(out)  # as every command's --out: its parent must exist
     csv_path = out / "accuracy.csv"
@@ -253,6 +253,6 @@ def _plot(results: list[SettingResult], path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     plt.close(fig)
-    from ..formats import replace_file
+    from ..util.safe_files import replace_file
 
     replace_file(path, buf.getvalue())
