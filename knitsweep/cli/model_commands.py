@@ -100,8 +100,8 @@ def relax(
     from ..formats import read_state, write_state
     from ..model import CellModel
     from ..presets import Numerics
+    from ..relax.zero_force import zero_force
     from ..util.safe_files import check_writable
-    from ..zero_force import zero_force
 
     with user_errors():
         check_seed(seed)

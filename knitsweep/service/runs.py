@@ -101,7 +101,7 @@ def check_job_starts(job: JobSpec) -> None:
     """The shipped starts of every stitch of the job (docs/patterns.md: an
     overlapping start is refused, naming the segments), before any task's kernels
     compile (this loads the geometry kernels)."""
-    from ..zero_force import check_shipped_starts
+    from ..relax.zero_force import check_shipped_starts
 
     check_shipped_starts(job.stitches, job.fidelity)
 

@@ -36,8 +36,8 @@ from ..config import (
     SweepProtocol,
 )
 from ..presets import PRESETS, Numerics
+from ..relax.zero_force import zero_force
 from ..strain_sweep import strain_sweep
-from ..zero_force import zero_force
 
 # around the k = 0.1 mN/mm^2 transition (L = 11.4-11.5 mm in x and y, paper Fig. 3)
 DEFAULT_SERIES = [11.3, 11.4, 11.5, 11.6, 11.7]
