@@ -12,6 +12,7 @@ from knitsweep.config import (
     SweepProtocol,
 )
 from knitsweep.presets import Numerics
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.strain_sweep import strain_sweep
 from knitsweep.strain_sweep.schedule import (
     GAP_MARGIN_MJ,
@@ -19,7 +20,6 @@ from knitsweep.strain_sweep.schedule import (
     _interpolation_error,
     observables_determined,
 )
-from knitsweep.zero_force import zero_force
 
 POINT = StitchParams(L_mm=11.0, k_mN_per_mm2=0.1)
 FIDELITY = Fidelity(samples_per_segment=6, quadrature_nodes=12)

@@ -11,7 +11,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from ..formats import make_output_dir, replace_file
+from ..util.safe_files import make_output_dir, replace_file
 from .fig_energy import fig3_energy_gaps, fig4a_gap_fit, fig4b_deltaL_vs_k, fig4c_phase_diagram
 from .fig_forces import figS11_contact_forces_strain
 from .fig_mechanics import (

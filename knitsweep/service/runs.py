@@ -104,7 +104,7 @@ def check_job_starts(job: JobSpec, already: tuple[str, ...] = ()) -> None:
     compile (this loads the geometry kernels of the stitches it checks)."""
     new = tuple(s for s in job.stitches if s not in already)
     if new:
-        from ..zero_force import check_shipped_starts
+        from ..relax.zero_force import check_shipped_starts
 
         check_shipped_starts(new, job.fidelity)
 
@@ -179,8 +179,8 @@ def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:
 def check_output(out: Path) -> None:
     """Refuse a results file that cannot be written, or whose lock, journal, shadow,
     spare or progress file is a symbolic link, before any compute (``run``, ``merge``)."""
-    from ..formats import check_writable
     from ..store.writer import check_no_links
+    from ..util.safe_files import check_writable
 
     check_writable(out, "results file")
     check_no_links(out)

@@ -38,8 +38,8 @@ from ..config import (
 from ..model import CellModel
 from ..quantities import registered
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
+from ..relax.zero_force import ZeroForce, pick_lowest, relax_at_rest, zero_force
 from ..stitches.topology import topology_word
-from ..zero_force import ZeroForce, pick_lowest, relax_at_rest, zero_force
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
 
