@@ -33,8 +33,8 @@ from knitsweep.config import Fidelity, StartSettings, StitchParams
 from knitsweep.model import CellModel
 from knitsweep.presets import Numerics
 from knitsweep.relax.problem import _state_box
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.strain_sweep import strain_sweep
-from knitsweep.zero_force import zero_force
 
 ON_BOUND_RTOL = 1e-9
 
