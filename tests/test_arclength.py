@@ -152,3 +152,20 @@ def test_yarn_samples_are_evenly_spaced_along_the_yarn():
         assert before[s] + _arclength(cp[s], t) == pytest.approx((i + 0.5) / 80 * total, rel=1e-8)
     assert np.all(speed == total / 8)
     assert len(set(st[:, 0].astype(int))) == 8
+
+
+def test_along_the_yarn_the_under_resolved_rib_shows_its_overlap(data_dir):
+    """The rib state whose cores pass between the default's samples (test_patterns)
+    overlaps at the model's own 10 samples when they sit along the yarn, and its contact
+    sum is refused; the relaxed rib state's E_c holds at 20 and 40 samples."""
+    from knitsweep.model import CORES_OVERLAP
+
+    m = _model("rib", YARN, L=11.6)
+    x = np.loadtxt(data_dir / "rib_under_resolved_L11.6_k0.1.dat")
+    assert m.min_zeta(x) < 0.0 < _model("rib", Fidelity(), L=11.6).min_zeta(x)
+    assert m.resolution_change(x).startswith(CORES_OVERLAP)
+    y = np.loadtxt(data_dir / "rib_relaxed_L11.6_k0.1.dat")
+    assert m.resolution_change(y) == ""
+    ec = [_model("rib", YARN.model_copy(update={"samples_per_segment": n}), L=11.6)
+          .energies(y).contact_energy for n in (10, 20, 40)]  # fmt: skip
+    assert max(ec) - min(ec) < 0.015 * ec[0]  # measured 1.0 %
