@@ -78,6 +78,24 @@ def _arc(cp, s, t, aq, b, d1, d2, want_dt):
 
 
 @njit(cache=True)
+def _root(cp, s, goal, tj, aq, b, d1, d2):
+    """The parameter t of segment s where S(t) = ``goal``, by Newton from ``tj``."""
+    for _ in range(NEWTON_STEPS):
+        val, der = _arc(cp, s, tj, aq, b, d1, d2, True)
+        step = (val - goal) / der
+        tn = tj - step
+        # stay inside (0, 1): S is increasing, so the root lies between
+        if tn <= 0.0:
+            tn = 0.5 * tj
+        elif tn >= 1.0:
+            tn = 0.5 * (tj + 1.0)
+        tj = tn
+        if abs(step) < 1e-11:  # quadratic convergence: the root to round-off
+            break
+    return tj
+
+
+@njit(cache=True)
 def arclength_params(cp, n, aq):
     """(t (S, n): each sample's parameter, seglen (S,): each segment's length S(1)) of
     the samples at arclength fractions (j + 1/2)/n of every segment."""
@@ -90,19 +108,7 @@ def arclength_params(cp, n, aq):
         seglen[s] = ell
         tj = 0.5 / n  # then each sample's Newton starts from the previous root
         for j in range(n):
-            goal = (j + 0.5) / n * ell
-            for _ in range(NEWTON_STEPS):
-                val, der = _arc(cp, s, tj, aq, b, d1, d2, True)
-                step = (val - goal) / der
-                tn = tj - step
-                # stay inside (0, 1): S is increasing, so the root lies between
-                if tn <= 0.0:
-                    tn = 0.5 * tj
-                elif tn >= 1.0:
-                    tn = 0.5 * (tj + 1.0)
-                tj = tn
-                if abs(step) < 1e-11:  # quadratic convergence: the root to round-off
-                    break
+            tj = _root(cp, s, (j + 0.5) / n * ell, tj, aq, b, d1, d2)
             t[s, j] = tj
     return t, seglen
 
@@ -226,18 +232,7 @@ def yarn_sample_cell(cp, n, aq):
             s += 1
             tj = 0.0
         local = goal - before
-        tj = max(tj, min(local / seglen[s], 1.0 - 1e-12))
-        for _ in range(NEWTON_STEPS):
-            val, der = _arc(cp, s, tj, aq, b, d1, d2, True)
-            step = (val - local) / der
-            tn = tj - step
-            if tn <= 0.0:
-                tn = 0.5 * tj
-            elif tn >= 1.0:
-                tn = 0.5 * (tj + 1.0)
-            tj = tn
-            if abs(step) < 1e-11:
-                break
+        tj = _root(cp, s, local, max(tj, min(local / seglen[s], 1.0 - 1e-12)), aq, b, d1, d2)
         st[i, 0], st[i, 1] = s, tj
         _basis(tj, b, d1, d2)
         for d in range(3):
