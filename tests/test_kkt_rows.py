@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from knitsweep.config import StitchParams
-from knitsweep.kernels.kkt import kkt_step, more_sorensen, tangential_step
+from knitsweep.kernels.kkt import ROWS_FROM, kkt_step, more_sorensen, tangential_step
 from knitsweep.kernels.kkt_rows import (
     kkt_step_for,
     kkt_step_rows,
@@ -15,7 +15,7 @@ from knitsweep.kernels.kkt_rows import (
     tangential_step_rows,
 )
 from knitsweep.model import CellModel
-from knitsweep.relax.newton import ROWS_FROM, measure_curvature
+from knitsweep.relax.newton import measure_curvature
 from knitsweep.relax.problem import Problem
 from knitsweep.stitches import get_stitch
 

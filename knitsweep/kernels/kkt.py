@@ -183,7 +183,10 @@ def more_sorensen(hz, rz, radius, lapack, factor, q, u, w):
     factorisation alone: numba caches no kernel that takes a compiled function as an
     argument or closes over one (a new cache entry in every process, numba 0.68), and a
     branch at run time compiled the other factorisation into every step (stockinette's
-    solver kernels: 5.3 -> 6.3 s cold, ``benchmarks/bench_compile.py --group solver``)."""
+    solver kernels: 5.3 -> 6.3 s cold, ``benchmarks/bench_compile.py --group solver``).
+    What one loop costs, against two (CPU s of the solver group's cold compile, medians of
+    3 alternated runs at load ~5, docs/performance.md): stockinette 6.1 -> 6.7, garter
+    12.6 -> 14.2, of a cold ``run`` compile of ~29 s and ~53 s."""
     if not _shifted(hz, rz, 0.0, lapack, factor, q, u):
         return 0.0, False
     decrement = 0.5 * np.dot(q, q)
