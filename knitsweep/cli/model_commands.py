@@ -9,7 +9,6 @@ import typer
 
 from ..config import SOLVERS
 from .common import (
-    ENERGY_UNITS,
     RELAX_UNITS,
     BOpt,
     ConfigOpt,
@@ -44,7 +43,8 @@ def energy(
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
-    """Bending, contact and total energy (mJ = N mm) and yarn length (mm) of a state."""
+    """Bending, contact and total energy (mJ = N mm) and yarn length (mm) of a state;
+    --json also gives the parameters, the fidelity and the units."""
     from ..formats import read_state
     from ..model import CellModel
 
@@ -59,7 +59,11 @@ def energy(
         compile_notice(params.stitch, energy_only=True)
         result = model.energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
-    _print_result(result, as_json, ENERGY_UNITS)
+    result |= {"parameters": {"stitch": params.stitch, **params.model_dump(),
+                              "L_over_r": params.L_mm / params.r_mm},
+               "fidelity": fidelity.model_dump(mode="json"), "state": str(state),
+               "units": RELAX_UNITS}  # fmt: skip
+    _print_result(result, as_json, RELAX_UNITS)
 
 
 StateOpt = Annotated[
@@ -97,10 +101,11 @@ def relax(
     from ..compilation import compile_clock
     from ..config import StartSettings, zero_force_solvers
     from ..errors import InputError, check_seed
-    from ..formats import check_writable, read_state, write_state
+    from ..formats import read_state, write_state
     from ..model import CellModel
     from ..presets import Numerics
-    from ..zero_force import zero_force
+    from ..relax.zero_force import zero_force
+    from ..util.safe_files import check_writable
 
     with user_errors():
         check_seed(seed)
@@ -183,11 +188,11 @@ def sweep(
     from ..compilation import compile_clock
     from ..config import StartSettings
     from ..errors import InputError, check_seed
-    from ..formats import check_writable
     from ..presets import Numerics
     from ..service.progress import SweepProgress
     from ..store.sweep_file import sweep_inputs, sweep_table, write_sweep
     from ..strain_sweep import NoRestState, strain_sweep_from_rest
+    from ..util.safe_files import check_writable
 
     with user_errors():
         check_seed(seed)

@@ -37,12 +37,12 @@ from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition
 from ..config import Fidelity
 from ..errors import InputError
-from ..plain import plain_value
 from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS, registered, sweep_observables
 from ..stitches import DEFAULT_STITCH
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
 from ..store.read import read_files
+from ..util.plain_values import plain_value
 from .force_columns import (
     PAIR_KEYS,
     contact_classes,
@@ -262,7 +262,7 @@ def _analyse_sweep(
         "thickness_strain_max": m.thickness_strain_max,
         "thickness_strain_at_secant": m.thickness_strain_at,
         "jammed": m.jamming_gap >= threshold,
-        **sweep_observables(rec),
+        **sweep_observables(rec, direction),
     }
     stored = rec.get("contact_forces")
     zero_forces = np.asarray(stored)[0] if stored is not None and len(stored) else point_forces

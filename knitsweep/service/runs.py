@@ -8,6 +8,7 @@ workers are released instead of left waiting.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
@@ -17,13 +18,13 @@ from typing import TYPE_CHECKING, Any
 
 from ..config import DONE, FAILED
 from ..errors import InputError
-from ..plain import plain_value
 from ..stitches import DEFAULT_STITCH
 from ..store.checksum import FileCheck
 from ..store.format import POINTS, REWRITABLE_SCHEMAS, SERIES, SWEEPS, journal_dir, lock_path
 from ..store.journal import scan
 from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root
 from ..store.writer import writer_alive
+from ..util.plain_values import plain_value
 from . import signals
 from .jobs import JobSpec, load_job
 
@@ -92,18 +93,32 @@ def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
     check_output(out)
     adopt_empty(out)
     check_label(job, out, relabel)
-    if not out.exists():  # (a resume was checked when its file began, and may need no kernel)
-        check_job_starts(job)
+    # (a resume's stitches were checked when they entered its file, and it may need no kernel)
+    check_job_starts(job, already=stitches_in_file(out) if out.exists() else ())
     return job, shard_t, out
 
 
-def check_job_starts(job: JobSpec) -> None:
-    """The shipped starts of every stitch of the job (docs/patterns.md: an
-    overlapping start is refused, naming the segments), before any task's kernels
-    compile (this loads the geometry kernels)."""
-    from ..zero_force import check_shipped_starts
+def check_job_starts(job: JobSpec, already: tuple[str, ...] = ()) -> None:
+    """The shipped starts of every stitch of the job not in ``already`` (docs/patterns.md:
+    an overlapping start is refused, naming the segments), before any task's kernels
+    compile (this loads the geometry kernels of the stitches it checks)."""
+    new = tuple(s for s in job.stitches if s not in already)
+    if new:
+        from ..relax.zero_force import check_shipped_starts
 
-    check_shipped_starts(job.stitches, job.fidelity)
+        check_shipped_starts(new, job.fidelity)
+
+
+def stitches_in_file(out: Path) -> tuple[str, ...]:
+    """The stitches of the job spec a results file holds (a grown job's latest spec);
+    none when the file's spec cannot be read (the compatibility check names that)."""
+    try:
+        spec = json.loads(str(read_root(out)["job_json"]))
+    except (InputError, KeyError, ValueError):
+        return ()
+    grid = spec.get("grid") if isinstance(spec.get("grid"), dict) else {}
+    names = grid.get("stitch", spec.get("stitch", DEFAULT_STITCH))
+    return tuple(names) if isinstance(names, list) else (str(names),)
 
 
 def adopt_empty(out: Path) -> Path | None:
@@ -164,8 +179,8 @@ def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:
 def check_output(out: Path) -> None:
     """Refuse a results file that cannot be written, or whose lock, journal, shadow,
     spare or progress file is a symbolic link, before any compute (``run``, ``merge``)."""
-    from ..formats import check_writable
     from ..store.writer import check_no_links
+    from ..util.safe_files import check_writable
 
     check_writable(out, "results file")
     check_no_links(out)

@@ -222,7 +222,7 @@ def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dic
     status, the winner's registered point observables (``quantities.registered``) and, if
     stored, its contact forces). ``carried``
     (``[starts] carry``): the state ``x`` and ``params`` of the point it starts from."""
-    from ..zero_force import zero_force
+    from ..relax.zero_force import zero_force
 
     start = None if carried is None else (np.asarray(carried["x"]), carried["params"])
     zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed, carried=start)
@@ -285,8 +285,8 @@ def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, 
     """The record of one sweep (``SweepResult.to_record`` plus the task status and
     the optional per-step observables); ``zero`` is its point's stored record."""
     from ..model import CellModel
+    from ..relax.zero_force import ZeroForce
     from ..strain_sweep import strain_sweep
-    from ..zero_force import ZeroForce
 
     params = zero["params"]
     zf = ZeroForce.from_record(zero)
