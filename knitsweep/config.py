@@ -449,6 +449,10 @@ class SweepProtocol(BaseModel):
         return self.large_step_x_mm if direction == "x" else self.large_step_y_mm
 
 
+RETRIES = 3  # default [starts] retries; a retry's copies perturb the shape 1e-12 relative:
+RETRY_PERTURBATION = 1e-12  # far above round-off (1e-16), far below a physical change
+
+
 class StartSettings(BaseModel):
     """How many starts per point, and where they come from (docs/model.md §7)."""
 
@@ -478,8 +482,19 @@ class StartSettings(BaseModel):
         "the shipped starts again if that neighbour failed)",
     )
 
+    retries: int = Field(
+        RETRIES,
+        ge=0,
+        le=16,
+        description="a point none of whose starts converged, some of them neither converged "
+        "nor too tight to knit (e.g. the topology changed): each such start is walked again "
+        f"from this many copies perturbed by {RETRY_PERTURBATION:g} relative, and takes "
+        "their verdict (service/retry.py); 0: never",
+    )
+
     @model_serializer(mode="wrap")
     def _uncarried_as_before(self, handler) -> dict[str, Any]:
-        # carry = false is left out of every dump (task ids, the job's hash, the
-        # results file's job_json), so that jobs from before it existed keep them
-        return _without_default(handler(self), "carry", False)
+        # carry = false and the default retries are left out of every dump (task ids, the
+        # job's hash, the results file's job_json), so that jobs from before them keep them
+        out = _without_default(handler(self), "carry", False)
+        return _without_default(out, "retries", RETRIES)

@@ -222,11 +222,22 @@ def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dic
     status, the winner's registered point observables (``quantities.registered``) and, if
     stored, its contact forces). ``carried``
     (``[starts] carry``): the state ``x`` and ``params`` of the point it starts from."""
-    from ..zero_force import zero_force
+    from ..zero_force import Start, start_states, zero_force
+    from .retry import retry_failed_starts
 
     start = None if carried is None else (np.asarray(carried["x"]), carried["params"])
     zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed, carried=start)
-    return point_record(job, task.params, zf)
+    if start is not None:
+        begin = [Start("carried", *start)]
+    else:
+        begin = start_states(job.starts, task.seed, job.fidelity, task.params.stitch)
+    zf, retried, note = retry_failed_starts(zf, [(s.x, s.params) for s in begin], task.params,
+                                            job.fidelity, job.solver, job.starts, task.seed)  # fmt: skip
+    record = point_record(job, task.params, zf)
+    if note:
+        record["retried"] = retried
+        record["retry_message"] = note
+    return record
 
 
 def point_record(job: JobSpec, params: Any, zf: Any) -> dict[str, Any]:
