@@ -44,6 +44,7 @@ def test_the_spreads_are_in_the_tables(runs):
     assert (res.points["spread_count"] == 3).all()
     for c in SWEEP_COLUMNS:
         assert (res.sweeps[c] >= 0).all()
+    assert (res.sweeps["spread_count"] == 3).all()  # from the point's copies' ends
     assert res.sweeps["within_round_off"].dtype == bool
     assert set(res.transitions["round_off_at_L_mm"]) <= {"none", "11.4", "12", "11.4, 12"}
 

@@ -3,12 +3,13 @@
 A free yarn's relaxation can end where the last bits of its arithmetic send it (the
 patterns' transitions moved with the instruction set the kernels were compiled for,
 docs/patterns.md, "Reproducibility"). With ``[starts] spread = N`` each point is also
-relaxed from N - 1 copies of its winning start, and each sweep run from N - 1 copies of its
-zero-force state, each perturbed by ``SPREAD_PERTURBATION`` (1e-15) relative, seeded from
-the task; the record stores the spread (max - min over the N) of the zero-force energy and
-periods and of the sweep's energy gaps and Y_sec, and the tables a ``…_spread`` column
-each. A jamming verdict whose gap lies within its spread of the threshold is "within
-round-off" (``within_round_off``, in the sweeps and transitions tables).
+relaxed from N - 1 copies of its winning start, perturbed by ``SPREAD_PERTURBATION``
+(1e-15) relative (seeded from the task), and each sweep is also run from the copies'
+zero-force ends (``spread_x`` of the point's record); the records store the spread
+(max - min over the N) of the zero-force energy and periods and of the sweep's energy
+gaps and Y_sec, the tables a ``…_spread`` column each. A jamming verdict whose gap lies
+within its spread of the threshold is "within round-off" (``within_round_off`` in the
+sweeps table, ``round_off_at_L_mm`` in the transitions table).
 """
 
 from __future__ import annotations
@@ -57,12 +58,15 @@ def point_spread(job: Any, params: Any, zf: Any, begin: list[tuple[np.ndarray, A
     with single_threaded():  # no merging: each copy walks to its own end
         walked, _, _ = walk_starts(params, job.fidelity, copies, job.solver, 0.0)
     ends = [zf.best, *(r for r, _ in walked if r.status == CONVERGED)]
-    return {
+    out = {
         "spread_rest_energy": _spread([r.total_energy for r in ends]),
         "spread_a_x0": _spread([float(r.x[-2]) for r in ends]),
         "spread_a_y0": _spread([float(r.x[-1]) for r in ends]),
         "spread_count": len(ends),
     }
+    if len(ends) > 1:  # the copies' ends, which the point's sweeps start from too
+        out["spread_x"] = np.array([r.x for r in ends[1:]])
+    return out
 
 
 def _observables(record: dict[str, Any], direction: str) -> tuple[float, float, float | None]:
@@ -76,19 +80,28 @@ def _observables(record: dict[str, Any], direction: str) -> tuple[float, float, 
 
 
 def sweep_spread(job: Any, params: Any, zf: Any, direction: str, record: dict[str, Any],
-                 seed: int) -> dict[str, Any]:  # fmt: skip
+                 seed: int, ends: Any = None) -> dict[str, Any]:  # fmt: skip
     """The spread fields (``SWEEP_SPREADS``, ``spread_count``) of the sweep whose record
-    is ``record`` (its step arrays), from ``job.starts.spread - 1`` more sweeps of ``zf``'s
-    winning state perturbed; {} when the job asks for none."""
+    is ``record`` (its step arrays), from more sweeps: one from each of the point's copies'
+    zero-force ends ``ends`` (its ``spread_x``, each relaxed at rest again to have its
+    energies), or, where the point has none (no copy converged), ``job.starts.spread - 1``
+    copies of ``zf``'s winning state perturbed; {} when the job asks for none."""
+    from ..model import CellModel
     from ..strain_sweep import strain_sweep
+    from ..zero_force import relax_at_rest
 
     n = job.starts.spread
     if n < 2:
         return {}
     found = [_observables(record, direction)]
-    for x in _copies(zf.best.x, n - 1, [seed, 0x5E]):
+    model = CellModel(params, job.fidelity)
+    states = list(ends) if ends is not None else _copies(zf.best.x, n - 1, [seed, 0x5E])
+    for x in states:
+        rest = relax_at_rest(model, np.asarray(x, dtype=float), job.solver)
+        if rest.status != CONVERGED:
+            continue
         rs = list(zf.relaxations)
-        rs[zf.winner] = replace(zf.best, x=x)
+        rs[zf.winner] = rest
         other = strain_sweep(params, replace(zf, relaxations=tuple(rs)), direction,
                              job.protocol, job.fidelity, job.solver)  # fmt: skip
         if other.status in ("done", "incomplete"):

@@ -309,7 +309,8 @@ def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, 
     record["status"] = _SWEEP_STATUS.get(result.status, FAILED)
     if record["status"] == DONE:
         rest = zf if result.rest is None else result.rest
-        record |= sweep_spread(job, params, rest, task.direction, record, int(task.task_id, 16))
+        record |= sweep_spread(job, params, rest, task.direction, record, int(task.task_id, 16),
+                               zero.get("spread_x"))  # fmt: skip
     if result.rest is not None:  # the point's zero-force state from now on (master)
         record[REST_POINT] = point_record(job, params, result.rest) | {
             "rest_found_by": f"{task.direction} sweep",
