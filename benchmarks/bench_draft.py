@@ -27,9 +27,9 @@ import time
 from knitsweep.analysis.stress_strain import secant_modulus
 from knitsweep.compilation import compile_kernels
 from knitsweep.config import StartSettings, StitchParams
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.strain_sweep import strain_sweep
 from knitsweep.studies.accuracy import setting
-from knitsweep.zero_force import zero_force
 
 THRESHOLD = 5e-5  # mJ: the jamming threshold of the energy gaps
 

@@ -31,8 +31,8 @@ from knitsweep.analysis.transitions import GAP_THRESHOLD
 from knitsweep.compilation import compile_kernels
 from knitsweep.config import StartSettings, StitchParams, SweepProtocol
 from knitsweep.kernels.kkt_rows import compile_solver
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.strain_sweep import strain_sweep
-from knitsweep.zero_force import zero_force
 
 VARIANTS = {
     "all chains": SweepProtocol(merge_tolerance_mJ=0.0),

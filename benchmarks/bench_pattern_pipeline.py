@@ -29,9 +29,9 @@ from knitsweep.analysis.metrics import energy_gaps
 from knitsweep.analysis.stress_strain import secant_modulus
 from knitsweep.config import StartSettings, StitchParams
 from knitsweep.presets import Numerics
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.stitches import STITCH_NAMES
 from knitsweep.strain_sweep import strain_sweep
-from knitsweep.zero_force import zero_force
 
 
 def one(stitch: str, L: float, k: float) -> dict:

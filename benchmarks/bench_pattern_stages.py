@@ -20,7 +20,7 @@ from threadpoolctl import threadpool_limits
 from knitsweep.config import StartSettings, StitchParams
 from knitsweep.presets import Numerics
 from knitsweep.relax import relaxer
-from knitsweep.zero_force import zero_force
+from knitsweep.relax.zero_force import zero_force
 
 
 def stages(stitch: str, L: float, k: float) -> tuple[float, list[tuple]]:

@@ -43,7 +43,7 @@ from knitsweep.kernels.pattern_cell import pattern_cell_energy
 from knitsweep.model import CellModel
 from knitsweep.relax import newton, relaxer
 from knitsweep.relax.relaxer import single_threaded
-from knitsweep.zero_force import zero_force
+from knitsweep.relax.zero_force import zero_force
 
 PARAMS = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)
 

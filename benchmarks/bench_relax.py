@@ -39,9 +39,9 @@ from knitsweep.model import CellModel
 from knitsweep.relax import Relaxer, free_entries, relax
 from knitsweep.relax.newton import measure_curvature
 from knitsweep.relax.problem import Problem
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.stitches.stockinette.layout import IDX_TW
 from knitsweep.strain_sweep import strain_sweep
-from knitsweep.zero_force import zero_force
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data"
 KERNELS = ("energy_and_gradients", "energies", "min_zeta", "thickness", "_rebuild")

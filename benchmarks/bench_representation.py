@@ -30,9 +30,9 @@ from knitsweep.analysis.metrics import energy_gaps
 from knitsweep.config import StartSettings, StitchParams
 from knitsweep.model import CellModel
 from knitsweep.presets import Numerics
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.stitches import get_stitch
 from knitsweep.strain_sweep import strain_sweep
-from knitsweep.zero_force import zero_force
 
 ON_BOUND_RTOL = 1e-9
 

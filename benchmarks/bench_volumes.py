@@ -24,7 +24,7 @@ import numpy as np
 from knitsweep.analysis.volumes import qmc_volumes, voxel_volumes
 from knitsweep.config import StitchParams
 from knitsweep.model import CellModel
-from knitsweep.zero_force import zero_force
+from knitsweep.relax.zero_force import zero_force
 
 SIDES = (0.2, 0.15, 0.1, 0.08, 0.06, 0.05, 0.04, 0.03, 0.025, 0.02)
 SAMPLES = tuple(1 << n for n in range(10, 17, 2))

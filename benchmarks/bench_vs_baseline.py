@@ -38,7 +38,10 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 try:
     from knitsweep.config import StitchParams, StartSettings
-    from knitsweep.zero_force import zero_force
+    try:
+        from knitsweep.relax.zero_force import zero_force
+    except ImportError:  # before zero_force moved into relax/
+        from knitsweep.zero_force import zero_force
     from knitsweep.strain_sweep import strain_sweep
 except ImportError:
     from knitsweep.params import StitchParams

@@ -24,9 +24,9 @@ from threadpoolctl import threadpool_limits
 from knitsweep.config import SolverSettings, StitchParams
 from knitsweep.model import CellModel
 from knitsweep.relax import Relaxer
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.stitches.stockinette_free.ansatz import to_free
 from knitsweep.stitches.topology import crossings, same_topology
-from knitsweep.zero_force import zero_force
 
 
 def one(L: float, k: float, repeats: int) -> dict:

@@ -34,8 +34,8 @@ from pydantic import (
 )
 
 from .errors import InputError as InputError  # the settings' error, re-exported
-from .plain import plain_value
 from .stitches import DEFAULT_STITCH, STITCH_CHOICES, unknown_stitch
+from .util.plain_values import plain_value
 
 STRICT = ConfigDict(
     frozen=True, extra="forbid", allow_inf_nan=False, validate_default=True, strict=True

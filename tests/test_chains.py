@@ -11,8 +11,8 @@ from knitsweep.relax import Chain, Relaxer, merge_chains
 from knitsweep.relax.chains import soft_distance
 from knitsweep.relax.newton import measure_curvature
 from knitsweep.relax.problem import Problem
+from knitsweep.relax.zero_force import ZeroForce, zero_force
 from knitsweep.strain_sweep import SweepResult, strain_sweep
-from knitsweep.zero_force import ZeroForce, zero_force
 
 POINT = StitchParams(L_mm=11.0, k_mN_per_mm2=0.1)
 FIDELITY = Fidelity(samples_per_segment=6, quadrature_nodes=12)

@@ -60,8 +60,8 @@ def test_every_figure_is_written(synthetic_report):
 
 
 def test_figures_drawn_by_forked_helpers_are_the_same_bytes(synthetic_report, monkeypatch):
-    from knitsweep import processes
     from knitsweep.report.figures import render_figures
+    from knitsweep.util import forking as processes
 
     red = synthetic_report.reduction
     alone = [(name, files) for name, _, files in render_figures(red, workers=1)]

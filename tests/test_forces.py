@@ -13,10 +13,10 @@ from knitsweep.kernels.contact import find_contacts, pair_potential
 from knitsweep.kernels.forces import contact_class, contact_forces_by_class
 from knitsweep.model import CellModel
 from knitsweep.relax import relax
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.report.force_columns import fig6h_forces
 from knitsweep.stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from knitsweep.stitches.stockinette.layout import IDX_AX, IDX_AY
-from knitsweep.zero_force import zero_force
 
 H = 1e-6
 PARAMS = StitchParams(L_mm=10.8, k_mN_per_mm2=0.6)  # jammed: every class in contact

@@ -189,7 +189,7 @@ def test_helpers_read_a_file_as_this_process_does(schema2, monkeypatch):
     assert [d[1] for d in serial[1][0]] == [tid] and serial[1][1] == 5
     monkeypatch.setattr(read, "PARALLEL_FROM", 1)
     forked = []
-    import knitsweep.processes as processes
+    import knitsweep.util.forking as processes
 
     real_map = processes.forked_map
 

@@ -18,10 +18,9 @@ PKG = Path(__file__).resolve().parents[1] / "knitsweep"
 # first entry that is a prefix of its name
 LAYERS = [
     ["_version"],
-    ["plain"],
     ["errors"],
     ["env"],
-    ["processes"],  # forked helpers (parallel reading and drawing)
+    ["util"],  # small helpers: plain values, forked helpers, safe file I/O
     ["kernels"],  # generic numba: knows no stitch, no settings
     ["stitches"],  # geometries behind one interface; their kernels call down into kernels
     ["config"],
@@ -33,7 +32,7 @@ LAYERS = [
     ["model"],
     ["compilation"],  # compiling the kernels a command uses
     ["relax"],
-    ["zero_force"],
+    ["zero_force"],  # the deprecated re-export of relax.zero_force (the documented API)
     ["strain_sweep"],
     ["studies"],
     ["service"],
@@ -45,6 +44,7 @@ LAYERS = [
 # inside each subpackage, its modules bottom to top (a module may import those before it);
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
+    "util": ["plain_values", "forking", "safe_files"],
     "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
                 "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks", "raster"],
     "stitches": ["base", "topology", "patterns", "images", "stockinette", "stockinette_free",
@@ -57,7 +57,8 @@ MODULE_ORDER = {
     "analysis.volumes": ["_nearest", "geometry", "estimators"],
     "store": ["checksum", "format", "journal", "provenance", "columns", "table", "sealed", "read",
               "compatible", "failed_writes", "writer", "salvage", "sweep_file"],
-    "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation"],
+    "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation",
+              "zero_force"],
     "strain_sweep": ["result", "schedule", "sweep"],
     "studies": ["accuracy"],
     "service": ["signals", "grid", "id_forms", "jobs", "run_plan", "progress", "retry", "spread", "worker",
@@ -216,3 +217,16 @@ def test_only_stitches_and_kernels_name_the_image_groups():
             if isinstance(node, ast.Constant) and node.value in ("glides", "translations"):
                 hits.append(f"{path.relative_to(PKG)}:{node.lineno}")
     assert hits == []
+
+
+def test_the_old_zero_force_path_warns_and_is_the_same_api():
+    """``knitsweep.zero_force`` (the documented path before the move into relax/) is a
+    thin re-export that warns."""
+    import importlib
+
+    from knitsweep.relax import zero_force as moved
+
+    sys.modules.pop("knitsweep.zero_force", None)
+    with pytest.warns(DeprecationWarning, match="knitsweep.relax.zero_force"):
+        old = importlib.import_module("knitsweep.zero_force")
+    assert old.zero_force is moved.zero_force and old.ZeroForce is moved.ZeroForce

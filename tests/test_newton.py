@@ -10,8 +10,8 @@ from knitsweep.model import CellModel
 from knitsweep.relax import Relaxer, relax
 from knitsweep.relax.newton import FD_STEP, measure_curvature
 from knitsweep.relax.problem import Problem
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.stitches.stockinette.layout import IDX_AX, IDX_TW
-from knitsweep.zero_force import zero_force
 
 POINT = StitchParams(L_mm=11.0, k_mN_per_mm2=0.1)
 SLSQP = SolverSettings(method="slsqp")

@@ -213,7 +213,7 @@ def test_rib_relaxes_drawn_in_with_its_interlocking():
     converged, its contact resolved (the same with twice the samples), topology kept,
     drawn in across the course, lower in energy than stockinette at the same point."""
     from knitsweep.config import SolverSettings, StartSettings
-    from knitsweep.zero_force import zero_force
+    from knitsweep.relax.zero_force import zero_force
 
     p = StitchParams(stitch="rib", L_mm=11.6, k_mN_per_mm2=0.1)
     zf = zero_force(p, None, SolverSettings(), StartSettings(count=1))

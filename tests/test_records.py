@@ -9,13 +9,13 @@ import pytest
 from conftest import TINY
 
 from knitsweep.config import Fidelity, SolverSettings, StartSettings, StitchParams
+from knitsweep.relax.zero_force import ZeroForce, zero_force
 from knitsweep.service.jobs import load_job, plan
 from knitsweep.store.format import POINTS, SWEEPS, split_record
 from knitsweep.store.journal import Entry
 from knitsweep.store.read import read_entry
 from knitsweep.store.table import create_table, find_row, put_rows
 from knitsweep.strain_sweep import SweepResult, strain_sweep, strain_sweep_from_rest
-from knitsweep.zero_force import ZeroForce, zero_force
 
 PARAMS = StitchParams(L_mm=11.4, k_mN_per_mm2=0.1)
 FIDELITY = Fidelity(samples_per_segment=6, quadrature_nodes=12)

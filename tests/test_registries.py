@@ -84,7 +84,7 @@ def test_a_rough_stitch_with_slsqp_chosen_runs_slsqp_alone(monkeypatch):
     from knitsweep.config import Fidelity
     from knitsweep.relax import relaxer
     from knitsweep.relax.continuation import walk_starts
-    from knitsweep.zero_force import shipped_source
+    from knitsweep.relax.zero_force import shipped_source
 
     def refuse(*args):
         raise AssertionError("Newton ran with SLSQP chosen")

@@ -10,8 +10,8 @@ from knitsweep.config import Fidelity, SolverSettings, StartSettings, StitchPara
 from knitsweep.formats import read_state
 from knitsweep.model import CellModel
 from knitsweep.relax import CONVERGED, NOT_CONVERGED, continuation_path, relax
+from knitsweep.relax.zero_force import start_states, zero_force
 from knitsweep.strain_sweep import first_grid_value, strain_sweep
-from knitsweep.zero_force import start_states, zero_force
 
 REF = json.loads((DATA / "relaxed_reference.json").read_text())["cases"][0]
 PAPER = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)

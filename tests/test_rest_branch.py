@@ -20,8 +20,8 @@ from knitsweep.config import CONVERGED, StartSettings, StitchParams
 from knitsweep.model import CellModel
 from knitsweep.presets import Numerics
 from knitsweep.relax import Relaxer
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.strain_sweep import strain_sweep
-from knitsweep.zero_force import zero_force
 
 NUM = Numerics.from_preset("converged", observables=("energy_gaps", "secant_modulus"))
 TOL = NUM.protocol.rest_tolerance_mJ
@@ -114,7 +114,7 @@ def test_a_lower_rest_found_by_one_sweep_is_the_points_and_the_other_is_pulled_a
     period is free, falls below at its first step and starts over from the minimum. The
     point's stored zero-force state becomes that minimum, flagged as found by the y
     sweep, and the x sweep is computed again from it."""
-    import knitsweep.zero_force as zero_force_module
+    import knitsweep.relax.zero_force as zero_force_module
 
     real = zero_force_module.zero_force
 

@@ -11,10 +11,10 @@ from conftest import TINY
 
 from knitsweep.config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, StartSettings
 from knitsweep.errors import InputError
+from knitsweep.relax.zero_force import zero_force
 from knitsweep.service import worker
 from knitsweep.service.jobs import load_job, plan
 from knitsweep.service.retry import needs_retry, retry_failed_starts
-from knitsweep.zero_force import zero_force
 
 
 def _failed(zf, status=NOT_CONVERGED):
@@ -48,7 +48,7 @@ def test_only_a_point_with_a_start_neither_converged_nor_too_tight_is_retried(co
 
 
 def test_a_failed_start_takes_its_perturbed_copies_verdict(job, point, converged, monkeypatch):
-    monkeypatch.setattr("knitsweep.zero_force.zero_force", lambda *a, **k: _failed(converged))
+    monkeypatch.setattr("knitsweep.relax.zero_force.zero_force", lambda *a, **k: _failed(converged))
     record = worker.run_point(job, point)  # without the retry: a failed task
     assert record["status"] == "done" and record["relax_status"] == CONVERGED
     assert list(record["retried"]) == [job.starts.retries] and job.starts.retries == 3
@@ -63,7 +63,7 @@ def test_no_retry_when_told_so_or_nothing_failed(job, point, converged, monkeypa
     zf, retried, note = retry_failed_starts(_failed(converged), [], point.params, job.fidelity,
                                             job.solver, none, point.seed)  # fmt: skip
     assert zf.status == NOT_CONVERGED and note == "" and not retried.any()
-    monkeypatch.setattr("knitsweep.zero_force.zero_force", lambda *a, **k: converged)
+    monkeypatch.setattr("knitsweep.relax.zero_force.zero_force", lambda *a, **k: converged)
     record = worker.run_point(job, point)
     assert "retried" not in record and "retry_message" not in record
 

@@ -155,7 +155,7 @@ def test_seed_relaxes_with_its_topology():
     E = 0.35812 mJ, a_x = 2.7217, a_y = 1.6587 mm): converged, topology kept, shorter
     along the wale than stockinette (a_y 2.1941 mm) and about as wide (a_x 2.8493 mm)."""
     from knitsweep.config import SolverSettings, StartSettings
-    from knitsweep.zero_force import zero_force
+    from knitsweep.relax.zero_force import zero_force
 
     p = StitchParams(stitch="seed", L_mm=11.6, k_mN_per_mm2=0.1)
     zf = zero_force(p, None, SolverSettings(), StartSettings(count=1))

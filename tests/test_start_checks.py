@@ -140,7 +140,7 @@ def test_a_stitch_added_on_resume_has_its_starts_checked(
         service.run(grown, out, executor="serial", show_progress=False)
     assert out.read_bytes() == before
     checked = []
-    monkeypatch.setattr("knitsweep.zero_force.check_shipped_starts",
+    monkeypatch.setattr("knitsweep.relax.zero_force.check_shipped_starts",
                         lambda stitches, fidelity=None: checked.append(stitches))  # fmt: skip
     runs.check_job_starts(load_job(grown), already=runs.stitches_in_file(out))
     assert checked == [("garter",)]

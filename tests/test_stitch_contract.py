@@ -170,10 +170,10 @@ def test_a_relaxation_converges_at_the_start_length(model):
 
 
 def test_a_relaxation_round_trips_through_the_results_file(model, relaxed, tmp_path):
+    from knitsweep.relax.zero_force import ZeroForce
     from knitsweep.store.format import POINTS, split_record
     from knitsweep.store.journal import Entry
     from knitsweep.store.table import create_table, find_row, put_rows
-    from knitsweep.zero_force import ZeroForce
 
     zero = ZeroForce((relaxed,), ("Init_1",), (1,), 0, relaxed.status, relaxed.message, (-1,),
                      (-1,))  # fmt: skip

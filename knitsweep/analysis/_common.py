@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..plain import plain_value
+from ..util.plain_values import plain_value
 
 DIRECTIONS = ("x", "y")
 

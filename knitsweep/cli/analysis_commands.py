@@ -70,9 +70,9 @@ def phase_diagram(
     as a printed table, CSV files and the paper's figures; also on a file a run is
     still writing."""
     from ..analysis.transitions import GAP_THRESHOLD
-    from ..formats import check_output_dir
     from ..report import phase_diagram as make_phase_diagram
     from ..report.plotting import FigureOptions
+    from ..util.safe_files import check_output_dir
 
     with user_errors():
         threshold = GAP_THRESHOLD if threshold is None else threshold
@@ -275,7 +275,7 @@ def accuracy(
             setting(spec)  # validate every setting before any compute
         if reference is not None and reference not in specs:
             raise InputError(f"reference = {reference!r}: must be one of --settings")
-        from ..formats import check_output_dir
+        from ..util.safe_files import check_output_dir
 
         check_output_dir(out, "--out")  # before any compute, as in every command
     compile_notice()

@@ -101,10 +101,11 @@ def relax(
     from ..compilation import compile_clock
     from ..config import StartSettings, zero_force_solvers
     from ..errors import InputError, check_seed
-    from ..formats import check_writable, read_state, write_state
+    from ..formats import read_state, write_state
     from ..model import CellModel
     from ..presets import Numerics
-    from ..zero_force import zero_force
+    from ..relax.zero_force import zero_force
+    from ..util.safe_files import check_writable
 
     with user_errors():
         check_seed(seed)
@@ -187,11 +188,11 @@ def sweep(
     from ..compilation import compile_clock
     from ..config import StartSettings
     from ..errors import InputError, check_seed
-    from ..formats import check_writable
     from ..presets import Numerics
     from ..service.progress import SweepProgress
     from ..store.sweep_file import sweep_inputs, sweep_table, write_sweep
     from ..strain_sweep import NoRestState, strain_sweep_from_rest
+    from ..util.safe_files import check_writable
 
     with user_errors():
         check_seed(seed)

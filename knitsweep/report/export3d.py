@@ -35,7 +35,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from ..formats import replace_file
+from ..util.safe_files import replace_file
 from .tile import MIRROR, ROW_COLOURS, Stitch
 from .tube_mesh import TubeMesh, tube_mesh
 

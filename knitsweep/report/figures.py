@@ -11,7 +11,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from ..formats import make_output_dir, replace_file
+from ..util.safe_files import make_output_dir, replace_file
 from .fig_energy import fig3_energy_gaps, fig4a_gap_fit, fig4b_deltaL_vs_k, fig4c_phase_diagram
 from .fig_forces import figS11_contact_forces_strain
 from .fig_mechanics import (
@@ -157,7 +157,7 @@ def render_figures(
     {format: bytes}); each as soon as it (and those before it) is drawn. ``workers``
     (default: the usable cores, at most 4) processes draw in parallel (forked, so
     the reduction is not copied); the bytes are the same as drawn one by one."""
-    from ..processes import fork_workers, forked_map
+    from ..util.forking import fork_workers, forked_map
 
     options = options or FigureOptions()
     names = list(FIGURES)

@@ -22,9 +22,9 @@ from .._version import __version__
 from ..analysis.transitions import GAP_THRESHOLD
 from ..config import FAILED
 from ..errors import InputError
-from ..formats import check_writable, replace_file
-from ..plain import plain_value
 from ..quantities import OBSERVABLE_REGISTRY, registered
+from ..util.plain_values import plain_value
+from ..util.safe_files import check_writable, replace_file
 from .plotting import FigureOptions
 from .results import Results, load
 from .tables import TRANSITION_SUMMARY

@@ -37,13 +37,13 @@ from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition
 from ..config import Fidelity
 from ..errors import InputError
-from ..plain import plain_value
 from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS, registered, sweep_observables
 from ..service.spread import POINT_SPREADS, SWEEP_SPREADS
 from ..stitches import DEFAULT_STITCH
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
 from ..store.read import read_files
+from ..util.plain_values import plain_value
 from .force_columns import (
     PAIR_KEYS,
     contact_classes,

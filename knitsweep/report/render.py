@@ -33,7 +33,7 @@ import numpy as np
 
 from ..config import StitchParams
 from ..errors import InputError
-from ..formats import check_writable, replace_file
+from ..util.safe_files import check_writable, replace_file
 from .sources import FROM_FILE, drawn, stitch_from_results, stitch_from_state, stitch_to_draw, title
 from .tile import ROW_COLOURS, Stitch, cell_path, copy_mirrored, row_path, unit_cell
 

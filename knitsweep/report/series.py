@@ -13,11 +13,11 @@ from typing import Any
 from ..analysis.metrics import JAMMING_GAP
 from ..analysis.transitions import Transition, series_transitions
 from ..config import FAILED
-from ..plain import plain_value
 from ..quantities import NUMERIC_SERIES_PARAMS, PARAM_SYMBOLS, SERIES_PARAMS, value_text
 from ..service.adaptive import failure_status
 from ..stitches import DEFAULT_STITCH
 from ..store.journal import Entry
+from ..util.plain_values import plain_value
 
 
 def series_values(meta: Mapping[str, Any]) -> tuple[Any, ...]:

@@ -121,7 +121,7 @@ def relaxed_stitch(params: StitchParams, preset: str | None = None, starts: int 
     default preset), as ``knitsweep relax`` would."""
     from ..config import StartSettings
     from ..presets import Numerics
-    from ..zero_force import zero_force
+    from ..relax.zero_force import zero_force
 
     n = Numerics.from_preset(preset)
     best = zero_force(params, n.fidelity, n.solver, StartSettings(count=starts)).best

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..formats import make_output_dir, replace_file
 from ..quantities import PARAM_SYMBOLS, table_column, value_text
+from ..util.safe_files import make_output_dir, replace_file
 from .reduce import Reduction
 from .results import Results
 

@@ -42,9 +42,9 @@ from ..config import (
     zero_force_solvers,
 )
 from ..errors import MAX_SEED, describe_validation_error
-from ..formats import read_text
 from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
 from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
+from ..util.safe_files import read_text
 from .grid import MAX_POINTS, Grid
 from .id_forms import id_form
 

@@ -31,7 +31,7 @@ from ..config import (
     StitchParams,
 )
 from ..relax import single_threaded, walk_starts
-from ..zero_force import ZeroForce, pick_lowest
+from ..relax.zero_force import ZeroForce, pick_lowest
 
 
 def needs_retry(zf: ZeroForce) -> list[int]:

@@ -18,13 +18,13 @@ from typing import TYPE_CHECKING, Any
 
 from ..config import DONE, FAILED
 from ..errors import InputError
-from ..plain import plain_value
 from ..stitches import DEFAULT_STITCH
 from ..store.checksum import FileCheck
 from ..store.format import POINTS, REWRITABLE_SCHEMAS, SERIES, SWEEPS, journal_dir, lock_path
 from ..store.journal import scan
 from ..store.read import choose_entries, iter_entries, journal_problems, read_progress, read_root
 from ..store.writer import writer_alive
+from ..util.plain_values import plain_value
 from . import signals
 from .jobs import JobSpec, load_job
 
@@ -104,7 +104,7 @@ def check_job_starts(job: JobSpec, already: tuple[str, ...] = ()) -> None:
     compile (this loads the geometry kernels of the stitches it checks)."""
     new = tuple(s for s in job.stitches if s not in already)
     if new:
-        from ..zero_force import check_shipped_starts
+        from ..relax.zero_force import check_shipped_starts
 
         check_shipped_starts(new, job.fidelity)
 
@@ -179,8 +179,8 @@ def check_grid_size(job: JobSpec, max_tasks: int | None) -> None:
 def check_output(out: Path) -> None:
     """Refuse a results file that cannot be written, or whose lock, journal, shadow,
     spare or progress file is a symbolic link, before any compute (``run``, ``merge``)."""
-    from ..formats import check_writable
     from ..store.writer import check_no_links
+    from ..util.safe_files import check_writable
 
     check_writable(out, "results file")
     check_no_links(out)

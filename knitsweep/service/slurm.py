@@ -188,7 +188,7 @@ def render(script: SlurmScript) -> str:
 
 def write_script(path: str | Path, text: str) -> Path:
     """Write a rendered script, executable (``sbatch`` does not need it to be)."""
-    from ..formats import replace_file
+    from ..util.safe_files import replace_file
 
     path = replace_file(Path(path), text.encode())  # never through a symbolic link
     path.chmod(0o755)

@@ -87,8 +87,8 @@ def sweep_spread(job: Any, params: Any, zf: Any, direction: str, record: dict[st
     energies), or, where the point has none (no copy converged), ``job.starts.spread - 1``
     copies of ``zf``'s winning state perturbed; {} when the job asks for none."""
     from ..model import CellModel
+    from ..relax.zero_force import relax_at_rest
     from ..strain_sweep import strain_sweep
-    from ..zero_force import relax_at_rest
 
     n = job.starts.spread
     if n < 2:

@@ -222,7 +222,7 @@ def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dic
     status, the winner's registered point observables (``quantities.registered``) and, if
     stored, its contact forces). ``carried``
     (``[starts] carry``): the state ``x`` and ``params`` of the point it starts from."""
-    from ..zero_force import Start, start_states, zero_force
+    from ..relax.zero_force import Start, start_states, zero_force
     from .retry import retry_failed_starts
     from .spread import point_spread
 
@@ -298,8 +298,8 @@ def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, 
     """The record of one sweep (``SweepResult.to_record`` plus the task status and
     the optional per-step observables); ``zero`` is its point's stored record."""
     from ..model import CellModel
+    from ..relax.zero_force import ZeroForce
     from ..strain_sweep import strain_sweep
-    from ..zero_force import ZeroForce
     from .spread import sweep_spread
 
     params = zero["params"]

@@ -44,8 +44,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import StorageError, storage_error
-from ..formats import replace_file
-from ..plain import plain_value
+from ..util.plain_values import plain_value
+from ..util.safe_files import replace_file
 from .format import renamed
 
 __all__ = ["Entry", "Malformed", "StorageError", "atomic_write_bytes", "decode", "encode",
@@ -90,7 +90,7 @@ def fsync_dir(path: Path) -> None:
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` via a temporary file, fsync and rename: a reader sees
     the old file or the new one, never a part; neither is ever a symbolic link
-    followed (``formats.replace_file``). On failure no temporary file is left and
+    followed (``util.safe_files.replace_file``). On failure no temporary file is left and
     ``StorageError`` names the cause."""
     replace_file(path, data, fsync=True)
 

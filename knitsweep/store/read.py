@@ -142,7 +142,7 @@ def _table(f, kind: str, check: FileCheck | None):
 def _group_entries(f, names, with_data: bool, check: FileCheck | None) -> Iterator[Entry]:
     """The verified task groups ``names`` of a file of schema 1 or 2; files of at least
     ``PARALLEL_FROM`` groups are read by forked helpers."""
-    from ..processes import fork_workers, forked_map
+    from ..util.forking import fork_workers, forked_map
 
     workers = fork_workers() if with_data and len(names) >= PARALLEL_FROM else 1
     if workers <= 1:

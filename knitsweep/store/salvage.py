@@ -192,7 +192,7 @@ def _hdf5(path: Path, out: Salvage, eof: int | None, patches) -> None:
     safe here, else in this process)."""
     from multiprocessing.connection import Connection
 
-    from ..processes import fork_workers
+    from ..util.forking import fork_workers
 
     if fork_workers() <= 1:  # threads or no fork: read here, unguarded
         collect = _Collect(out)

@@ -68,7 +68,7 @@ def write_sweep(path: str | Path, result, params: StitchParams, inputs: dict | N
     as root attributes)."""
     path = Path(path)
     if path.suffix == ".csv":
-        from ..formats import replace_file
+        from ..util.safe_files import replace_file
 
         replace_file(path, sweep_table(result, inputs).encode())
         return

@@ -57,7 +57,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
-from ..formats import refuse_link
+from ..util.safe_files import refuse_link
 from .checksum import FileCheck, seal_root
 from .compatible import check_compatible
 from .failed_writes import hdf5_writes

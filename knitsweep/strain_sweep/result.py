@@ -27,7 +27,7 @@ import numpy as np
 
 from ..analysis.metrics import EnergyGaps, energy_gaps
 from ..quantities import registered
-from ..zero_force import ZeroForce
+from ..relax.zero_force import ZeroForce
 
 
 def first_grid_value(a0: float, h: float, sign: float) -> float:

@@ -36,8 +36,8 @@ from ..config import (
     SweepProtocol,
 )
 from ..presets import PRESETS, Numerics
+from ..relax.zero_force import zero_force
 from ..strain_sweep import strain_sweep
-from ..zero_force import zero_force
 
 # around the k = 0.1 mN/mm^2 transition (L = 11.4-11.5 mm in x and y, paper Fig. 3)
 DEFAULT_SERIES = [11.3, 11.4, 11.5, 11.6, 11.7]
@@ -182,7 +182,7 @@ def accuracy_study(
 
 def write_report(results: list[SettingResult], out: Path) -> list[Path]:
     """accuracy.csv and accuracy.png (relative error against cost) in ``out``."""
-    from ..formats import make_output_dir, replace_file
+    from ..util.safe_files import make_output_dir, replace_file
 
     out = make_output_dir(out)  # as every command's --out: its parent must exist
     csv_path = out / "accuracy.csv"
@@ -253,6 +253,6 @@ def _plot(results: list[SettingResult], path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     plt.close(fig)
-    from ..formats import replace_file
+    from ..util.safe_files import replace_file
 
     replace_file(path, buf.getvalue())
