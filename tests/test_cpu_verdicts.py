@@ -62,11 +62,11 @@ def test_two_runs_in_a_row_with_one_build_are_identical(host):
 def test_the_generic_build_gives_the_hosts_verdicts(host, generic):
     (ph, sh), (pg, sg) = _tables(host[0]), _tables(generic)
     assert list(pg["status"]) == list(ph["status"]) and "failed" not in set(ph["status"])
-    assert set(ph["status"]) == {"done", "not_knittable"}  # the series has both
     assert list(sg["status"]) == list(sh["status"])
     done = sh["status"] == "done"
     assert list(sg["jammed"][done]) == list(sh["jammed"][done])
-    assert sh["jammed"][done].any() and not sh["jammed"][done].all()  # both sides of it
+    both = sh["jammed"][done].any() and not sh["jammed"][done].all()
+    assert both, "the series no longer straddles seed's transitions: move its L (seed_cpus.toml)"
     threshold = ks.load(host[0]).threshold
     for column in ("delta_E_b_mJ", "delta_E_c_mJ"):  # a tenth of the threshold
         assert np.allclose(sg[column][done], sh[column][done], rtol=0, atol=threshold / 10)
