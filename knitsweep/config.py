@@ -464,6 +464,11 @@ class SweepProtocol(BaseModel):
         return self.large_step_x_mm if direction == "x" else self.large_step_y_mm
 
 
+RETRIES = 3  # default [starts] retries; a retry's copies perturb the shape 1e-12 relative:
+RETRY_PERTURBATION = 1e-12  # far above round-off (1e-16), far below a physical change
+SPREAD_PERTURBATION = 1e-15  # [starts] spread's copies: a few ulps of each entry
+
+
 class StartSettings(BaseModel):
     """How many starts per point, and where they come from (docs/model.md §7)."""
 
@@ -493,8 +498,18 @@ class StartSettings(BaseModel):
         "the shipped starts again if that neighbour failed)",
     )
 
+    retries: int = Field(RETRIES, ge=0, le=16, description="a point no start of which converged "
+                         "or ended too tight to knit: each start that did neither walks again "
+                         f"from this many copies perturbed {RETRY_PERTURBATION:g} relative and "
+                         "takes their verdict (service/retry.py); 0: never")  # fmt: skip
+    spread: int = Field(1, ge=1, le=16, description="each point also relaxed from spread - 1 "
+                        "copies of its winning start, each sweep from spread - 1 of its state, "
+                        f"perturbed {SPREAD_PERTURBATION:g} relative: the observables' spread "
+                        "(service/spread.py); 1: off")  # fmt: skip
+
     @model_serializer(mode="wrap")
     def _uncarried_as_before(self, handler) -> dict[str, Any]:
-        # carry = false is left out of every dump (task ids, the job's hash, the
-        # results file's job_json), so that jobs from before it existed keep them
-        return _without_default(handler(self), "carry", False)
+        # carry = false, the default retries and spread are left out of every dump (task ids, the
+        # job's hash, the results file's job_json), so that jobs from before them keep them
+        out = _without_default(handler(self), "carry", False)
+        return _without_default(_without_default(out, "retries", RETRIES), "spread", 1)

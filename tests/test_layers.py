@@ -62,7 +62,7 @@ MODULE_ORDER = {
               "zero_force"],
     "strain_sweep": ["result", "schedule", "sweep"],
     "studies": ["accuracy"],
-    "service": ["signals", "grid", "id_forms", "jobs", "run_plan", "progress", "worker",
+    "service": ["signals", "grid", "id_forms", "jobs", "run_plan", "progress", "retry", "spread", "worker",
                 "adaptive", "executors", "slurm", "master", "runs", "recovery"],
     "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "declutter", "plotting",
                "fig_energy", "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns",
