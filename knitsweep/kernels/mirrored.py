@@ -56,8 +56,8 @@ from .contact import (
     EXCLUSION_FACTOR,
     accumulate_pairs,
     contact_list,
-    pair_buffers,
     pair_potential,
+    pair_sum_start,
     project_gradient,
     sample_cell,
     search_blocks,
@@ -311,17 +311,14 @@ def _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class, with_gr
     unchanged.
     """
     n = tab.shape[1]
-    dt2 = 1.0 / (n * n)
     pts, pos2, s_mid2, speed2, box2, speed, r1, s_tot, t = _doubled_samples(cp, tab, aq)
     ns = pts.shape[0]
-    cut = 2.0 * r
+    dt2, cut, s_excl, ib, fb, work, g2 = pair_sum_start(n, 2 * ns, r)
     images = half_images(pts, ax, ay, r)
     blocks = mirrored_blocks(box2, images, ax, ay, cut, pm, pn, only_class)
-    s_excl = EXCLUSION_FACTOR * r
-    ib, fb, work, g2 = pair_buffers(n, 2 * ns)
     class_energy[:] = 0.0
     energy, gax, gay = 0.0, 0.0, 0.0
-    c = 0
+    c = np.int64(0)  # not the literal 0: no extra specialisation of the callees
     cls_now = 0
     for q in range(blocks.shape[0]):
         im, sa, sb = blocks[q, 0], blocks[q, 1], blocks[q, 2]
@@ -333,7 +330,7 @@ def _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class, with_gr
                                            g2, 0.0, gax, gay)  # fmt: skip
             class_energy[cls_now] += e
             energy += e
-            c = 0
+            c = np.int64(0)
         cls_now = cls
         c = search_pairs(pos2, s_mid2, box2, n, sa, sb, im < 0, m, nn, m * ax, nn * ay,
                          m * s_tot, cut * cut, s_excl, ib, fb, c)  # fmt: skip
