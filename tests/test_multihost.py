@@ -326,6 +326,9 @@ def finished(record):
     return record["JobState"] in FINAL
 
 
+PMI2_WIRE_ERROR = "mpi/pmi2: invalid client request"
+
+
 @pytest.mark.parametrize("launcher", ["srun", "mpirun"])
 def test_template_on_two_nodes(head_cache, shared_dir, jobs, tiny_reference, launcher):
     """``sbatch --nodes=2`` of the shipped MPI template, with srun or hydra's mpirun
@@ -338,13 +341,25 @@ def test_template_on_two_nodes(head_cache, shared_dir, jobs, tiny_reference, lau
     env.pop("NUMBA_CACHE_DIR")  # the template's own node-local default
     watcher.start()
     try:
-        job_id = sbatch(jobs, ["--nodes=2", "--ntasks=3", "--ntasks-per-node=2", f"--output={log}",
-                               "--time=00:10:00", REPO / "slurm" / "knitsweep-mpi.sbatch",
-                               "tiny.toml", out], shared_dir, env)  # fmt: skip
-        record = wait_job(job_id, finished, log)
+        for attempt in range(2):
+            job_id = sbatch(jobs, ["--nodes=2", "--ntasks=3", "--ntasks-per-node=2",
+                                   f"--output={log}", "--time=00:10:00",
+                                   REPO / "slurm" / "knitsweep-mpi.sbatch", "tiny.toml", out],
+                            shared_dir, env)  # fmt: skip
+            record = wait_job(job_id, finished, log)
+            text = log.read_text()
+            if attempt or PMI2_WIRE_ERROR not in text:
+                break
+            # in MPI_Init, srun's PMI2 server got a garbled request while the ranks exchanged
+            # their UCX addresses (then UCX asserted on an address version), before any task
+            # ran (seen once in CI): SLURM's PMI2 with the mpich wheel's UCX, not knitsweep;
+            # the same job once more, in a directory holding only the job
+            print(f"job {job_id}: {PMI2_WIRE_ERROR!r} from srun; submitted again")
+            for f in shared_dir.iterdir():
+                if f.name != "tiny.toml":
+                    shutil.rmtree(f) if f.is_dir() else f.unlink()
     finally:
         watcher.stop()
-    text = log.read_text()
     assert (record["JobState"], record["ExitCode"]) == ("COMPLETED", "0:0"), text
     assert record["NodeList"] == "knit[1-2]" and record["BatchHost"] == "knit1", record
     assert "on 2 node(s), 3 tasks" in text and "knitsweep exited with code 0" in text
