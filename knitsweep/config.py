@@ -30,7 +30,6 @@ from pydantic import (
     Field,
     ValidationInfo,
     field_validator,
-    model_serializer,
 )
 
 from .errors import InputError as InputError  # the settings' error, re-exported
@@ -128,16 +127,6 @@ class StitchParams(BaseModel):
     stitch: StitchName = Field(
         DEFAULT_STITCH, description=f"stitch pattern: one of {STITCH_CHOICES}"
     )
-
-    @model_serializer(mode="wrap")
-    def _stockinette_as_before(self, handler) -> dict[str, Any]:
-        # The default stitch is left out of every dump (task ids, file attributes,
-        # tables), so that everything computed before stitches were a choice keeps
-        # its id and reads the same; any other stitch is written out.
-        out = handler(self)
-        if out.get("stitch") == DEFAULT_STITCH:
-            del out["stitch"]
-        return out
 
     @field_validator("p")
     @classmethod
@@ -347,14 +336,6 @@ takes the lower state as the point's zero-force state (``SweepProtocol.rest_tole
 a tenth of the paper's energy-gap threshold."""
 
 
-def _without_default(out: dict[str, Any], name: str, default: Any) -> dict[str, Any]:
-    """A settings dump ``out`` without field ``name`` where it holds ``default`` (a field
-    added later, left out of task ids and job hashes so that earlier jobs keep theirs)."""
-    if name in out and type(out[name]) is type(default) and out[name] == default:
-        del out[name]
-    return out
-
-
 class SweepProtocol(BaseModel):
     """The strain schedule; defaults are the authors' (docs/model.md §8)."""
 
@@ -422,12 +403,6 @@ class SweepProtocol(BaseModel):
         "gap threshold; 1 mJ turns it off)",
     )
 
-    @model_serializer(mode="wrap")
-    def _rest_tolerance_as_before(self, handler) -> dict[str, Any]:
-        # the default is left out of every dump (task ids, the job's hash), so that jobs
-        # from before sweeps checked their zero-force state keep them
-        return _without_default(handler(self), "rest_tolerance_mJ", REST_TOLERANCE_MJ)
-
     @field_validator("observables", mode="before")
     @classmethod
     def _from_a_list(cls, v: Any) -> Any:
@@ -477,9 +452,3 @@ class StartSettings(BaseModel):
         "state of its neighbour of next larger L, walked there by continuation (one start; "
         "the shipped starts again if that neighbour failed)",
     )
-
-    @model_serializer(mode="wrap")
-    def _uncarried_as_before(self, handler) -> dict[str, Any]:
-        # carry = false is left out of every dump (task ids, the job's hash, the
-        # results file's job_json), so that jobs from before it existed keep them
-        return _without_default(handler(self), "carry", False)
