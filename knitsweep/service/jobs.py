@@ -18,7 +18,7 @@ import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar, Literal
+from typing import Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -128,24 +128,11 @@ class AdaptiveSettings(BaseModel):
     max_refinements: int = Field(40, ge=1, le=1000, description="refinements per series, at most")
 
 
-class _ClassCreationProbe:
-    """Where a test has the start-up signal arrive inside pydantic's class creation
-    (``signals.test_point("class")``): Python then wraps the signal's exception in
-    RuntimeError, which every entry point must still see as the signal."""
-
-    def __set_name__(self, owner, name) -> None:
-        from . import signals
-
-        signals.test_point("class")
-
-
 class JobSpec(BaseModel):
     """A whole job. ``fidelity``, ``solver`` and ``protocol`` start from ``preset``
     and take any field given explicitly."""
 
     model_config = _STRICT
-    _probe: ClassVar[_ClassCreationProbe] = _ClassCreationProbe()
-
     schema_version: int = Field(
         description=f"job file format; this knitsweep reads {JOB_SCHEMA_VERSION}"
     )
