@@ -1,7 +1,7 @@
 """Compile time of the numba kernels: per kernel, cold and warm.
 
 Run: ``python benchmarks/bench_compile.py [--repeats 1] [--src DIR ...] [--what run|energy]
-[--jobs 1] [--stitch stockinette]``
+[--jobs 1] [--stitch stockinette] [--group solver]``
 
 Each measurement runs in a fresh Python process with ``NUMBA_CACHE_DIR`` pointed at a
 new, empty temporary directory (cold: every kernel compiles), then again in a fresh
@@ -17,7 +17,8 @@ own, callees' compile events subtracted); the exclusive column adds up to the co
 total. Times are CPU seconds of the compiling process (compiling is single-threaded,
 so on an idle core they are its wall time; on a shared, loaded machine they are what
 stays comparable); ``wall`` is the whole ``compile_kernels`` call in the child
-(process start-up and imports excluded).
+(process start-up and imports excluded). ``--group`` compiles one group of kernels
+(``knitsweep.compilation.compile_group``) instead of everything.
 
 With ``--jobs N`` > 1 the groups of kernels (``knitsweep.compilation.KERNEL_GROUPS``) compile
 in N child processes, whose compile events this process does not see: then only the
@@ -76,9 +77,13 @@ except ImportError:  # older trees: in knitsweep.model
     compile_kernels = model.compile_kernels
 t0, c0 = time.perf_counter(), time.process_time()
 what, jobs, stitches = sys.argv[1], int(sys.argv[2]), tuple(sys.argv[3].split(","))
+group = sys.argv[4]
 new_api = "jobs" in compile_kernels.__code__.co_varnames  # older trees: no jobs, no what
 with event.install_listener("numba:compile", Listener()):
-    if new_api:
+    if group:  # one of KERNEL_GROUPS alone, in this process
+        from knitsweep.compilation import compile_group
+        compile_group(group, None, stitches, what)
+    elif new_api:
         compile_kernels(jobs=jobs, what=what, stitches=stitches)
     elif what == "run":
         compile_kernels()
@@ -91,10 +96,11 @@ print(json.dumps({"wall": wall, "cpu": cpu, "import": t0 - t_import, "rows": row
 """
 
 
-def measure(src: Path, what: str, cache: str, jobs: int, stitches: str = "stockinette") -> dict:
+def measure(src: Path, what: str, cache: str, jobs: int, stitches: str = "stockinette",
+            group: str = "") -> dict:  # fmt: skip
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(src))
     load = os.getloadavg()[0]  # the 1-minute load as the measurement starts
-    out = subprocess.run([sys.executable, "-c", _CHILD, what, str(jobs), stitches], env=env, cwd=src, check=True,
+    out = subprocess.run([sys.executable, "-c", _CHILD, what, str(jobs), stitches, group], env=env, cwd=src, check=True,
                          capture_output=True, text=True).stdout  # fmt: skip
     return {**json.loads(out.strip().splitlines()[-1]), "load": load}
 
@@ -118,6 +124,12 @@ def main() -> None:
         help="stitches whose kernels compile, "
         "comma-separated (e.g. garter: a knit/purl pattern's own kernels too)",
     )
+    ap.add_argument(
+        "--group",
+        default="",
+        help="one group of kernels alone "
+        "(knitsweep.compilation.KERNEL_GROUPS, e.g. solver), in the measuring process",
+    )
     ap.add_argument("--top", type=int, default=25, help="rows of the per-kernel table")
     ap.add_argument("--json", type=Path, help="also write the raw figures here")
     args = ap.parse_args()
@@ -126,10 +138,11 @@ def main() -> None:
     for _ in range(args.repeats):
         for tree in trees:  # alternate trees run by run: same load for each
             with tempfile.TemporaryDirectory(prefix="ks-numba-cache-") as cache:
-                cold = measure(tree, args.what, cache, args.jobs, args.stitch)
-                warm = measure(tree, args.what, cache, args.jobs, args.stitch)
+                cold = measure(tree, args.what, cache, args.jobs, args.stitch, args.group)
+                warm = measure(tree, args.what, cache, args.jobs, args.stitch, args.group)
             runs[tree].append((cold, warm))
-    print(f"compile of what `{args.what}` of {args.stitch} needs, jobs={args.jobs}, "
+    print(f"compile of what `{args.what}` of {args.stitch} needs"
+          f"{f' (group {args.group})' if args.group else ''}, jobs={args.jobs}, "
           f"{args.repeats} run(s) per tree, medians; "
           f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")  # fmt: skip
     summary = {}

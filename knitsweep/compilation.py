@@ -72,7 +72,7 @@ def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,),
     and the large states' KKT step where a stitch needs them (``what="energy"``: the
     geometry and the energy only, what ``knitsweep energy`` calls)."""
     from .kernels import ENTRY_POINTS
-    from .kernels.kkt import ROWS_FROM
+    from .kernels.kkt_rows import step_kernels
 
     chosen = [get_stitch(name) for name in stitches]
     geometry = tuple(dict.fromkeys(f"{s.geometry_module}.state_to_control_points"
@@ -81,9 +81,9 @@ def kernel_entry_points(stitches: tuple[str, ...] = (DEFAULT_STITCH,),
     if what == "energy":  # each group's energy kernel
         return geometry + tuple(dict.fromkeys(e for g in groups for e in g.energy_entry_points))
     own = tuple(dict.fromkeys(e for g in groups for e in g.entry_points))
-    rows = ("knitsweep.kernels.kkt_rows.kkt_step_rows",) * any(s.n_state >= ROWS_FROM
-                                                               for s in chosen)  # fmt: skip
-    return geometry + ENTRY_POINTS + own + rows
+    steps = tuple(f"{k.py_func.__module__}.{k.py_func.__name__}"
+                  for k in step_kernels(max(s.n_state for s in chosen)))  # fmt: skip
+    return tuple(dict.fromkeys(geometry + ENTRY_POINTS + own + steps))
 
 
 COMPILE_SECONDS = {(what, group.name): seconds for group in (Translations, Glides)

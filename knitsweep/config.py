@@ -424,6 +424,11 @@ class SweepProtocol(BaseModel):
         return self.large_step_x_mm if direction == "x" else self.large_step_y_mm
 
 
+RETRIES = 3  # default [starts] retries; a retry's copies perturb the shape 1e-12 relative:
+RETRY_PERTURBATION = 1e-12  # far above round-off (1e-16), far below a physical change
+SPREAD_PERTURBATION = 1e-15  # [starts] spread's copies: a few ulps of each entry
+
+
 class StartSettings(BaseModel):
     """How many starts per point, and where they come from (docs/model.md §7)."""
 
@@ -452,3 +457,12 @@ class StartSettings(BaseModel):
         "state of its neighbour of next larger L, walked there by continuation (one start; "
         "the shipped starts again if that neighbour failed)",
     )
+
+    retries: int = Field(RETRIES, ge=0, le=16, description="a point no start of which converged "
+                         "or ended too tight to knit: each start that did neither walks again "
+                         f"from this many copies perturbed {RETRY_PERTURBATION:g} relative and "
+                         "takes their verdict (service/retry.py); 0: never")  # fmt: skip
+    spread: int = Field(1, ge=1, le=16, description="each point also relaxed from spread - 1 "
+                        "copies of its winning start, each sweep from spread - 1 of its state, "
+                        f"perturbed {SPREAD_PERTURBATION:g} relative: the observables' spread "
+                        "(service/spread.py); 1: off")  # fmt: skip

@@ -72,6 +72,10 @@ def _q(name: str, units: str, long_name: str) -> tuple[str, Quantity]:
     return name, Quantity(name, units, long_name)
 
 
+SECANT_STRAIN = 0.02
+"""The strain at which the paper measures Y_sec, for simulations and experiments (and
+knitsweep its secant Poisson's ratio)."""
+
 ObservableKind = Literal["point", "step", "sweep"]
 
 
@@ -88,7 +92,8 @@ class Observable:
     table, ``knitsweep sweep``'s CSV), ``"sweep"`` (one number a sweep, reduced from its
     step arrays: the sweeps table). ``method``: the ``model.CellModel`` method that
     computes a point or step observable from a state ``x``; ``from_steps``: for a sweep
-    observable, the function of a sweep's step arrays (by name) that gives it. ``stored``:
+    observable, the function of a sweep's step arrays (by name) and its direction
+    (``"x"`` or ``"y"``) that gives it. ``stored``:
     computed and written by every run (False: listed, not computed). ``label``: its name
     in the report's headers (HTML); ``table_name``: its name in the tables where that is
     not ``name`` (a point's ``thickness`` is the points table's ``thickness0``)."""
@@ -98,7 +103,7 @@ class Observable:
     units: str
     long_name: str
     method: str = ""
-    from_steps: Callable[[Mapping[str, np.ndarray]], float | None] | None = None
+    from_steps: Callable[[Mapping[str, np.ndarray], str], float | None] | None = None
     stored: bool = True
     label: str = ""
     table_name: str = ""
@@ -126,11 +131,28 @@ OBSERVABLE_REGISTRY: tuple[Observable, ...] = (
     Observable("max_curvature", "step", "1/mm", "largest curvature of the yarn centre-line "
                "(above 1/r the tube folds on itself)", "max_curvature"),
     Observable("peak_curvature", "sweep", "1/mm", "largest curvature of the yarn centre-line "
-               "along the sweep", from_steps=lambda a: np.max(a["max_curvature"]),
+               "along the sweep", from_steps=lambda a, _direction: np.max(a["max_curvature"]),
                label="largest curvature"),
+    Observable("poisson_ratio", "sweep", "1", "Poisson's ratio -e_perp/e at strain 0.02 (secant; "
+               "the transverse period relaxed to zero force)", from_steps=lambda a, d:
+               secant_poisson_ratio(a["strain"], a["a_y" if d == "x" else "a_x"]),
+               label="Poisson's ratio"),
 )  # fmt: skip
 """The observable registry: every observable computed from a state or a sweep, one entry
 each (adding one is an entry here and, for a new computation, a ``CellModel`` method)."""
+
+
+def secant_poisson_ratio(strain: np.ndarray, across: np.ndarray,
+                         at: float = SECANT_STRAIN) -> float | None:  # fmt: skip
+    """Poisson's ratio of a uniaxial sweep, secant at strain ``at`` (as Y_sec is):
+    ν = −ε_⊥(at)/at, ε_⊥ = a_⊥/a_⊥0 − 1 the strain of the transverse period (relaxed to
+    zero force at every step), both linearly interpolated between the neighbouring
+    steps; None when the sweep stops short of ``at``. Pulled in x it is ν_xy, in y ν_yx."""
+    strain = np.asarray(strain, dtype=float)
+    across = np.asarray(across, dtype=float)
+    if strain.size < 2 or not strain[-1] >= at:
+        return None
+    return float(-np.interp(at, strain, across / across[0] - 1.0) / at)
 
 
 def registered(kind: ObservableKind, stored_only: bool = True) -> tuple[Observable, ...]:
@@ -138,14 +160,14 @@ def registered(kind: ObservableKind, stored_only: bool = True) -> tuple[Observab
     return tuple(o for o in OBSERVABLE_REGISTRY if o.kind == kind and (o.stored or not stored_only))
 
 
-def sweep_observables(arrays: Mapping[str, np.ndarray]) -> dict[str, float | None]:
-    """Every stored sweep observable of a sweep's step ``arrays`` (by stored name), by
-    table column; None where an array it needs is absent (a file of an earlier
-    schema)."""
+def sweep_observables(arrays: Mapping[str, np.ndarray], direction: str) -> dict[str, float | None]:
+    """Every stored sweep observable of a sweep's step ``arrays`` (by stored name) pulled
+    in ``direction``, by table column; None where an array it needs is absent (a file
+    of an earlier schema)."""
     out: dict[str, float | None] = {}
     for o in registered("sweep"):
         try:
-            value = o.from_steps(arrays)
+            value = o.from_steps(arrays, direction)
         except KeyError:
             value = None
         out[o.column] = None if value is None else float(value)

@@ -23,6 +23,13 @@ def test_energy_json_matches_reference(data_dir):
     assert {"bending_energy", "contact_energy", "total_energy", "length"} <= set(got)
     for key in ("bending_energy", "contact_energy", "total_energy", "length"):
         assert got[key] == pytest.approx(case[key], rel=1e-10)
+    # what it was computed with, and in what units (as relax --json says it)
+    assert got["parameters"]["L_mm"] == 11.6 and got["parameters"]["k_mN_per_mm2"] == 0.1
+    assert got["parameters"]["stitch"] == "stockinette" and got["state"].endswith("Init_1.dat")
+    assert got["fidelity"]["samples_per_segment"] == 10
+    units = got["units"]
+    assert units["total_energy"] == "mJ" and units["length"] == units["a_x"] == "mm"
+    assert units["k_mN_per_mm2"] == "mN/mm2"
 
 
 def test_energy_with_authors_config(data_dir):

@@ -238,3 +238,23 @@ def test_fig4c_names_the_jammed_only_in_x_region(reduction):
         fig = finish(FIGURES["fig4c_phase_diagram.png"](red, []))
     labels = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
     assert REGIME_LABEL["jammed_x_only"] in labels, labels
+
+
+def test_a_movable_note_on_another_text_is_moved_off_it():
+    """A note (``movable``) drawn over a fixed label, away from any data (the ΔL/r note
+    of fig3 on the (L/r)_trans line's label, seen at the paper's k = 0.1), leaves it."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from knitsweep.report.declutter import declutter, movable
+
+    fig = Figure(figsize=(4, 3))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.plot([0.0, 1.0], [0.0, 0.2], marker="o")
+    ax.set_ylim(0, 1)
+    ax.text(0.5, 0.8, "15.54")
+    movable(ax.text(0.49, 0.8, "ΔL/r = -0.073\n(zero beyond the transition)"))
+    assert any("overlaps" in p for p in layout_problems(fig))
+    declutter(fig)
+    assert not layout_problems(fig), layout_problems(fig)

@@ -98,6 +98,8 @@ def test_each_step_migrates_down_and_up_losslessly(migration, tmp_path):
         ("[store]\npacking_fraction = true\n", "store.packing_fraction"),
         ("[starts]\ncarry = true\n", "starts.carry"),
         ("[protocol]\nrest_tolerance_mJ = 1e-5\n", "protocol.rest_tolerance_mJ"),
+        ("[starts]\nretries = 0\n", "starts.retries"),
+        ("[starts]\nspread = 3\n", "starts.spread"),
     ],
 )
 def test_a_job_using_a_later_field_keeps_it_in_its_id(tmp_path, extra, kept):
@@ -139,10 +141,13 @@ IDS_OF_LATER_FIELDS = [
     ('mode = "adaptive"\n', '', '0997b2919014a1a5', ('154183f3e9a4fc68', '763ec966b47d1865'), 'b7b99bdf35c022c9', '61cbd8f586cc22b0', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
     ('mode = "adaptive"\nstitch = "garter"\n[protocol]\nrest_tolerance_mJ = 1e-5\n', '', '15ae294abd820f4a', ('b6610298a421d455', '8960e816bf915787'), '9ae430e4d121039b', 'd5f5d7b26fbf47c3', ('ab9fc7ff96a3a5b7', 'bf337bb2a19979cb')),
     ('mode = "adaptive"\n[starts]\ncarry = true\n', '', '973c20c67fa7ac33', ('724de50c81d8716f', 'fc74bf68b4b00f88'), '6f1cf2d8863fe28f', '95c4f151e0baece8', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('[starts]\nretries = 0\n', '', '7e3c08c8efc3500c', ('dc5e8ad8c49fee35', '9d396206c11ba81b'), 'cdc366748982508d', '0e39ecddc9ed937c', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('[starts]\nspread = 3\n', '', '3ffc949dc8b16c92', ('e2d867a59bd68ed2', '96244a0dda331a62'), '79abda858af69b38', 'f45eb09441ae9b7d', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
 ]  # fmt: skip
 """(top of the job file, [grid] lines, job hash, point ids, first and last sweep ids,
 adaptive series keys) of small jobs using each later-added field of the task settings,
-as main c6819a9 computed them (when those fields were deleted from every dump)."""
+as main computed them when those fields were deleted from every dump (c6819a9; retries
+and spread, added since: 1112e92)."""
 
 
 @pytest.mark.parametrize(("top", "grid", "job_hash", "point_ids", "first", "last", "series"),
@@ -186,6 +191,8 @@ def test_each_task_form_step_migrates_down_and_up_losslessly(forms, settings):
     [
         (PARAMS_FORMS, StitchParams(stitch="garter"), "stitch"),
         (STARTS_FORMS, StartSettings(carry=True), "carry"),
+        (STARTS_FORMS, StartSettings(retries=0), "retries"),
+        (STARTS_FORMS, StartSettings(spread=3), "spread"),
         (PROTOCOL_FORMS, SweepProtocol(rest_tolerance_mJ=1e-5), "rest_tolerance_mJ"),
     ],
 )

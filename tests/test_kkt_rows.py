@@ -7,10 +7,15 @@ import numpy as np
 import pytest
 
 from knitsweep.config import StitchParams
-from knitsweep.kernels.kkt import kkt_step
-from knitsweep.kernels.kkt_rows import kkt_step_rows
+from knitsweep.kernels.kkt import ROWS_FROM, kkt_step, more_sorensen, tangential_step
+from knitsweep.kernels.kkt_rows import (
+    kkt_step_for,
+    kkt_step_rows,
+    step_kernels,
+    tangential_step_rows,
+)
 from knitsweep.model import CellModel
-from knitsweep.relax.newton import ROWS_FROM, measure_curvature
+from knitsweep.relax.newton import measure_curvature
 from knitsweep.relax.problem import Problem
 from knitsweep.stitches import get_stitch
 
@@ -84,3 +89,44 @@ def test_rows_step_is_the_dense_step_on_a_positive_definite_pattern_hessian(patt
     shifted = b + (max(0.0, -w[0]) + 1e-3 * np.max(np.abs(w))) * np.eye(b.shape[0])
     held = np.zeros(free.size, dtype=bool)
     assert not _agree(pt, shifted, free, held, radius)
+
+
+@pytest.mark.parametrize("m", [5, 29, 87])
+def test_both_steps_run_one_more_sorensen_loop(m):
+    """``tangential_step`` (hand-written upper factor) and ``tangential_step_rows``
+    (LAPACK's lower factor) are ``more_sorensen`` on their factorisation, bit for bit:
+    where the Newton step is too long, a shifted step onto the radius, the two
+    factorisations equal to round-off; where hz is not positive definite, no step."""
+    rng = np.random.default_rng(m)
+    q = rng.standard_normal((m, m))
+    hz = q @ q.T + 0.01 * np.eye(m)
+    rz = rng.standard_normal(m)
+    full = np.linalg.solve(hz, -rz)
+    radius = 0.3 * np.linalg.norm(full)
+    steps = {}
+    for lapack, step in ((False, tangential_step), (True, tangential_step_rows)):
+        u, w = np.empty(m), np.empty(m)
+        dec, done = more_sorensen(hz, rz, radius, lapack, np.zeros((m, m)), np.empty(m), u, w)
+        assert done
+        v = np.empty(m)
+        assert step(hz, rz, radius, 1e-12, v, np.zeros(m)) == (dec, False)
+        assert np.array_equal(u, v)
+        steps[lapack] = u, dec
+    (u0, d0), (u1, d1) = steps[False], steps[True]
+    assert np.linalg.norm(u0) == pytest.approx(radius, rel=1e-12)
+    assert np.max(np.abs(u1 - u0)) <= TOL * np.max(np.abs(u0))
+    assert d0 == pytest.approx(0.5 * rz @ np.linalg.solve(hz, rz), rel=TOL)
+    assert d1 == pytest.approx(d0, rel=TOL)
+    hz[0, 0] = -1.0
+    for lapack in (False, True):
+        got = more_sorensen(hz, rz, radius, lapack, np.zeros((m, m)), np.empty(m), u, w)
+        assert got == (0.0, False)
+
+
+def test_the_step_kernels_by_size():
+    """One rule picks the step of a relaxation (``kkt_step_for``) and what compiles and
+    counts as cached (``step_kernels``): the dense step below ``ROWS_FROM`` entries."""
+    assert kkt_step_for(ROWS_FROM - 1) is kkt_step
+    assert kkt_step_for(ROWS_FROM) is kkt_step_rows
+    assert step_kernels(30) == (kkt_step,)
+    assert step_kernels(88) == (kkt_step, kkt_step_rows)

@@ -89,3 +89,37 @@ def test_a_file_written_before_an_observable_reads_without_it(data_dir, tmp_path
     assert len(res.sweeps) and res.sweeps["peak_curvature_per_mm"].isna().all()
     assert res.points["max_curvature0_per_mm"].isna().all()
     assert "max_curvature_per_mm" not in res.curves and len(res.curves)
+
+
+def test_the_secant_poisson_ratio_of_a_known_deformation():
+    """ν = −ε_⊥/ε at strain 0.02, between steps that bracket it; None short of it."""
+    from knitsweep.quantities import secant_poisson_ratio
+
+    strain = np.array([0.0, 0.007, 0.015, 0.026, 0.04])
+    across = 2.2 * (1.0 - 0.37 * strain)  # a linear contraction: ν = 0.37 at every strain
+    assert secant_poisson_ratio(strain, across) == pytest.approx(0.37, rel=1e-12)
+    bent = 2.2 * (1.0 - 0.5 * strain - 10.0 * strain**2)  # ε_⊥(0.02) by the chord 0.015-0.026
+    lo, hi = bent[2] / 2.2 - 1, bent[3] / 2.2 - 1
+    chord = lo + (hi - lo) * (0.02 - 0.015) / (0.026 - 0.015)
+    assert secant_poisson_ratio(strain, bent) == pytest.approx(-chord / 0.02, rel=1e-12)
+    assert secant_poisson_ratio(strain[:3], across[:3]) is None
+
+
+def test_the_tables_poisson_ratios_come_from_the_transverse_period(tiny_reference):
+    """ν_xy of the x sweeps from a_y, ν_yx of the y sweeps from a_x, read off the curves
+    table; knitted stockinette contracts across when pulled (0 < ν)."""
+    import html
+
+    import knitsweep
+    from knitsweep.report.html import header
+
+    res = knitsweep.load(tiny_reference)
+    nu = res.sweeps.set_index("task_id")["poisson_ratio"]
+    assert html.unescape(header("poisson_ratio")) == "Poisson's ratio"  # (unit 1: none shown)
+    for task, g in res.curves.groupby("task_id"):
+        across = g["a_y_mm" if g["direction"].iloc[0] == "x" else "a_x_mm"].to_numpy()
+        eps, e_perp = g["strain"].to_numpy(), across / across[0] - 1
+        j = int(np.searchsorted(eps, 0.02))
+        w = (0.02 - eps[j - 1]) / (eps[j] - eps[j - 1])
+        expect = -((1 - w) * e_perp[j - 1] + w * e_perp[j]) / 0.02
+        assert nu[task] == pytest.approx(expect, rel=1e-12) and 0 < nu[task] < 2

@@ -144,3 +144,39 @@ def test_a_curve_ends_within_ten_percent_above_its_stop_stress(rest, direction):
     assert stop < s.stress_envelope[-1] <= STOP_OVERSHOOT * stop, s.stress_envelope[-3:]
     steps = np.diff(s.a_x if direction == "x" else s.a_y)
     assert steps[-1] < steps.max()  # the last step was refined
+
+
+def test_a_long_step_near_the_stop_stress_that_overlaps_is_taken_again_shorter(rest, monkeypatch):
+    """A long step near the stop stress whose relaxation ends with the cores overlapping
+    (here the first attempt of every long step past half the stop stress is reported
+    overlapping) is taken again half as long: the sweep ends at its stop stress, not as
+    not knittable (found at the paper's L = 11.3 mm, k = 0.1 in x: a step from strain
+    0.830 to 0.866 jumped through the cores and the whole sweep was lost)."""
+    from knitsweep.config import NOT_KNITTABLE
+    from knitsweep.strain_sweep import sweep as sweep_module
+
+    stop = 0.1
+    proto = SweepProtocol(step_mm=0.002, switch_strain=0.04, large_step_x_mm=0.1,
+                          large_step_y_mm=0.05, stop_stress_N_per_mm=stop)  # fmt: skip
+    plain = strain_sweep(POINT, rest, "x", proto, FIDELITY)
+    pick = sweep_module.pick_lowest
+    a_ends = plain.a_x[np.flatnonzero(plain.stress_envelope > 0.5 * stop)[0] + 1 :]
+    refused = []
+
+    def overlapping_once(relaxations):
+        w, status = pick(relaxations)
+        a = relaxations[w].x[-2]
+        if (
+            status != NOT_KNITTABLE
+            and np.any(np.isclose(a, a_ends, rtol=0, atol=1e-12))
+            and a not in refused
+        ):
+            refused.append(a)
+            return w, NOT_KNITTABLE
+        return w, status
+
+    monkeypatch.setattr(sweep_module, "pick_lowest", overlapping_once)
+    s = strain_sweep(POINT, rest, "x", proto, FIDELITY)
+    assert refused and s.status == "done" and s.stopped_by == "stop_stress", s.stop_reason
+    for a in refused:  # each was taken again half as long (the large step is 0.1 mm)
+        assert np.any(np.isclose(s.a_x, a - 0.05, rtol=0, atol=1e-9)), (a, s.a_x[-6:])

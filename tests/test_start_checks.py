@@ -85,10 +85,9 @@ def test_shipped_starts_pass_the_check():
             assert model.check_start(model.stitch.start(i + 1)) > 0.05, (stitch, i)
 
 
-def test_run_refuses_a_shipped_start_that_overlaps_before_compute(monkeypatch, tmp_path):
-    """``run`` checks every stitch's shipped starts (here garter's Init_3, squeezed by a
-    damaged install) before any compute: nothing is written."""
-    from knitsweep import service
+@pytest.fixture
+def damaged_garter_start(monkeypatch):
+    """Garter's shipped Init_3 with both periods at 60 %, as a damaged install would ship it."""
     from knitsweep.stitches.base import Stitch
 
     start = Stitch.start
@@ -101,6 +100,13 @@ def test_run_refuses_a_shipped_start_that_overlaps_before_compute(monkeypatch, t
         return x
 
     monkeypatch.setattr(Stitch, "start", damaged)
+
+
+def test_run_refuses_a_shipped_start_that_overlaps_before_compute(damaged_garter_start, tmp_path):
+    """``run`` checks every stitch's shipped starts (here garter's Init_3, squeezed by a
+    damaged install) before any compute: nothing is written."""
+    from knitsweep import service
+
     job = tmp_path / "garter.toml"
     job.write_text(TINY.read_text().replace("[grid]", '[grid]\nstitch = "garter"'))
     out = tmp_path / "g.h5"
@@ -108,3 +114,33 @@ def test_run_refuses_a_shipped_start_that_overlaps_before_compute(monkeypatch, t
                                          r"yarn: .* segment \d+ of its image"):  # fmt: skip
         service.run(job, out, executor="serial", show_progress=False)
     assert not out.exists()
+
+
+def test_a_stitch_added_on_resume_has_its_starts_checked(
+    damaged_garter_start, monkeypatch, tmp_path, tiny_reference
+):
+    """A job grown by a stitch runs into its old file; the new stitch's shipped starts are
+    checked before compute (here garter's Init_3, squeezed), the file left as it was; the
+    stitches already in the file are not checked again."""
+    import shutil
+
+    from knitsweep import service
+    from knitsweep.service import runs
+    from knitsweep.service.jobs import load_job
+
+    out = tmp_path / "t.h5"
+    shutil.copy(tiny_reference, out)
+    before = out.read_bytes()
+    assert runs.stitches_in_file(out) == ("stockinette",)
+    grown = tmp_path / "grown.toml"
+    grown.write_text(
+        TINY.read_text().replace("[grid]", '[grid]\nstitch = ["stockinette", "garter"]')
+    )
+    with pytest.raises(InputError, match=r"shipped start Init_3(\.dat)? of garter = overlapping"):
+        service.run(grown, out, executor="serial", show_progress=False)
+    assert out.read_bytes() == before
+    checked = []
+    monkeypatch.setattr("knitsweep.relax.zero_force.check_shipped_starts",
+                        lambda stitches, fidelity=None: checked.append(stitches))  # fmt: skip
+    runs.check_job_starts(load_job(grown), already=runs.stitches_in_file(out))
+    assert checked == [("garter",)]

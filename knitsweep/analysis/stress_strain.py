@@ -14,6 +14,7 @@ from typing import Literal
 
 import numpy as np
 
+from ..quantities import SECANT_STRAIN
 from ._common import (
     PlainDict,
     check_int,
@@ -21,9 +22,6 @@ from ._common import (
     check_strain_stress,
 )
 from .fitting import LinearFit, fit_line
-
-SECANT_STRAIN = 0.02
-"""The strain at which the paper measures Y_sec, for simulations and experiments."""
 
 
 @dataclass(frozen=True)

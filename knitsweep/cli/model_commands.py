@@ -9,7 +9,6 @@ import typer
 
 from ..config import SOLVERS
 from .common import (
-    ENERGY_UNITS,
     RELAX_UNITS,
     BOpt,
     ConfigOpt,
@@ -44,7 +43,8 @@ def energy(
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     as_json: JsonOpt = False,
 ) -> None:  # fmt: skip
-    """Bending, contact and total energy (mJ = N mm) and yarn length (mm) of a state."""
+    """Bending, contact and total energy (mJ = N mm) and yarn length (mm) of a state;
+    --json also gives the parameters, the fidelity and the units."""
     from ..formats import read_state
     from ..model import CellModel
 
@@ -59,7 +59,11 @@ def energy(
         compile_notice(params.stitch, energy_only=True)
         result = model.energies(x).as_dict()
     result["a_x"], result["a_y"] = float(x[-2]), float(x[-1])
-    _print_result(result, as_json, ENERGY_UNITS)
+    result |= {"parameters": {"stitch": params.stitch, **params.model_dump(),
+                              "L_over_r": params.L_mm / params.r_mm},
+               "fidelity": fidelity.model_dump(mode="json"), "state": str(state),
+               "units": RELAX_UNITS}  # fmt: skip
+    _print_result(result, as_json, RELAX_UNITS)
 
 
 StateOpt = Annotated[

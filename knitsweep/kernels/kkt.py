@@ -12,7 +12,8 @@ eigenvalues when it is indefinite.
 Two implementations of that one step: ``kkt_step`` here (dense: the null-space basis
 formed, hand-written Cholesky, the full eigendecomposition) serves stockinette's 29–30
 unknowns, whose results are its bits; ``kkt_rows.kkt_step_rows`` serves the free yarn's
-86–88 (``ROWS_FROM``).
+86–88 (``ROWS_FROM``). Both run one Moré–Sorensen loop (``more_sorensen``), on the
+hand-written factor or on LAPACK's (``_factor_shifted_rows``, here for that reason).
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ import math
 
 import numba.np.linalg  # noqa: F401  (registers numba's LAPACK helpers)
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 
 @njit(cache=True)
@@ -68,20 +70,143 @@ def _solve_upper(r, b, out):
 
 
 @njit(cache=True)
-def _newton_shifted(hz, rz, nu, r, q, u):
-    """u = −(hz + νI)⁻¹ rz via the Cholesky factor r (and q = R⁻ᵀ rz); False if hz + νI
-    is not positive definite."""
-    m = hz.shape[0]
+def _factor_shifted(hz, nu, r):
+    """The upper Cholesky factor r of hz + νI (hand-written, ``_cholesky``); False if
+    hz + νI is not positive definite."""
     hs = hz.copy()
-    for i in range(m):
+    for i in range(hz.shape[0]):
         hs[i, i] += nu
-    if not _cholesky(hs, r):
-        return False
-    _solve_lower(r, rz, q)
-    _solve_upper(r, q, u)
+    return _cholesky(hs, r)
+
+
+_POTRF = types.ExternalFunction(
+    "numba_xxpotrf", types.intc(types.char, types.char, types.intp, types.voidptr, types.intp)
+)
+"""LAPACK's Cholesky factorisation (xPOTRF) as numba's own ``np.linalg.cholesky`` calls it:
+(kind, uplo, n, a, lda) -> info, > 0 where the matrix is not positive definite."""
+
+
+@njit(cache=True)
+def _forward(low, b, out):
+    """out = L⁻¹ b (forward substitution, L lower)."""
+    m = low.shape[0]
     for i in range(m):
+        li = low[i]
+        s = b[i]
+        for k in range(i):
+            s -= li[k] * out[k]
+        out[i] = s / li[i]
+
+
+@njit(cache=True)
+def _backward(low, b, out):
+    """out = L⁻ᵀ b (back substitution, L lower), by columns of Lᵀ: rows of L."""
+    m = low.shape[0]
+    for i in range(m):
+        out[i] = b[i]
+    for i in range(m - 1, -1, -1):
+        li = low[i]
+        out[i] /= li[i]
+        oi = out[i]
+        for k in range(i):
+            out[k] -= li[k] * oi
+
+
+@njit(cache=True)
+def _factor_shifted_rows(hz, nu, low):
+    """The lower Cholesky factor of hz + νI in the lower triangle of ``low`` (LAPACK's);
+    False if hz + νI is not positive definite."""
+    m = hz.shape[0]
+    for i in range(m):
+        for j in range(m):
+            low[i, j] = hz[i, j]
+        low[i, i] += nu
+    # LAPACK reads the C array as its transpose: its upper factor U (UᵀU = hz + νI) is
+    # the lower factor L = Uᵀ here, in the lower triangle
+    return _POTRF(ord("d"), ord("U"), m, low.ctypes, m) == 0
+
+
+def _by_factor(lapack_kernel, dense_kernel):
+    """f(lapack, a, b, c) = ``lapack_kernel(a, b, c)`` if ``lapack`` else ``dense_kernel(a, b,
+    c)``: the hand-written upper factor's kernel or LAPACK's lower factor's. Compiled, a
+    constant ``lapack`` picks one kernel when numba types the call (an overload on its
+    literal type), so that a step compiles its own factorisation alone; a value known at
+    run time alone (a call from Python) compiles both behind a branch."""
+
+    def by_factor(lapack, a, b, c):
+        return (lapack_kernel if lapack else dense_kernel)(a, b, c)
+
+    @overload(by_factor, prefer_literal=True, inline="always")
+    def _typed(lapack, a, b, c):
+        if isinstance(lapack, types.BooleanLiteral):
+            kernel = lapack_kernel if lapack.literal_value else dense_kernel
+            return lambda lapack, a, b, c: kernel(a, b, c)
+        return lambda lapack, a, b, c: (
+            lapack_kernel(a, b, c) if lapack else dense_kernel(a, b, c))  # fmt: skip
+
+    return by_factor
+
+
+_factor = _by_factor(_factor_shifted_rows, _factor_shifted)
+"""(lapack, hz, ν, factor) -> whether hz + νI is positive definite, its factor written."""
+_solve_l = _by_factor(_forward, _solve_lower)
+"""(lapack, factor, b, out): out = L⁻¹ b, L the lower factor (the upper one's Rᵀ)."""
+_solve_lt = _by_factor(_backward, _solve_upper)
+"""(lapack, factor, b, out): out = L⁻ᵀ b (the upper one's R⁻¹ b)."""
+
+
+@njit(cache=True)
+def _shifted(hz, rz, nu, lapack, factor, q, u):
+    """u = −(hz + νI)⁻¹ rz by the Cholesky factor ``factor`` of hz + νI (q = L⁻¹ rz):
+    the hand-written upper one, or LAPACK's lower one if ``lapack`` (``_by_factor``);
+    False if hz + νI is not positive definite."""
+    if not _factor(lapack, hz, nu, factor):
+        return False
+    _solve_l(lapack, factor, rz, q)
+    _solve_lt(lapack, factor, q, u)
+    for i in range(hz.shape[0]):
         u[i] = -u[i]
     return True
+
+
+@njit(cache=True)
+def more_sorensen(hz, rz, radius, lapack, factor, q, u, w):
+    """The tangential step of ``tangential_step`` and ``kkt_rows.tangential_step_rows`` where
+    hz is positive definite: u = −hz⁻¹ rz, or the shifted −(hz + νI)⁻¹ rz with ‖u‖ within
+    [Δ, 1.01 Δ] (scaled back onto Δ) by Moré–Sorensen's Newton iteration on ν, written into
+    u; factor (m, m), q, w (m,) scratch, the Cholesky factor of ``_shifted``. Returns (the
+    Newton decrement ½ rzᵀ hz⁻¹ rz, whether u is the step); not the step where hz is not
+    positive definite or the iteration fails (then the caller's eigen path).
+
+    One loop for both steps, the factorisation chosen by the constant ``lapack`` when
+    numba types the call (``_by_factor``), so that each step compiles its own
+    factorisation alone: numba caches no kernel that takes a compiled function as an
+    argument or closes over one (a new cache entry in every process, numba 0.68), and a
+    branch at run time compiled the other factorisation into every step (stockinette's
+    solver kernels: 5.3 -> 6.3 s cold, ``benchmarks/bench_compile.py --group solver``).
+    What one loop costs, against two (CPU s of the solver group's cold compile, medians of
+    3 alternated runs at load ~5, docs/performance.md): stockinette 6.1 -> 6.7, garter
+    12.6 -> 14.2, of a cold ``run`` compile of ~29 s and ~53 s."""
+    if not _shifted(hz, rz, 0.0, lapack, factor, q, u):
+        return 0.0, False
+    decrement = 0.5 * np.dot(q, q)
+    norm = math.sqrt(np.dot(u, u))
+    if norm <= radius:
+        return decrement, True
+    m = hz.shape[0]
+    nu = 0.0
+    for _ in range(20):  # Moré–Sorensen on ν: ‖u(ν)‖ = radius
+        _solve_l(lapack, factor, u, w)  # L w = u
+        nu += (norm / math.sqrt(np.dot(w, w))) ** 2 * (norm - radius) / radius
+        if not _shifted(hz, rz, nu, lapack, factor, q, u):
+            break
+        norm = math.sqrt(np.dot(u, u))
+        if norm <= 1.01 * radius:
+            if norm > radius:
+                for i in range(m):
+                    u[i] *= radius / norm
+            return decrement, True
+    return decrement, False
 
 
 @njit(cache=True)
@@ -90,25 +215,10 @@ def tangential_step(hz, rz, radius, flat_mode, u, negative):
     Newton decrement ½ rzᵀ hz⁻¹ rz (flat modes floored) and whether hz has a negative
     mode, whose direction is then written into ``negative``."""
     m = hz.shape[0]
-    r = np.zeros((m, m))
-    q = np.empty(m)
-    if _newton_shifted(hz, rz, 0.0, r, q, u):
-        decrement = 0.5 * np.dot(q, q)
-        norm = math.sqrt(np.dot(u, u))
-        if norm <= radius:
-            return decrement, False
-        nu = 0.0
-        for _ in range(20):  # Moré–Sorensen on ν: ‖u(ν)‖ = radius
-            w = np.empty(m)
-            _solve_lower(r, u, w)  # Rᵀw = u
-            nu += (norm / math.sqrt(np.dot(w, w))) ** 2 * (norm - radius) / radius
-            if not _newton_shifted(hz, rz, nu, r, q, u):
-                break
-            norm = math.sqrt(np.dot(u, u))
-            if norm <= 1.01 * radius:
-                if norm > radius:
-                    u *= radius / norm
-                return decrement, False
+    decrement, done = more_sorensen(hz, rz, radius, False, np.zeros((m, m)), np.empty(m), u,
+                                    np.empty(m))  # fmt: skip
+    if done:
+        return decrement, False
     return _eigen_step(hz, rz, radius, flat_mode, u, negative)
 
 

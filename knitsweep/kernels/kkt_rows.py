@@ -18,59 +18,15 @@ import numba.np.linalg  # noqa: F401  (registers numba's LAPACK helpers)
 import numpy as np
 from numba import njit, types
 
-from .kkt import ROWS_FROM, _eigen_step, _gather, flat_threshold, kkt_step, sr1_update
-
-_POTRF = types.ExternalFunction(
-    "numba_xxpotrf", types.intc(types.char, types.char, types.intp, types.voidptr, types.intp)
+from .kkt import (
+    ROWS_FROM,
+    _eigen_step,
+    _gather,
+    flat_threshold,
+    kkt_step,
+    more_sorensen,
+    sr1_update,
 )
-"""LAPACK's Cholesky factorisation (xPOTRF) as numba's own ``np.linalg.cholesky`` calls it:
-(kind, uplo, n, a, lda) -> info, > 0 where the matrix is not positive definite."""
-
-
-@njit(cache=True)
-def _forward(low, b, out):
-    """out = L⁻¹ b (forward substitution, L lower)."""
-    m = low.shape[0]
-    for i in range(m):
-        li = low[i]
-        s = b[i]
-        for k in range(i):
-            s -= li[k] * out[k]
-        out[i] = s / li[i]
-
-
-@njit(cache=True)
-def _backward(low, b, out):
-    """out = L⁻ᵀ b (back substitution, L lower), by columns of Lᵀ: rows of L."""
-    m = low.shape[0]
-    for i in range(m):
-        out[i] = b[i]
-    for i in range(m - 1, -1, -1):
-        li = low[i]
-        out[i] /= li[i]
-        oi = out[i]
-        for k in range(i):
-            out[k] -= li[k] * oi
-
-
-@njit(cache=True)
-def _shifted_rows(hz, rz, nu, low, q, u):
-    """u = −(hz + νI)⁻¹ rz by the lower Cholesky factor ``low`` of hz + νI (in its lower
-    triangle; q = L⁻¹ rz); False if hz + νI is not positive definite."""
-    m = hz.shape[0]
-    for i in range(m):
-        for j in range(m):
-            low[i, j] = hz[i, j]
-        low[i, i] += nu
-    # LAPACK reads the C array as its transpose: its upper factor U (UᵀU = hz + νI) is
-    # the lower factor L = Uᵀ here, in the lower triangle
-    if _POTRF(ord("d"), ord("U"), m, low.ctypes, m) != 0:
-        return False
-    _forward(low, rz, q)
-    _backward(low, q, u)
-    for i in range(m):
-        u[i] = -u[i]
-    return True
 
 
 def _lapack(name: str, n_args: int):
@@ -298,29 +254,14 @@ def _tridiagonal_step(hz, rz, radius, flat_mode, u, negative):
 
 @njit(cache=True)
 def tangential_step_rows(hz, rz, radius, flat_mode, u, negative):
-    """``tangential_step`` with LAPACK's Cholesky factorisation (row-major lower factor)
-    and the solves without temporaries: the same algorithm, equal to round-off."""
+    """``tangential_step`` with LAPACK's Cholesky factorisation (row-major lower factor,
+    the same ``kkt.more_sorensen`` loop) and, where hz is indefinite, the tridiagonal
+    form before the full eigendecomposition: the same step, equal to round-off."""
     m = hz.shape[0]
-    low = np.empty((m, m))
-    q = np.empty(m)
-    w = np.empty(m)
-    if _shifted_rows(hz, rz, 0.0, low, q, u):
-        decrement = 0.5 * np.dot(q, q)
-        norm = math.sqrt(np.dot(u, u))
-        if norm <= radius:
-            return decrement, False
-        nu = 0.0
-        for _ in range(20):  # Moré–Sorensen on ν: ‖u(ν)‖ = radius
-            _forward(low, u, w)  # L w = u
-            nu += (norm / math.sqrt(np.dot(w, w))) ** 2 * (norm - radius) / radius
-            if not _shifted_rows(hz, rz, nu, low, q, u):
-                break
-            norm = math.sqrt(np.dot(u, u))
-            if norm <= 1.01 * radius:
-                if norm > radius:
-                    for i in range(m):
-                        u[i] *= radius / norm
-                return decrement, False
+    decrement, done = more_sorensen(hz, rz, radius, True, np.empty((m, m)), np.empty(m), u,
+                                    np.empty(m))  # fmt: skip
+    if done:
+        return decrement, False
     decrement, is_negative, ok = _tridiagonal_step(hz, rz, radius, flat_mode, u, negative)
     if ok:
         return decrement, is_negative
@@ -436,6 +377,30 @@ def kkt_step_rows(b_full, free, held, g, a, c, radius, normal_share, flat_mode, 
     return lam, decrement, has_negative
 
 
+def kkt_step_for(n: int):
+    """The step kernel for ``n`` free entries: ``kkt_step_rows`` from ``ROWS_FROM`` on, else
+    the dense ``kkt.kkt_step``."""
+    return kkt_step_rows if n >= ROWS_FROM else kkt_step
+
+
+def step_kernels(largest: int) -> tuple:
+    """The step kernels that relaxing states of at most ``largest`` entries calls
+    (``kkt_step_for`` of each size): what ``compile_solver`` compiles and
+    ``compilation.kernel_entry_points`` looks for in numba's cache."""
+    return (kkt_step, kkt_step_rows) if largest >= ROWS_FROM else (kkt_step,)
+
+
+def solve_kkt(step, b_full, free, held, g, a, c, radius, normal_share, flat_mode) -> tuple:
+    """``step`` (``kkt_step`` or ``kkt_step_rows``) into new output arrays: its argument
+    list spelled once, for ``relax.newton``'s calls and for ``compile_solver``'s. Returns
+    (p (n,), λ, decrement, the negative mode (n,) or None, kappa (n,))."""
+    n = free.size
+    p, kappa, negative = np.empty(n), np.empty(n), np.empty(n)
+    lam, decrement, has_negative = step(b_full, free, held, g, a, c, radius, normal_share,
+                                        flat_mode, p, kappa, negative)  # fmt: skip
+    return p, lam, decrement, negative if has_negative else None, kappa
+
+
 def compile_solver(largest: int = ROWS_FROM) -> None:
     """Compile (or load from numba's cache) these kernels, once, before work fans out:
     ``kkt_step_rows`` only if a state of ``largest`` entries needs it (its compile costs
@@ -444,8 +409,6 @@ def compile_solver(largest: int = ROWS_FROM) -> None:
     b = np.eye(n + 1)  # any size: numba compiles for the types
     free = np.arange(n)
     g, a = np.ones(n), np.array([1.0, 0.5, 0.25])
-    out = [np.empty(n) for _ in range(3)]
-    kkt_step(b, free, np.zeros(n, dtype=np.bool_), g, a, 0.0, 1.0, 0.8, 1e-12, *out)
-    if largest >= ROWS_FROM:
-        kkt_step_rows(b, free, np.zeros(n, dtype=np.bool_), g, a, 0.0, 1.0, 0.8, 1e-12, *out)
+    for step in step_kernels(largest):
+        solve_kkt(step, b, free, np.zeros(n, dtype=np.bool_), g, a, 0.0, 1.0, 0.8, 1e-12)
     sr1_update(np.eye(n), g, a, 1e-8)

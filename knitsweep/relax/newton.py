@@ -50,8 +50,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import SolverSettings
-from ..kernels.kkt import ROWS_FROM, kkt_step, sr1_update
-from ..kernels.kkt_rows import kkt_step_rows
+from ..kernels.kkt import sr1_update
+from ..kernels.kkt_rows import kkt_step_for, solve_kkt
 from .problem import Minimum, Point, Problem
 
 FD_STEP = 1e-7
@@ -176,13 +176,10 @@ def _kkt_step(b_full: np.ndarray, pt: Point, free: np.ndarray, active: np.ndarra
               radius: float) -> _Step:  # fmt: skip
     """The trust-region SQP step at ``pt`` with the bounds in ``active`` held;
     ``b_full`` (n, n) is the Lagrangian's Hessian, ``free`` the free entries
-    (compiled: ``kernels.kkt.kkt_step``)."""
-    n = free.size
-    p, kappa, negative = np.empty(n), np.empty(n), np.empty(n)
-    step = kkt_step_rows if n >= ROWS_FROM else kkt_step
-    lam, decrement, has_negative = step(b_full, free, active, pt.g, pt.a, pt.c, radius,
-                                            NORMAL_SHARE, FLAT_MODE, p, kappa, negative)  # fmt: skip
-    return _Step(p, lam, decrement, negative if has_negative else None, kappa)
+    (compiled: ``kernels.kkt.kkt_step``, ``kernels.kkt_rows.kkt_step_rows`` from
+    ``ROWS_FROM`` entries)."""
+    return _Step(*solve_kkt(kkt_step_for(free.size), b_full, free, active, pt.g, pt.a, pt.c,
+                            radius, NORMAL_SHARE, FLAT_MODE))  # fmt: skip
 
 
 def _snap(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

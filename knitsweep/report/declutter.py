@@ -3,8 +3,9 @@
 A legend inside the axes, or a text marked movable (:func:`movable`), that covers data
 (markers, or the lines of the data drawn in data coordinates; shading does not count)
 is moved: a legend to the first of the usual corners where it covers none, else, with
-more head room above the data, to a top corner, else beside the axes; a text to the
-first free corner of the axes. The data are what the renderer draws, in display
+more head room above the data, to a top corner, else beside the axes; a text (also one
+that overlaps another text of its axes, such as a line's label) to the first corner of
+the axes free of data and of other text. The data are what the renderer draws, in display
 pixels, each marker as its box and each line sampled every 2 pixels.
 """
 
@@ -88,8 +89,23 @@ def declutter(fig: Any) -> None:
         if legend is not None and covers(legend.get_window_extent(renderer), pts, half):
             _move_legend(fig, ax, legend, renderer)
         for t in texts:
-            if covers(t.get_window_extent(renderer), *data_points(ax, renderer)):
+            box = t.get_window_extent(renderer)
+            if covers(box, *data_points(ax, renderer)) or _on_text(box, t, ax, renderer):
                 _move_text(fig, ax, t, renderer)
+
+
+def _on_text(box: Any, text: Any, ax: Any, renderer: Any) -> bool:
+    """Whether ``box`` (of ``text``) overlaps another non-empty text of ``ax`` (a line's
+    label, another note) by more than a sliver of 2 x 2 pixels."""
+    for other in ax.texts:
+        if other is text or not other.get_visible() or not other.get_text().strip():
+            continue
+        b = other.get_window_extent(renderer)
+        w = min(box.x1, b.x1) - max(box.x0, b.x0)
+        h = min(box.y1, b.y1) - max(box.y0, b.y0)
+        if w > 0 and h > 0 and w * h > 4.0:
+            return True
+    return False
 
 
 def _more_room(ax: Any) -> None:
@@ -130,5 +146,6 @@ def _move_text(fig: Any, ax: Any, text: Any, renderer: Any) -> None:
             text.set_position((x, y))
             text.set_ha(ha)
             text.set_va(va)
-            if not covers(text.get_window_extent(renderer), pts, half):
+            box = text.get_window_extent(renderer)
+            if not covers(box, pts, half) and not _on_text(box, text, ax, renderer):
                 return

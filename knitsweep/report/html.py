@@ -66,7 +66,7 @@ _TRANSITION_COLUMNS = ("direction", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_
                        *(f for c in TRANSITION_SUMMARY for f in c.fields))  # fmt: skip
 _SWEEP_COLUMNS = ("direction", "L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm",
                   "r_core_mm", "Y_sec_N_per_mm", "sigma0_N_per_mm", "delta_E_b_mJ",
-                  "delta_E_c_mJ", "jammed", "regime", "n_steps", "max_strain",
+                  "delta_E_c_mJ", "jammed", "within_round_off", "regime", "n_steps", "max_strain",
                   *(o.column for o in registered("sweep")))  # fmt: skip
 _POINT_COLUMNS = ("L_mm", "L_over_r", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm",
                   "status", "a_x0_mm", "a_y0_mm", "aspect_ratio", "E_b_rest_mJ",

@@ -38,6 +38,7 @@ from ..analysis.transitions import Transition
 from ..config import Fidelity
 from ..errors import InputError
 from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS, registered, sweep_observables
+from ..service.spread import POINT_SPREADS, SWEEP_SPREADS
 from ..stitches import DEFAULT_STITCH
 from ..store.format import POINTS, SWEEPS
 from ..store.journal import Entry
@@ -199,6 +200,7 @@ def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dic
             "rest_fall_mJ": plain_value(meta.get("rest_fall_mJ")),
         }
         row |= {o.column: plain_value(meta.get(o.name)) for o in registered("point")}
+        row |= spread_columns(meta, POINT_SPREADS)
         phi = rec.get("packing_fraction")
         if phi is not None and len(phi) > winner:
             row["packing_fraction"] = plain_value(phi[winner])
@@ -262,8 +264,13 @@ def _analyse_sweep(
         "thickness_strain_max": m.thickness_strain_max,
         "thickness_strain_at_secant": m.thickness_strain_at,
         "jammed": m.jamming_gap >= threshold,
-        **sweep_observables(rec),
+        **sweep_observables(rec, direction),
+        **spread_columns(meta, SWEEP_SPREADS),
     }
+    if "spread_delta_E_b" in meta:  # the gap that decides, and its spread over starts
+        decides = "delta_E_b" if m.jamming_gap == m.gaps.delta_E_b else "delta_E_c"
+        row["within_round_off"] = bool(abs(m.jamming_gap - threshold)
+                                       <= float(meta[f"spread_{decides}"]))  # fmt: skip
     stored = rec.get("contact_forces")
     zero_forces = np.asarray(stored)[0] if stored is not None and len(stored) else point_forces
     row |= force_columns(zero_forces, contact_classes(meta))
@@ -283,6 +290,21 @@ def _analyse_sweep(
         packing_fraction=_optional_array(rec.get("packing_fraction")),
     )
     return row, curves
+
+
+_SPREAD_UNITS = {"E_rest": "mJ", "a_x0": "mm", "a_y0": "mm", "delta_E_b": "mJ", "delta_E_c": "mJ",
+                 "Y_sec": "N_per_mm"}  # fmt: skip
+
+
+def spread_columns(meta: Mapping[str, Any], fields: Mapping[str, str]) -> dict[str, Any]:
+    """The ``…_spread`` columns of a task whose job asked for them (``[starts] spread``):
+    per field of ``fields`` (record name -> column stem) its spread over starts, and
+    ``spread_count``; none for a task without them."""
+    if not any(f in meta for f in fields):
+        return {}
+    out = {f"{stem}_spread_{_SPREAD_UNITS[stem]}": plain_value(meta.get(f))
+           for f, stem in fields.items()}  # fmt: skip
+    return out | {"spread_count": plain_value(meta.get("spread_count"))}
 
 
 def _optional_array(value: Any) -> np.ndarray | None:

@@ -97,6 +97,15 @@ def transition_rows(
     found = series_transitions(sweeps, SERIES_PARAMS, threshold)
     out = {key: found[key] for key in sorted(found)}
     rows = [transition_row(key[0], key[1], t, missing.get(key, 0)) for key, t in out.items()]
+    close: dict[tuple[tuple[Any, ...], str], list[float]] = {}
+    for s in sweeps:  # [starts] spread: gaps within their spread of the threshold
+        if "within_round_off" in s:
+            at = close.setdefault((series_key(s), s["direction"]), [])
+            at += [s["L_mm"]] if s["within_round_off"] else []
+    for key, row in zip(out, rows, strict=True):
+        if key in close:
+            row["within_round_off"] = bool(close[key])
+            row["round_off_at_L_mm"] = ", ".join(f"{L:g}" for L in sorted(close[key])) or "none"
     return out, rows
 
 

@@ -111,6 +111,7 @@ TRANSITION_SUMMARY = (
     SummaryColumn("fit L (mm)", ("fit_L_lo_mm", "fit_L_hi_mm"), ".2f"),
     SummaryColumn("n_jam", ("n_jammed",)),
     SummaryColumn("missing", ("n_missing",)),
+    SummaryColumn("within round-off at L (mm)", ("round_off_at_L_mm",), optional=True),
 )
 """The transitions summary after the direction and the series parameters that vary:
 the one list of its columns (``series.transition_row`` holds every field, for the CSV)."""
@@ -125,7 +126,7 @@ def _fmt(value: Any, spec: str = ".4g") -> str:
 def summary_cell(column: SummaryColumn, row: Mapping[str, Any]) -> str:
     """A transitions-summary cell: one value, a bracket '[lo, hi]' or a fitted range
     'lo–hi' (one dash when there is no fit)."""
-    values = [row[f] for f in column.fields]
+    values = [row.get(f) for f in column.fields]
     if len(values) == 1:
         v = values[0]
         return _fmt(v, column.spec) if column.spec else ("–" if v is None else str(v))
@@ -162,7 +163,13 @@ def transitions_text(red: Reduction) -> str:
         + (
             "; vs free, vs ansatz: (L/r)_trans minus that of the free stockinette yarn and of "
             "the paper's ansatz in the same direction"
-            if len(shown) > len(TRANSITION_SUMMARY) - 2
+            if any(c.header == "vs free" for c in shown)
+            else ""
+        )
+        + (
+            "; within round-off: L where a gap lies within its spread over starts "
+            "([starts] spread) of the threshold"
+            if any(c.fields == ("round_off_at_L_mm",) for c in shown)
             else ""
         )
     )

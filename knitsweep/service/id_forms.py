@@ -26,7 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from ..config import REST_TOLERANCE_MJ
+from ..config import REST_TOLERANCE_MJ, RETRIES
 from ..stitches import DEFAULT_STITCH
 
 Form = dict[str, Any]
@@ -128,6 +128,11 @@ JOB_FORMS = FormHistory("a job (JobSpec.full_form)", (
     Migration(7, "protocol.rest_tolerance_mJ: a sweep falling this far below its zero-force "
               "energy relaxes again at rest (before: the default, 5e-6 mJ, was the only one)",
               *_field(("protocol", "rest_tolerance_mJ"), REST_TOLERANCE_MJ)),
+    Migration(8, "starts.retries: a point no start of which converged walks again from "
+              "perturbed copies (the default, 3, hashes as the jobs before it)",
+              *_field(("starts", "retries"), RETRIES)),
+    Migration(9, "starts.spread: each point and sweep also relaxed from perturbed copies "
+              "(before: off)", *_field(("starts", "spread"), 1)),
 ))  # fmt: skip
 """Every step of the job format since its first form."""
 MIGRATIONS = JOB_FORMS.migrations
@@ -143,6 +148,11 @@ PARAMS_FORMS = FormHistory("a point's parameters (StitchParams)", (
 STARTS_FORMS = FormHistory("the starts (StartSettings)", (
     Migration(2, "carry: each point of a series starts from its neighbour's zero-force "
               "state (before: not)", *_field(("carry",), False)),
+    Migration(3, "retries: a point no start of which converged walks again from perturbed "
+              "copies (the default, 3, hashes as the settings before it)",
+              *_field(("retries",), RETRIES)),
+    Migration(4, "spread: each point and sweep also relaxed from perturbed copies (before: "
+              "off)", *_field(("spread",), 1)),
 ))  # fmt: skip
 PROTOCOL_FORMS = FormHistory("a sweep's protocol (SweepProtocol)", (
     Migration(2, "rest_tolerance_mJ: a sweep falling this far below its zero-force energy "

@@ -8,6 +8,7 @@ workers are released instead of left waiting.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
@@ -92,18 +93,32 @@ def _prepare_run(job_path, out, shard, max_tasks, relabel=False):
     check_output(out)
     adopt_empty(out)
     check_label(job, out, relabel)
-    if not out.exists():  # (a resume was checked when its file began, and may need no kernel)
-        check_job_starts(job)
+    # (a resume's stitches were checked when they entered its file, and it may need no kernel)
+    check_job_starts(job, already=stitches_in_file(out) if out.exists() else ())
     return job, shard_t, out
 
 
-def check_job_starts(job: JobSpec) -> None:
-    """The shipped starts of every stitch of the job (docs/patterns.md: an
-    overlapping start is refused, naming the segments), before any task's kernels
-    compile (this loads the geometry kernels)."""
-    from ..relax.zero_force import check_shipped_starts
+def check_job_starts(job: JobSpec, already: tuple[str, ...] = ()) -> None:
+    """The shipped starts of every stitch of the job not in ``already`` (docs/patterns.md:
+    an overlapping start is refused, naming the segments), before any task's kernels
+    compile (this loads the geometry kernels of the stitches it checks)."""
+    new = tuple(s for s in job.stitches if s not in already)
+    if new:
+        from ..relax.zero_force import check_shipped_starts
 
-    check_shipped_starts(job.stitches, job.fidelity)
+        check_shipped_starts(new, job.fidelity)
+
+
+def stitches_in_file(out: Path) -> tuple[str, ...]:
+    """The stitches of the job spec a results file holds (a grown job's latest spec);
+    none when the file's spec cannot be read (the compatibility check names that)."""
+    try:
+        spec = json.loads(str(read_root(out)["job_json"]))
+    except (InputError, KeyError, ValueError):
+        return ()
+    grid = spec.get("grid") if isinstance(spec.get("grid"), dict) else {}
+    names = grid.get("stitch", spec.get("stitch", DEFAULT_STITCH))
+    return tuple(names) if isinstance(names, list) else (str(names),)
 
 
 def adopt_empty(out: Path) -> Path | None:

@@ -222,11 +222,24 @@ def run_point(job: JobSpec, task: PointTask, carried: dict | None = None) -> dic
     status, the winner's registered point observables (``quantities.registered``) and, if
     stored, its contact forces). ``carried``
     (``[starts] carry``): the state ``x`` and ``params`` of the point it starts from."""
-    from ..relax.zero_force import zero_force
+    from ..relax.zero_force import Start, start_states, zero_force
+    from .retry import retry_failed_starts
+    from .spread import point_spread
 
     start = None if carried is None else (np.asarray(carried["x"]), carried["params"])
     zf = zero_force(task.params, job.fidelity, job.solver, job.starts, task.seed, carried=start)
-    return point_record(job, task.params, zf)
+    if start is not None:
+        begin = [Start("carried", *start)]
+    else:
+        begin = start_states(job.starts, task.seed, job.fidelity, task.params.stitch)
+    zf, retried, note = retry_failed_starts(zf, [(s.x, s.params) for s in begin], task.params,
+                                            job.fidelity, job.solver, job.starts, task.seed)  # fmt: skip
+    record = point_record(job, task.params, zf)
+    record |= point_spread(job, task.params, zf, [(s.x, s.params) for s in begin], task.seed)
+    if note:
+        record["retried"] = retried
+        record["retry_message"] = note
+    return record
 
 
 def point_record(job: JobSpec, params: Any, zf: Any) -> dict[str, Any]:
@@ -287,12 +300,17 @@ def run_sweep(job: JobSpec, task: SweepTask, zero: dict[str, Any]) -> dict[str, 
     from ..model import CellModel
     from ..relax.zero_force import ZeroForce
     from ..strain_sweep import strain_sweep
+    from .spread import sweep_spread
 
     params = zero["params"]
     zf = ZeroForce.from_record(zero)
     result = strain_sweep(params, zf, task.direction, job.protocol, job.fidelity, job.solver)
     record = result.to_record()
     record["status"] = _SWEEP_STATUS.get(result.status, FAILED)
+    if record["status"] == DONE:
+        rest = zf if result.rest is None else result.rest
+        record |= sweep_spread(job, params, rest, task.direction, record, int(task.task_id, 16),
+                               zero.get("spread_x"))  # fmt: skip
     if result.rest is not None:  # the point's zero-force state from now on (master)
         record[REST_POINT] = point_record(job, params, result.rest) | {
             "rest_found_by": f"{task.direction} sweep",

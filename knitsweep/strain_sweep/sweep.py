@@ -11,7 +11,9 @@ that would end the sweep more than 10 % above its stop stress (``STOP_OVERSHOOT`
 large steps of a stiff jammed curve) is taken again at half its length, down to the
 small step, so a curve ends where it was asked to; the stress that decides is the
 envelope stress, exact at each step (the length multiplier), since the reference's
-rule lags a step behind.
+rule lags a step behind. A long step near the stop stress whose relaxation ends with
+the cores overlapping (it jumped through a tight state) is taken again the same way;
+only at the small step does the overlap end the sweep as not knittable.
 """
 
 from __future__ import annotations
@@ -155,10 +157,12 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         e = [b + c for b, c in zip(eb[-3:], ec[-3:], strict=True)]
         sigma_ref = (e[0] - e[-1]) / (a_values[-3] - a_values[-1]) / a_perp0 if i >= 2 else 0.0
         h = abs(a_values[-1] - a_values[-2])
-        if (saved is not None and i >= 3 and sign * envelope[-1] > STOP_OVERSHOOT * stop
-                and h > protocol.step_mm * (1.0 + 1e-9)
-                and observables_determined(protocol, strains, eb, ec) is None):  # fmt: skip
-            # past the stop stress by more than 10 %: take the step again, half as long
+        overshot = (sign * envelope[-1] > STOP_OVERSHOOT * stop
+                    and observables_determined(protocol, strains, eb, ec) is None)  # fmt: skip
+        if (saved is not None and i >= 3 and h > protocol.step_mm * (1.0 + 1e-9)
+                and (overshot or step_status == NOT_KNITTABLE)):  # fmt: skip
+            # past the stop stress by more than 10 %, or a long step near it that ended
+            # with the cores overlapping: take the step again, half as long
             for values in (steps, winners, a_values, strains, envelope, eb, ec):
                 values.pop()
             chains, merged_into[:], merged_at[:] = saved[0], saved[1], saved[2]
