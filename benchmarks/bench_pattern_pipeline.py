@@ -14,7 +14,8 @@ pattern over stockinette's at the same L. a_x and a_y are per-stitch spacings fo
 pattern, and the strain is the fabric's, so the rows compare directly.
 
 Run: ``python benchmarks/bench_pattern_pipeline.py [--stitches stockinette,rib]
-[--L 11.6] [--repeats 1]``.
+[--L 11.6] [--repeats 1] [--sampling arclength]`` (``--sampling``: where a pattern's
+contact samples sit, ``Fidelity.contact_sampling``; stockinette's are its own).
 """
 
 from __future__ import annotations
@@ -34,9 +35,11 @@ from knitsweep.stitches import STITCH_NAMES
 from knitsweep.strain_sweep import strain_sweep
 
 
-def one(stitch: str, L: float, k: float) -> dict:
+def one(stitch: str, L: float, k: float, sampling: str = "parameter") -> dict:
     params = StitchParams(stitch=stitch, L_mm=L, k_mN_per_mm2=k)
     n = Numerics.from_preset("converged", observables=("energy_gaps", "secant_modulus"))
+    n = n.model_copy(update={"fidelity": n.fidelity.model_copy(
+        update={"contact_sampling": sampling})})  # fmt: skip
     t0 = time.process_time()
     zero = zero_force(params, n.fidelity, n.solver, StartSettings(count=1), 0)
     row = {"zero_cpu": time.process_time() - t0, "zero": zero.best}
@@ -66,6 +69,8 @@ def main() -> None:
     ap.add_argument("--L", type=float, nargs="+", default=[10.5, 11.6, 12.2])
     ap.add_argument("--k", type=float, default=0.1)
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--sampling", choices=("parameter", "arclength", "yarn_arclength"), default="parameter",
+                    help="a pattern's contact samples (Fidelity.contact_sampling)")  # fmt: skip
     args = ap.parse_args()
     stitches = args.stitches.split(",")
     print(f"k = {args.k} mN/mm^2, converged preset, 1 start; CPU s (median of {args.repeats}); "
@@ -77,7 +82,7 @@ def main() -> None:
     with threadpool_limits(1):
         for L in args.L:
             for stitch in stitches:
-                rows = [one(stitch, L, args.k) for _ in range(args.repeats)]
+                rows = [one(stitch, L, args.k, args.sampling) for _ in range(args.repeats)]
                 row = rows[-1]
                 z = row["zero"]
                 zcpu = statistics.median(r["zero_cpu"] for r in rows)

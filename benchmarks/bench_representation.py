@@ -15,7 +15,9 @@ force relaxed from the 1x minimum and its sweeps from there. Printed per point:
   any converged sweep step, by name (``bounds:`` a count and the names);
 * CPU s of the 1x point (zero force + both sweeps) and of the 2x one.
 
-Run: ``python benchmarks/bench_representation.py [--stitches rib,seed] [--L 11.6]``.
+Run: ``python benchmarks/bench_representation.py [--stitches rib,seed] [--L 11.6]
+[--sampling arclength] [--samples 15] [--nodes 48]`` (the contact sampling, the 1x samples
+and nodes; the bounds checked are those the relaxation uses for that sampling).
 """
 
 from __future__ import annotations
@@ -27,34 +29,37 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from knitsweep.analysis.metrics import energy_gaps
-from knitsweep.config import StartSettings, StitchParams
+from knitsweep.config import Fidelity, StartSettings, StitchParams
 from knitsweep.model import CellModel
 from knitsweep.presets import Numerics
+from knitsweep.relax.problem import _state_box
 from knitsweep.relax.zero_force import zero_force
-from knitsweep.stitches import get_stitch
 from knitsweep.strain_sweep import strain_sweep
 
 ON_BOUND_RTOL = 1e-9
 
 
-def on_bounds(stitch: str, params: StitchParams, x: np.ndarray) -> set[str]:
-    """Names of the entries of ``x`` that sit on the stitch's bounds."""
-    st = get_stitch(stitch)
-    lo, hi = st.bounds(params.L_mm, params.internal().r)
+def on_bounds(model: CellModel, x: np.ndarray) -> set[str]:
+    """Names of the entries of ``x`` that sit on the bounds the model's relaxations use,
+    each marked < (on its lower bound) or > (its upper)."""
+    st = model.stitch
+    lo, hi = _state_box(st, model.ip.L, model.ip.r, model.sampling)
     with np.errstate(invalid="ignore"):
         hit = ((np.isfinite(lo) & (np.abs(x - lo) <= ON_BOUND_RTOL * np.maximum(1.0, np.abs(lo))))
                | (np.isfinite(hi) & (np.abs(x - hi) <= ON_BOUND_RTOL * np.maximum(1.0, np.abs(hi)))))  # fmt: skip
-    return {st.state_names[i] for i in np.flatnonzero(hit)}
+    low = np.isfinite(lo) & (np.abs(x - lo) <= ON_BOUND_RTOL * np.maximum(1.0, np.abs(lo)))
+    return {st.state_names[i] + ("<" if low[i] else ">") for i in np.flatnonzero(hit)}
 
 
-def point(stitch: str, L: float, k: float, scale: int, carried=None) -> dict:
+def point(stitch: str, L: float, k: float, scale: int, base: Fidelity, carried=None) -> dict:
     """Zero force (from the first start, or relaxed from ``carried``) and both sweeps at
-    ``scale`` times the preset's samples and quadrature nodes."""
+    ``scale`` times the samples and quadrature nodes of ``base``."""
     params = StitchParams(stitch=stitch, L_mm=L, k_mN_per_mm2=k)
     n = Numerics.from_preset("converged", observables=("energy_gaps", "secant_modulus"))
-    fid = n.fidelity.model_copy(update={
-        "samples_per_segment": scale * n.fidelity.samples_per_segment,
-        "quadrature_nodes": scale * n.fidelity.quadrature_nodes})  # fmt: skip
+    fid = base.model_copy(update={
+        "samples_per_segment": scale * base.samples_per_segment,
+        "quadrature_nodes": scale * base.quadrature_nodes})  # fmt: skip
+    model = CellModel(params, fid)
     t0 = time.process_time()
     if carried is None:
         zero = zero_force(params, fid, n.solver, StartSettings(count=1), 0)
@@ -63,14 +68,14 @@ def point(stitch: str, L: float, k: float, scale: int, carried=None) -> dict:
                           carried=(carried, params))  # fmt: skip
     row = {"zero": zero.best, "gaps": {}, "bounds": set(), "fid": fid, "params": params}
     if zero.best.converged:
-        row["bounds"] |= on_bounds(stitch, params, zero.best.x)
+        row["bounds"] |= on_bounds(model, zero.best.x)
         for d in ("x", "y"):
             s = strain_sweep(params, zero, d, n.protocol, fid, n.solver)
             g = energy_gaps(s.bending_energy, s.contact_energy)
             row["gaps"][d] = g.delta_E_c if d == "x" else g.delta_E_b
             for x, ok in zip(s.states, s.converged, strict=False):
                 if ok:
-                    row["bounds"] |= on_bounds(stitch, params, x)
+                    row["bounds"] |= on_bounds(model, x)
     row["cpu"] = time.process_time() - t0
     return row
 
@@ -80,7 +85,31 @@ def main() -> None:
     ap.add_argument("--stitches", default="garter,rib,seed,stockinette_free")
     ap.add_argument("--L", type=float, nargs="+", default=[10.5, 11.6, 12.2])
     ap.add_argument("--k", type=float, default=0.1)
+    ap.add_argument(
+        "--sampling",
+        choices=("parameter", "arclength", "yarn_arclength"),
+        default="parameter",
+        help="where the contact samples sit (Fidelity.contact_sampling)",
+    )
+    ap.add_argument(
+        "--samples",
+        type=int,
+        default=0,
+        help="contact samples per segment at 1x (default the preset's)",
+    )
+    ap.add_argument(
+        "--nodes", type=int, default=0, help="bending quadrature nodes at 1x (default the preset's)"
+    )
     args = ap.parse_args()
+    base = Numerics.from_preset("converged").fidelity
+    base = base.model_copy(update={
+        "contact_sampling": args.sampling,
+        "samples_per_segment": args.samples or base.samples_per_segment,
+        "quadrature_nodes": args.nodes or base.quadrature_nodes})  # fmt: skip
+    print(
+        f"sampling {args.sampling}, {base.samples_per_segment} samples and "
+        f"{base.quadrature_nodes} nodes per segment at 1x"
+    )
     print(f"k = {args.k} mN/mm^2, converged preset, 1 start; E mJ; dEc % of the 1x E_c "
           "(fixed state at 2x, then the 2x minimum); gaps mJ (dE_c x, dE_b y) and their "
           "change at 2x; CPU s of the 1x and 2x points")  # fmt: skip
@@ -90,7 +119,7 @@ def main() -> None:
     with threadpool_limits(1):
         for stitch in args.stitches.split(","):
             for L in args.L:
-                one = point(stitch, L, args.k, 1)
+                one = point(stitch, L, args.k, 1, base)
                 z = one["zero"]
                 if not z.converged:
                     print(f"{stitch:16} {L:5.2f} {z.status:13} {z.message[:80]}")
@@ -99,7 +128,7 @@ def main() -> None:
                     "samples_per_segment": 2 * one["fid"].samples_per_segment,
                     "quadrature_nodes": 2 * one["fid"].quadrature_nodes}))  # fmt: skip
                 ec_fixed = fine.energies(z.x).contact_energy
-                two = point(stitch, L, args.k, 2, carried=z.x)
+                two = point(stitch, L, args.k, 2, base, carried=z.x)
                 z2 = two["zero"]
                 ec = z.contact_energy
                 dfix = 100 * (ec_fixed - ec) / ec

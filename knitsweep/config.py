@@ -194,6 +194,7 @@ class StitchParams(BaseModel):
 
 
 ImageMode = Literal["cutoff", "reference"]
+ContactSampling = Literal["parameter", "arclength", "yarn_arclength"]
 
 
 class Fidelity(BaseModel):
@@ -212,6 +213,20 @@ class Fidelity(BaseModel):
         description="periodic images searched for contacts: 'cutoff' (every image that can "
         "touch) or 'reference' (the authors' fixed box m in -1..1, n in -3..3)",
     )
+    contact_sampling: ContactSampling = Field(
+        "parameter",
+        description="where a pattern's (garter, rib, seed) contact samples sit in each "
+        "segment: 'parameter' (at the curve parameters (j + 1/2)/N, the paper's) or "
+        "'arclength' (at those fractions of the segment's arclength, whatever its end "
+        "speeds) or 'yarn_arclength' (evenly spaced along the whole yarn, wherever its "
+        "joints sit; docs/model.md §11); every other stitch samples by parameter",
+    )
+
+    @model_serializer(mode="wrap")
+    def _parameter_sampling_as_before(self, handler) -> dict[str, Any]:
+        # the default is left out of every dump (task ids, the job's hash), so that jobs
+        # from before the setting existed keep them
+        return _without_default(handler(self), "contact_sampling", "parameter")
 
 
 # ---- minimisers ----------------------------------------------------------------

@@ -15,6 +15,7 @@ import numpy as np
 
 from .analysis.volumes.geometry import fabric_depth
 from .config import Fidelity, InternalParams, StitchParams
+from .kernels.arclength import arclength_rule
 from .kernels.bezier import basis_tables, even_tables, gauss_legendre, midpoints
 from .kernels.contact import CORE_EPS, IMAGES_CUTOFF, IMAGES_REFERENCE
 from .kernels.forces import N_CLASSES
@@ -63,6 +64,9 @@ RESOLUTION_RTOL = 0.25
 at most this fraction (measured at relaxed states with speeds within
 ``stockinette_free.layout.SPEED_BOUNDS``: 4–9 %; a yarn whose cores pass between sparse
 samples: 12-fold, docs/model.md §11)."""
+ARC_PANELS, ARC_NODES = 2, 8
+"""The composite Gauss rule (panels, nodes per panel) of a segment's arclength S(t) when
+the contact samples are placed by arclength (``kernels.arclength``)."""
 
 
 class CellModel:
@@ -89,6 +93,18 @@ class CellModel:
         self._ctab = np.ascontiguousarray(
             basis_tables(midpoints(self.fidelity.samples_per_segment))[:2]
         )
+        self._aq = np.empty((2, 0))
+        """The arclength rule of contact samples placed by arclength (a pattern's free
+        yarn with ``Fidelity.contact_sampling = "arclength"``, ``kernels.arclength``);
+        empty: the samples sit at the curve parameters of ``_ctab``."""
+        sampling = self.fidelity.contact_sampling
+        if sampling != "parameter" and self.image_group.checks_resolution:
+            self._aq = arclength_rule(ARC_PANELS, ARC_NODES)
+            if sampling == "yarn_arclength":  # a third row asks for the whole yarn's
+                self._aq = np.ascontiguousarray(np.vstack([self._aq, self._aq[:1]]))
+        self.sampling = sampling if self._aq.shape[1] > 0 else "parameter"
+        """Where this model's contact samples sit: "parameter" or "arclength" (its state
+        bounds follow, ``relax.problem``)."""
         self._mode = IMAGES_CUTOFF if self.fidelity.images == "cutoff" else IMAGES_REFERENCE
         self._grad_e = np.empty(self.stitch.n_state)
         self._grad_l = np.empty(self.stitch.n_state)
@@ -175,10 +191,10 @@ class CellModel:
     def resolution_change(self, x: np.ndarray, contact_energy: float | None = None) -> str:
         """For a stitch with mirrored images (a free yarn): "" if the contact sum of state
         ``x`` holds with twice the samples per segment (no hard-core overlap there, and
-        E_c within ``RESOLUTION_RTOL`` of this model's), else what it finds. The samples
-        sit at fixed curve parameters, so a free yarn can space them out where it
-        crosses itself and let hard cores pass between them (docs/model.md §11,
-        "Resolution"). Where the cores overlap with twice the samples the answer starts
+        E_c within ``RESOLUTION_RTOL`` of this model's), else what it finds. By default
+        the samples sit at fixed curve parameters, so a free yarn can space them out where
+        it crosses itself and let hard cores pass between them (docs/model.md §11,
+        "Resolution"); the finer model keeps this one's ``contact_sampling``. Where the cores overlap with twice the samples the answer starts
         with ``CORES_OVERLAP`` (a state too tight to knit, as one whose cores overlap
         at the model's samples). Stitches of translations alone are not checked ("")."""
         if not self.image_group.checks_resolution:

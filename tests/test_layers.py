@@ -44,8 +44,9 @@ LAYERS = [
 # the package's __init__ sits on top of its modules
 MODULE_ORDER = {
     "util": ["plain_values", "forking", "safe_files"],
-    "kernels": ["bezier", "elementary", "partition", "bending", "contact", "neighbours",
-                "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell", "checks", "raster"],
+    "kernels": ["bezier", "elementary", "arclength", "partition", "bending", "contact",
+                "neighbours", "forces", "cell", "kkt", "kkt_rows", "mirrored", "pattern_cell",
+                "checks", "raster"],
     "stitches": ["base", "topology", "patterns", "images", "stockinette", "stockinette_free",
                  "garter", "rib", "seed"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],

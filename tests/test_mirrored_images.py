@@ -20,6 +20,7 @@ from knitsweep.model import CellModel
 PATTERNS = {"stockinette": (0, 0), "garter": (0, 1), "rib": (1, 0), "seed": (1, 1)}
 IP = StitchParams(L_mm=11.0, k_mN_per_mm2=0.1).internal()
 TAB = np.ascontiguousarray(basis_tables(midpoints(10))[:2])
+NO_ARC = np.empty((2, 0))  # samples at fixed parameters
 
 
 def _state(lift=0.0):
@@ -32,7 +33,7 @@ def _state(lift=0.0):
 
 def _energy(cp, ax, ay, parity, only=-1, with_grad=False, kernel=mirrored_contact_energy):
     g, gc, ce = np.zeros_like(cp), np.zeros(2), np.zeros(N_MIRROR_CLASSES)
-    e = kernel(cp, TAB, ax, ay, IP.r, IP.rc, IP.k, IP.p, *parity, only,
+    e = kernel(cp, TAB, NO_ARC, ax, ay, IP.r, IP.rc, IP.k, IP.p, *parity, only,
                                 with_grad, g, gc, ce)  # fmt: skip
     return e, g, gc, ce
 
@@ -116,7 +117,7 @@ def test_culled_sum_is_the_exhaustive_one(name, lift):
 
 def _period_forces(cp, dcp, ax, ay, parity):
     forces, energies = np.empty((N_MIRROR_CLASSES, 3)), np.empty(N_MIRROR_CLASSES)
-    mirrored_forces_by_class(cp, dcp, TAB, ax, ay, IP.r, IP.rc, IP.k, IP.p, *parity, forces,
+    mirrored_forces_by_class(cp, dcp, TAB, NO_ARC, ax, ay, IP.r, IP.rc, IP.k, IP.p, *parity, forces,
                              energies)  # fmt: skip
     return forces, energies
 
@@ -138,7 +139,7 @@ def test_period_forces_without_mirrors_are_the_translation_kernels():
     contact_forces_by_class(cp, dcp, TAB, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, IMAGES_CUTOFF,
                             ref, ref_e)  # fmt: skip
     forces, energies = np.empty((5, 3)), np.empty(5)
-    mirrored_forces_by_class(cp, dcp, TAB, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, 0, 0, forces,
+    mirrored_forces_by_class(cp, dcp, TAB, NO_ARC, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, 0, 0, forces,
                              energies)  # fmt: skip
     merged = np.array([ref[0], ref[1], ref[2] + ref[3], np.zeros(3), ref[4]])
     merged_e = np.array([ref_e[0], ref_e[1], ref_e[2] + ref_e[3], 0.0, ref_e[4]])

@@ -370,13 +370,10 @@ def contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_
     """
     nseg = cp.shape[0]
     n = tab.shape[1]
-    dt2 = 1.0 / (n * n)
     pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
+    dt2, cut, s_excl, ib, fb, work, g = pair_sum_start(n, speed.shape[0], r)
     box = segment_boxes_soa(pos, nseg, n)
-    cut = 2.0 * r
     blocks, images = candidate_blocks(pts, box, ax, ay, cut, mode)
-    s_excl = EXCLUSION_FACTOR * r
-    ib, fb, work, g = pair_buffers(n, speed.shape[0])
     energy = 0.0
     gax = 0.0
     gay = 0.0
@@ -392,6 +389,16 @@ def contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_
                          cut * cut, s_excl, ib, fb, c)  # fmt: skip
     return finish_pairs(ib, fb, c, speed, r1, tab, dt2, r, rc, k, p, with_grad, work, g, energy,
                         gax, gay, grad_cp, grad_cell)  # fmt: skip
+
+
+@njit(cache=True)
+def pair_sum_start(n, ns, r):
+    """What every contact sum starts from (the full search, the neighbour list, the
+    mirrored images): with N = ``n`` samples per segment, ``ns`` samples in all and
+    yarn radius ``r``, the quadrature weight dt² = 1/N², the cut-off 2r, the exclusion
+    along the yarn ``EXCLUSION_FACTOR`` r and the pair buffers (``pair_buffers``)."""
+    ib, fb, work, g = pair_buffers(n, ns)
+    return 1.0 / (n * n), 2.0 * r, EXCLUSION_FACTOR * r, ib, fb, work, g
 
 
 @njit(cache=True)

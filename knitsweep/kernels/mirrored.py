@@ -46,12 +46,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .arclength import (
+    arclength_sample_cell,
+    project_arclength_gradient,
+    project_yarn_gradient,
+    yarn_sample_cell,
+)
 from .contact import (
     EXCLUSION_FACTOR,
     accumulate_pairs,
     contact_list,
-    pair_buffers,
     pair_potential,
+    pair_sum_start,
     project_gradient,
     sample_cell,
     search_blocks,
@@ -105,8 +111,8 @@ def half_images(pts, ax, ay, r):
 
 
 @njit(cache=True)
-def mirrored_contact_energy_exhaustive(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
-                            grad_cp, grad_cell, class_energy):  # fmt: skip
+def mirrored_contact_energy_exhaustive(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class,
+                                       with_grad, grad_cp, grad_cell, class_energy):  # fmt: skip
     """Contact energy E_c (N mm) of the cell ``cp`` (S, 6, 3) over its images for
     mirror parities (pm, pn) (module docstring), of every class (``only_class`` = -1)
     or of one, testing every sample pair of every reachable image: the reference of
@@ -119,7 +125,7 @@ def mirrored_contact_energy_exhaustive(cp, tab, ax, ay, r, rc, k, p, pm, pn, onl
     """
     n = tab.shape[1]
     dt2 = 1.0 / (n * n)
-    pts, _, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
+    pts, _, r1, speed, s_mid, s_tot, t = _samples(cp, tab, aq)
     ns = pts.shape[0]
     images = half_images(pts, ax, ay, r)
     cut2 = 4.0 * r * r
@@ -163,7 +169,7 @@ def mirrored_contact_energy_exhaustive(cp, tab, ax, ay, r, rc, k, p, pm, pn, onl
                     gax -= m * f * dx
                     gay -= nn * f * dy
     if with_grad:
-        project_gradient(g, speed, r1, tab, grad_cp)
+        _project(g, speed, r1, tab, cp, t, aq, grad_cp)
         grad_cell[0] = gax
         grad_cell[1] = gay
     return energy
@@ -202,30 +208,34 @@ def mirrored_blocks(box2, images, ax, ay, reach, pm, pn, only_class):
 
 
 @njit(cache=True)
-def mirrored_contact_energy(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
+def mirrored_contact_energy(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
                             grad_cp, grad_cell, class_energy):  # fmt: skip
     """Contact energy E_c (N mm) of the cell ``cp`` (S, 6, 3) over its images for
     mirror parities (pm, pn) (module docstring), of every class (``only_class`` = -1)
     or of one; candidates culled by bounding boxes (``mirrored_blocks``).
 
-    tab (2, N, 6): contact sample tables; periods ax, ay and radii in mm, k in N/mm²,
+    tab (2, N, 6): contact sample tables; ``aq`` (2, K): empty (K = 0) for samples at
+    the fixed parameters of ``tab``, else the quadrature rule of samples placed by
+    arclength (``arclength``; only N = tab.shape[1] is then read from tab); periods ax, ay and radii in mm, k in N/mm²,
     p the exponent. Writes ``class_energy`` (5,), N mm, E_c by class (of the classes
     summed), and with ``with_grad`` dE/dcp (S, 6, 3) into ``grad_cp`` and the explicit
     dE/d(a_x, a_y) (2,) through the image offsets into ``grad_cell``. Returns E_c.
     """
-    energy, gax, gay, g2, _, speed, r1 = _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn,
-                                                        only_class, with_grad, class_energy)  # fmt: skip
+    energy, gax, gay, g2, _, speed, r1, t = _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p, pm,
+                                                           pn, only_class, with_grad,
+                                                           class_energy)  # fmt: skip
     if with_grad:
-        _fold_gradient(g2, speed, r1, tab, grad_cp)
+        _fold_gradient(g2, speed, r1, tab, cp, t, aq, grad_cp)
         grad_cell[0] = gax
         grad_cell[1] = gay
     return energy
 
 
 @njit(cache=True)
-def _fold_gradient(g2, speed, r1, tab, grad_cp):
+def _fold_gradient(g2, speed, r1, tab, cp, t, aq, grad_cp):
     """dE/dcp from the gradient ``g2`` (2 ns, 4) at the samples and their mirrored
-    copy (the copy's z is -z: dE/dz = -dE/dz')."""
+    copy (the copy's z is -z: dE/dz = -dE/dz'); samples at fixed parameters (``tab``)
+    or, with a rule ``aq``, at the parameters ``t`` placed by arclength."""
     ns = speed.shape[0]
     g = np.empty((ns, 4))
     for i in range(ns):
@@ -233,19 +243,46 @@ def _fold_gradient(g2, speed, r1, tab, grad_cp):
         g[i, 1] = g2[i, 1] + g2[ns + i, 1]
         g[i, 2] = g2[i, 2] - g2[ns + i, 2]
         g[i, 3] = g2[i, 3] + g2[ns + i, 3]
-    project_gradient(g, speed, r1, tab, grad_cp)
+    _project(g, speed, r1, tab, cp, t, aq, grad_cp)
 
 
 @njit(cache=True)
-def _doubled_samples(cp, tab):
+def _samples(cp, tab, aq):
+    """``contact.sample_cell``'s arrays and the samples' parameters (S, N): at the fixed
+    parameters of ``tab`` (``aq`` empty; the parameters then an empty array), at
+    arclength fractions of each segment by the rule ``aq`` (``arclength``; parameters
+    (S, N)), or with a third row in ``aq`` evenly spaced along the whole yarn
+    (``arclength.yarn_sample_cell``; (S N, 2) segments and parameters)."""
+    if aq.shape[1] > 0 and aq.shape[0] == 3:
+        return yarn_sample_cell(cp, tab.shape[1], aq)
+    if aq.shape[1] > 0:
+        return arclength_sample_cell(cp, tab.shape[1], aq)
+    pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
+    return pts, pos, r1, speed, s_mid, s_tot, np.empty((0, 0))
+
+
+@njit(cache=True)
+def _project(g, speed, r1, tab, cp, t, aq, grad_cp):
+    """dE/dcp from dE/dp and dE/dv at the samples of ``_samples``."""
+    if aq.shape[1] > 0 and aq.shape[0] == 3:
+        project_yarn_gradient(g, cp, r1, t, aq, grad_cp)
+    elif aq.shape[1] > 0:
+        project_arclength_gradient(g, cp, r1, t, aq, grad_cp)
+    else:
+        project_gradient(g, speed, r1, tab, grad_cp)
+
+
+@njit(cache=True)
+def _doubled_samples(cp, tab, aq):
     """The samples held twice, as they are and mirrored (z -> -z): (pts (ns, 3), their
     positions (3, 2 ns), midpoint arclengths (2 ns,) and speeds (2 ns,) with the
     mirrored copy's after the samples', the boxes (6, 2 S) of both copies' segments
-    (``segment_boxes_soa``), the samples' speeds (ns,) and first derivatives, and the
-    total arclength)."""
+    (``segment_boxes_soa``), the samples' speeds (ns,) and first derivatives, the
+    total arclength, and the samples' parameters (S, N) if placed by arclength (``aq``
+    not empty; else an empty array))."""
     nseg = cp.shape[0]
     n = tab.shape[1]
-    pts, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
+    pts, pos, r1, speed, s_mid, s_tot, t = _samples(cp, tab, aq)
     ns = pts.shape[0]
     pos2 = np.empty((3, 2 * ns))
     s_mid2 = np.empty(2 * ns)
@@ -258,32 +295,30 @@ def _doubled_samples(cp, tab):
         s_mid2[i] = s_mid2[ns + i] = s_mid[i]
         speed2[i] = speed2[ns + i] = speed[i]
     box2 = segment_boxes_soa(pos2, 2 * nseg, n)
-    return pts, pos2, s_mid2, speed2, box2, speed, r1, s_tot
+    return pts, pos2, s_mid2, speed2, box2, speed, r1, s_tot, t
 
 
 @njit(cache=True)
-def _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad, class_energy):
+def _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
+                   class_energy):  # fmt: skip
     """The sums of ``mirrored_contact_energy``: (E_c, explicit dE/da_x, dE/da_y, the
     gradient (2 ns, 4) at the samples and at their mirrored copy (columns 0-2
     dE/dposition, 3 dE/dspeed), the positions (3, 2 ns) of both, the samples' speeds
-    and first derivatives).
+    and first derivatives, their parameters if placed by arclength).
 
     The samples are held twice (the second copy mirrored, z -> -z), so that a mirrored
     partner is a sample of that copy and the translations' search and pair sums apply
     unchanged.
     """
     n = tab.shape[1]
-    dt2 = 1.0 / (n * n)
-    pts, pos2, s_mid2, speed2, box2, speed, r1, s_tot = _doubled_samples(cp, tab)
+    pts, pos2, s_mid2, speed2, box2, speed, r1, s_tot, t = _doubled_samples(cp, tab, aq)
     ns = pts.shape[0]
-    cut = 2.0 * r
+    dt2, cut, s_excl, ib, fb, work, g2 = pair_sum_start(n, 2 * ns, r)
     images = half_images(pts, ax, ay, r)
     blocks = mirrored_blocks(box2, images, ax, ay, cut, pm, pn, only_class)
-    s_excl = EXCLUSION_FACTOR * r
-    ib, fb, work, g2 = pair_buffers(n, 2 * ns)
     class_energy[:] = 0.0
     energy, gax, gay = 0.0, 0.0, 0.0
-    c = 0
+    c = np.int64(0)  # not the literal 0: no extra specialisation of the callees
     cls_now = 0
     for q in range(blocks.shape[0]):
         im, sa, sb = blocks[q, 0], blocks[q, 1], blocks[q, 2]
@@ -295,7 +330,7 @@ def _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad, 
                                            g2, 0.0, gax, gay)  # fmt: skip
             class_energy[cls_now] += e
             energy += e
-            c = 0
+            c = np.int64(0)
         cls_now = cls
         c = search_pairs(pos2, s_mid2, box2, n, sa, sb, im < 0, m, nn, m * ax, nn * ay,
                          m * s_tot, cut * cut, s_excl, ib, fb, c)  # fmt: skip
@@ -303,16 +338,17 @@ def _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad, 
                                    gax, gay)  # fmt: skip
     class_energy[cls_now] += e
     energy += e
-    return energy, gax, gay, g2, pos2, speed, r1
+    return energy, gax, gay, g2, pos2, speed, r1, t
 
 
 @njit(cache=True)
-def mirrored_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, pm, pn, forces, energies):
+def mirrored_forces_by_class(cp, dcp, tab, aq, ax, ay, r, rc, k, p, pm, pn, forces, energies):
     """Each class's generalised forces on the cell periods and its contact energy, for
     a pattern with mirrored images (as ``forces.contact_forces_by_class`` for
     translations; rows ``MIRROR_CLASSES``).
 
-    dcp (S, 6, 3, 2): d(control points)/d(a_x, a_y) at fixed shape. Writes ``forces``
+    dcp (S, 6, 3, 2): d(control points)/d(a_x, a_y) at fixed shape; ``tab``, ``aq`` the
+    samples as ``mirrored_contact_energy``'s. Writes ``forces``
     (5, 3), N: columns x, y F_a = -dE_c(class)/da (through the control points and the
     image offsets), column z the class's push out of plane, -dE_c(class)/dλ / Δz under
     the dilation z -> λ z about the mirror plane of the pair distances alone (the
@@ -323,10 +359,10 @@ def mirrored_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, pm, pn, forces, 
     grad_cp = np.empty(cp.shape)
     ce = np.empty(N_MIRROR_CLASSES)
     for cls in range(N_MIRROR_CLASSES):
-        e, gax, gay, g2, pos2, speed, r1 = _mirrored_sums(cp, tab, ax, ay, r, rc, k, p, pm, pn,
-                                                          cls, True, ce)  # fmt: skip
+        e, gax, gay, g2, pos2, speed, r1, t = _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p,
+                                                             pm, pn, cls, True, ce)  # fmt: skip
         energies[cls] = e
-        _fold_gradient(g2, speed, r1, tab, grad_cp)
+        _fold_gradient(g2, speed, r1, tab, cp, t, aq, grad_cp)
         fx, fy = gax, gay
         for s in range(cp.shape[0]):
             for c in range(6):
@@ -342,7 +378,7 @@ def mirrored_forces_by_class(cp, dcp, tab, ax, ay, r, rc, k, p, pm, pn, forces, 
 
 
 @njit(cache=True)
-def mirrored_contacts(cp, tab, ax, ay, r, pm, pn):
+def mirrored_contacts(cp, tab, aq, ax, ay, r, pm, pn):
     """Every counted contact of the cell over its images for mirror parities (pm, pn),
     each unordered pair once: the pairs of ``mirrored_contact_energy``, found by the same
     search (as ``contact.find_contacts`` for translations).
@@ -354,7 +390,7 @@ def mirrored_contacts(cp, tab, ax, ay, r, pm, pn):
     contact's row of ``MIRROR_CLASSES``).
     """
     n = tab.shape[1]
-    pts, pos2, s_mid2, speed2, box2, _, _, s_tot = _doubled_samples(cp, tab)
+    pts, pos2, s_mid2, speed2, box2, _, _, s_tot, _ = _doubled_samples(cp, tab, aq)
     images = half_images(pts, ax, ay, r)
     cut = 2.0 * r
     blocks = mirrored_blocks(box2, images, ax, ay, cut, pm, pn, -1)
@@ -369,7 +405,7 @@ def mirrored_contacts(cp, tab, ax, ay, r, pm, pn):
 
 
 @njit(cache=True)
-def mirrored_pair_forces_by_class(cp, tab, ax, ay, r, rc, k, p, pm, pn, weighted, forces):
+def mirrored_pair_forces_by_class(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, weighted, forces):
     """Each class's pair forces between sampled yarn points over the images mirrored by
     (pm, pn), projected on x, y, z (rows ``MIRROR_CLASSES``): the rule of
     ``forces.contact_pair_forces_by_class`` on ``mirrored_contacts``.
@@ -381,6 +417,6 @@ def mirrored_pair_forces_by_class(cp, tab, ax, ay, r, rc, k, p, pm, pn, weighted
     own cell: in a mirrored image its z is -z_j (the mirror plane z = 0 is every
     stitch's mid-plane in z). ``weighted`` and units as there; writes ``forces`` (5, 3).
     """
-    pts2, speed2, idx, sep, classes = mirrored_contacts(cp, tab, ax, ay, r, pm, pn)
+    pts2, speed2, idx, sep, classes = mirrored_contacts(cp, tab, aq, ax, ay, r, pm, pn)
     n = tab.shape[1]
     pair_forces(pts2, speed2, idx, sep, classes, 1.0 / (n * n), r, rc, k, p, weighted, forces)

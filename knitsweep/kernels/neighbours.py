@@ -27,12 +27,11 @@ import numpy as np
 from numba import njit
 
 from .contact import (
-    EXCLUSION_FACTOR,
     accumulate_pairs,
     collect_pairs,
     contact_energy,
     finish_pairs,
-    pair_buffers,
+    pair_sum_start,
     sample_cell,
 )
 from .partition import search_row
@@ -122,14 +121,12 @@ def contact_energy_listed(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp
         e = contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_cell)
         return e, False
     n = tab.shape[1]
-    dt2 = 1.0 / (n * n)
     _, pos, r1, speed, s_mid, s_tot = sample_cell(cp, tab)
     if not neighbour_list_valid(pos, ax, ay, r, mode, ref_pos, meta):
         e = contact_energy(cp, tab, ax, ay, r, rc, k, p, mode, with_grad, grad_cp, grad_cell)
         return e, False
-    cut2 = (2.0 * r) * (2.0 * r)
-    s_excl = EXCLUSION_FACTOR * r
-    ib, fb, work, g = pair_buffers(n, speed.shape[0])
+    dt2, cut, s_excl, ib, fb, work, g = pair_sum_start(n, speed.shape[0], r)
+    cut2 = cut * cut
     energy = 0.0
     gax = 0.0
     gay = 0.0

@@ -13,17 +13,19 @@ from .mirrored import N_MIRROR_CLASSES, mirrored_contact_energy
 
 
 @njit(cache=True)
-def pattern_cell_energy(cp, jac, ax, ay, qtab, qw, ctab, seg_w, bend, reg, r, rc, k, p, pm, pn,
+def pattern_cell_energy(cp, jac, ax, ay, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc, k, p, pm, pn,
                         with_grad, grad_e, grad_l):  # fmt: skip
     """(E_b, E_c, length) of the cell ``cp`` (S, 6, 3) with Jacobian ``jac`` (S, 6, 3, n)
     over images mirrored by parities (pm, pn); with ``with_grad`` the gradients of
     E = E_b + E_c and of the length with respect to the state into ``grad_e``,
-    ``grad_l`` (n,). Arguments as ``cell.cell_energy``'s."""
+    ``grad_l`` (n,). Arguments as ``cell.cell_energy``'s; ``aq`` the arclength rule of
+    samples placed by arclength, empty for samples at ``ctab``'s parameters
+    (``mirrored.mirrored_contact_energy``)."""
     ge, gl, gc = np.empty_like(cp), np.empty_like(cp), np.empty_like(cp)
     gcell = np.zeros(2)
     eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
     ce = np.zeros(N_MIRROR_CLASSES)
-    ec = mirrored_contact_energy(cp, ctab, ax, ay, r, rc, k, p, pm, pn, -1, with_grad, gc,
+    ec = mirrored_contact_energy(cp, ctab, aq, ax, ay, r, rc, k, p, pm, pn, -1, with_grad, gc,
                                  gcell, ce)  # fmt: skip
     if with_grad:
         _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)

@@ -122,7 +122,7 @@ class Problem:
     def bounds(self, x0: np.ndarray) -> list[tuple[float | None, float | None]]:
         """The stitch's bounds of the free entries, each widened to contain the start
         (SciPy's format: None where unbounded)."""
-        lo, hi = _widened(self.stitch, self.model.ip.L, self.model.ip.r, x0, self.free)
+        lo, hi = _widened(self.model, x0, self.free)
         return [(None if math.isinf(a) else float(a), None if math.isinf(b) else float(b))
                 for a, b in zip(lo, hi, strict=True)]  # fmt: skip
 
@@ -131,7 +131,7 @@ class Problem:
         the twist bound included as |tw - 2 pi k| <= arccos(c_tw) around the start's
         branch k (equivalent to cos(tw) >= c_tw there; not widened: a start beyond it
         is to be moved onto it)."""
-        lo, hi = _widened(self.stitch, self.model.ip.L, self.model.ip.r, x0, self.free)
+        lo, hi = _widened(self.model, x0, self.free)
         if self.bound > -1.0:
             itw = self.stitch.twist_index
             i = int(np.flatnonzero(self.free == itw)[0])
@@ -159,15 +159,17 @@ def twist_gradient(x: np.ndarray, stitch: Stitch) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=64)
-def _state_box(stitch: Stitch, L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
-    """``stitch.bounds(L, r)``, read-only, made once."""
-    lo, hi = stitch.bounds(L, r)
+def _state_box(stitch: Stitch, L: float, r: float,
+               sampling: str = "parameter") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """``stitch.bounds(L, r)``, read-only, made once; a pattern's whose contact samples
+    sit by arclength (``sampling``) without the speed box of samples by parameter."""
+    lo, hi = stitch.bounds(L, r) if sampling == "parameter" else stitch.bounds(L, r, sampling)
     lo.setflags(write=False)
     hi.setflags(write=False)
     return lo, hi
 
 
-def _widened(stitch: Stitch, L: float, r: float, x0: np.ndarray, free: np.ndarray):
+def _widened(model: CellModel, x0: np.ndarray, free: np.ndarray):
     """The free entries' bounds, widened so that they never exclude the start x0."""
-    lo, hi = _state_box(stitch, L, r)
+    lo, hi = _state_box(model.stitch, model.ip.L, model.ip.r, model.sampling)
     return np.minimum(lo[free], x0[free]), np.maximum(hi[free], x0[free])

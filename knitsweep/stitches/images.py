@@ -156,8 +156,8 @@ class Glides(Translations):
 
     def energy_args(self, m, cp, jac, x, with_grad) -> tuple:
         ip = m.ip
-        return (cp, jac, x[-2], x[-1], m._qtab, m._qw, m._ctab, m._seg_w, ip.bend, ip.reg,
-                ip.r, ip.rc, ip.k, ip.p, *self.parity, with_grad, m._grad_e,
+        return (cp, jac, x[-2], x[-1], m._qtab, m._qw, m._ctab, m._aq, m._seg_w, ip.bend,
+                ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.parity, with_grad, m._grad_e,
                 m._grad_l)  # fmt: skip
 
     def energy(self, m, cp, jac, x, with_grad) -> tuple[float, float, float]:
@@ -169,20 +169,20 @@ class Glides(Translations):
     def min_zeta(self, m, cp, x) -> float:
         ip = m.ip
         return min_zeta_where(cp, x[-2], x[-1], ip.r, ip.rc, self.parity,
-                              m.fidelity.samples_per_segment)[0]  # fmt: skip
+                              m.fidelity.samples_per_segment, m._aq)[0]  # fmt: skip
 
     def forces_args(self, m, cp, dcp, x, forces, energies) -> tuple:
         ip = m.ip
-        return (cp, dcp, m._ctab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, *self.parity, forces,
-                energies)  # fmt: skip
+        return (cp, dcp, m._ctab, m._aq, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, *self.parity,
+                forces, energies)  # fmt: skip
 
     def forces_by_class(self, m, cp, dcp, x, forces, energies) -> None:
         mirrored_forces_by_class(*self.forces_args(m, cp, dcp, x, forces, energies))
 
     def pair_forces_args(self, m, cp, x, weighted, forces) -> tuple:
         ip = m.ip
-        return (cp, m._ctab, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, *self.parity, weighted,
-                forces)  # fmt: skip
+        return (cp, m._ctab, m._aq, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, *self.parity,
+                weighted, forces)  # fmt: skip
 
     def pair_forces_by_class(self, m, cp, x, weighted, forces) -> None:
         mirrored_pair_forces_by_class(*self.pair_forces_args(m, cp, x, weighted, forces))

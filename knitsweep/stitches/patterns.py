@@ -19,6 +19,7 @@ from math import comb
 import numpy as np
 
 from ..errors import InputError
+from ..kernels.arclength import arclength_sample_cell, yarn_sample_cell
 from ..kernels.checks import pattern_min_zeta
 from .base import image_points
 
@@ -86,13 +87,22 @@ def _samples(cp: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, float]:
     return pts, total - 0.5 * speed / n, float(total[-1])
 
 
-def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10):
+def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10, arc_rule=None):
     """Smallest ζ over the counted contacts of the pattern (images mirrored by
     ``parity``; same-row neighbours along the yarn excluded as in §6) and where:
     (ζ, (m, n), segment of the cell, segment of the image); ζ = 1 if nothing touches.
     Compiled (``kernels.checks.pattern_min_zeta``): bit for bit what
-    ``min_zeta_where_reference`` finds (which samples that are not finite are left to)."""
-    pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
+    ``min_zeta_where_reference`` finds (which samples that are not finite are left to).
+    With a non-empty ``arc_rule`` (2, K) the samples sit at arclength fractions of each
+    segment, or with a third row evenly along the whole yarn (``kernels.arclength``), as
+    the contact sum's then do."""
+    if arc_rule is not None and arc_rule.shape[1] > 0:
+        place = yarn_sample_cell if arc_rule.shape[0] == 3 else arclength_sample_cell
+        pts, _, _, _, s_mid, s_tot, _ = place(np.asarray(cp, dtype=float), samples, arc_rule)
+        if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(s_mid))):
+            return (-np.inf, None, None, None)
+    else:
+        pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
     if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(s_mid))):
         return min_zeta_where_reference(cp, a_x, a_y, r, r_core, parity, samples)
     z, m, n, i, j = pattern_min_zeta(pts, s_mid, s_tot, float(a_x), float(a_y), float(r),

@@ -25,9 +25,10 @@ STARTS = tuple(f"Init_{i}.dat" for i in range(1, 8))
 """The authors' seven starts made garter stitches (``patterns.garter_start``)."""
 
 
-def state_bounds(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
-    """The free yarn's bounds (``stockinette_free.layout.state_bounds``) and |z0| <= L."""
-    flo, fhi = free.state_bounds(L, r)
+def state_bounds(L: float, r: float, sampling: str = "parameter") -> tuple[np.ndarray, np.ndarray]:
+    """The free yarn's bounds (``stockinette_free.layout.state_bounds``, for the contact
+    ``sampling``) and |z0| <= L."""
+    flo, fhi = free.state_bounds(L, r, sampling)
     lo = np.concatenate([flo[:N_FREE_SHAPE], [-L], flo[N_FREE_SHAPE:]])
     hi = np.concatenate([fhi[:N_FREE_SHAPE], [L], fhi[N_FREE_SHAPE:]])
     return lo, hi

@@ -78,11 +78,24 @@ OFFSET_BOUND = 0.125
 of the yarn (as far as one segment's share)."""
 
 
-def state_bounds(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
-    """Generous physical bounds (lower, upper), each (87,), for yarn length L and radius
-    r (mm); ±inf where free (angles). As stockinette's (§2): speeds in [1e-3 L, L/2],
-    curvature components within 10/r, offsets within L/4, joint points within L of
-    joint 0, periods in [r/2, L]."""
+ARCLENGTH_SPEED_BOUNDS = (0.01, 1.0)
+"""End speeds α in units of L when the contact samples sit by arclength
+(``Fidelity.contact_sampling = "arclength"``): the samples no longer depend on the speeds,
+so these only keep a segment's end regular (α > 0) and far from anything a yarn of length
+L reaches (docs/model.md §11, "Resolution")."""
+ARCLENGTH_OFFSET_BOUND = 0.5
+"""|β| <= L/2 with samples by arclength."""
+
+
+def state_bounds(L: float, r: float, sampling: str = "parameter") -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (lower, upper), each (87,), for yarn length L and radius r (mm); ±inf where
+    free (angles): curvature components within 10/r, joint points within L of joint 0,
+    periods in [r/2, L]; speeds in ``SPEED_BOUNDS`` L and offsets within ``OFFSET_BOUND`` L
+    (the box that keeps samples at fixed parameters resolved), or with samples placed by
+    arclength (``sampling`` "arclength" or "yarn_arclength") in ``ARCLENGTH_SPEED_BOUNDS`` L and within ``ARCLENGTH_OFFSET_BOUND`` L."""
+    speeds, offset = SPEED_BOUNDS, OFFSET_BOUND
+    if sampling != "parameter":  # "arclength" or "yarn_arclength"
+        speeds, offset = ARCLENGTH_SPEED_BOUNDS, ARCLENGTH_OFFSET_BOUND
     lo = np.full(N_STATE, -np.inf)
     hi = np.full(N_STATE, np.inf)
     for j in range(N_JOINTS):
@@ -94,9 +107,9 @@ def state_bounds(L: float, r: float) -> tuple[np.ndarray, np.ndarray]:
     for s in range(N_SEGMENTS):
         b = SEG0 + PER_SEGMENT * s
         for i in (b, b + 2):
-            lo[i], hi[i] = SPEED_BOUNDS[0] * L, SPEED_BOUNDS[1] * L
+            lo[i], hi[i] = speeds[0] * L, speeds[1] * L
         for i in (b + 1, b + 3):
-            lo[i], hi[i] = -OFFSET_BOUND * L, OFFSET_BOUND * L
+            lo[i], hi[i] = -offset * L, offset * L
     lo[IDX_AX] = lo[IDX_AY] = 0.5 * r
     hi[IDX_AX] = hi[IDX_AY] = L
     return lo, hi

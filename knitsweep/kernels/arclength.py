@@ -1,0 +1,289 @@
+"""Contact samples placed by arclength within each segment, with their exact gradient
+(docs/model.md §11, "Resolution"; the free yarn's ``Fidelity.contact_sampling =
+"arclength"``).
+
+Sample j of a segment sits at the parameter t_j where the segment's arclength fraction
+equals f_j = (j + 1/2)/N (the fractions the fixed-parameter samples use as parameters),
+so the samples are as far apart as the segment is long, whatever its end speeds. The
+arclength is a fixed quadrature rule scaled onto [0, t],
+
+    S(t) = t Σ_K W_K |r'(t X_K)|,       (X_K, W_K) a composite Gauss rule on [0, 1],
+
+smooth in t and in the control points P; t_j is the root of F = S(t) − f_j S(1) by
+Newton (to round-off). Each sample carries the segment's length ℓ = S(1) as its
+"speed", so §6's weight v_i v_j dt² becomes ℓ_a ℓ_b / N²: the midpoint rule in arclength.
+The gradient is exact for these roots (implicit function theorem):
+
+    dt_j/dP = (f_j ∂S(1)/∂P − ∂S(t_j)/∂P) / ∂S(t_j)/∂t,
+    dE/dP   = Σ_j B(t_j)ᵀ g_j + Σ_j (g_j · r'(t_j)) dt_j/dP + (Σ_j ∂E/∂ℓ_j) ∂S(1)/∂P,
+
+g_j = dE/dp_j at the samples and ∂S(t)/∂P_c = t Σ_K W_K B_c'(t X_K) r'/|r'| at t X_K.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+NEWTON_STEPS = 30
+"""Most Newton steps of one sample's parameter (a handful reach round-off)."""
+
+
+def arclength_rule(panels: int, nodes: int) -> np.ndarray:
+    """(2, panels * nodes): the composite Gauss–Legendre rule on [0, 1] (row 0 nodes,
+    row 1 weights) that the arclength S(t) is scaled from."""
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    xs = np.concatenate([(p + 0.5 * (x + 1.0)) / panels for p in range(panels)])
+    ws = np.concatenate([0.5 * w / panels for _ in range(panels)])
+    return np.ascontiguousarray(np.stack([xs, ws]))
+
+
+@njit(cache=True, inline="always")
+def _basis(t, b, d1, d2):
+    """Quintic Bernstein values ``b`` (6,), first ``d1`` (6,) and second ``d2`` (6,)
+    t-derivatives at t."""
+    u = 1.0 - t
+    t2, t3, t4, t5 = t * t, t * t * t, t**4, t**5
+    u2, u3, u4, u5 = u * u, u * u * u, u**4, u**5
+    b[0], b[1], b[2], b[3], b[4], b[5] = u5, 5 * t * u4, 10 * t2 * u3, 10 * t3 * u2, 5 * t4 * u, t5
+    q0, q1, q2, q3, q4 = u4, 4 * t * u3, 6 * t2 * u2, 4 * t3 * u, t4  # degree 4
+    d1[0], d1[1], d1[2] = -5 * q0, 5 * (q0 - q1), 5 * (q1 - q2)
+    d1[3], d1[4], d1[5] = 5 * (q2 - q3), 5 * (q3 - q4), 5 * q4
+    c0, c1, c2, c3 = u3, 3 * t * u2, 3 * t2 * u, t3  # degree 3
+    d2[0], d2[1], d2[2] = 20 * c0, 20 * (c1 - 2 * c0), 20 * (c0 - 2 * c1 + c2)
+    d2[3], d2[4], d2[5] = 20 * (c1 - 2 * c2 + c3), 20 * (c2 - 2 * c3), 20 * c3
+
+
+@njit(cache=True)
+def _arc(cp, s, t, aq, b, d1, d2, want_dt):
+    """(S(t), ∂S/∂t) of segment s (``want_dt`` False: ∂S/∂t = 0)."""
+    val, der = 0.0, 0.0
+    for q in range(aq.shape[1]):
+        u = t * aq[0, q]
+        _basis(u, b, d1, d2)
+        r1x = r1y = r1z = r2x = r2y = r2z = 0.0
+        for c in range(6):
+            r1x += d1[c] * cp[s, c, 0]
+            r1y += d1[c] * cp[s, c, 1]
+            r1z += d1[c] * cp[s, c, 2]
+            if want_dt:
+                r2x += d2[c] * cp[s, c, 0]
+                r2y += d2[c] * cp[s, c, 1]
+                r2z += d2[c] * cp[s, c, 2]
+        v = np.sqrt(r1x * r1x + r1y * r1y + r1z * r1z)
+        val += aq[1, q] * v
+        if want_dt:
+            der += aq[1, q] * (v + u * (r1x * r2x + r1y * r2y + r1z * r2z) / v)
+    return t * val, der
+
+
+@njit(cache=True)
+def _root(cp, s, goal, tj, aq, b, d1, d2):
+    """The parameter t of segment s where S(t) = ``goal``, by Newton from ``tj``."""
+    for _ in range(NEWTON_STEPS):
+        val, der = _arc(cp, s, tj, aq, b, d1, d2, True)
+        step = (val - goal) / der
+        tn = tj - step
+        # stay inside (0, 1): S is increasing, so the root lies between
+        if tn <= 0.0:
+            tn = 0.5 * tj
+        elif tn >= 1.0:
+            tn = 0.5 * (tj + 1.0)
+        tj = tn
+        if abs(step) < 1e-11:  # quadratic convergence: the root to round-off
+            break
+    return tj
+
+
+@njit(cache=True)
+def arclength_params(cp, n, aq):
+    """(t (S, n): each sample's parameter, seglen (S,): each segment's length S(1)) of
+    the samples at arclength fractions (j + 1/2)/n of every segment."""
+    nseg = cp.shape[0]
+    t = np.empty((nseg, n))
+    seglen = np.empty(nseg)
+    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    for s in range(nseg):
+        ell = _arc(cp, s, 1.0, aq, b, d1, d2, False)[0]
+        seglen[s] = ell
+        tj = 0.5 / n  # then each sample's Newton starts from the previous root
+        for j in range(n):
+            tj = _root(cp, s, (j + 0.5) / n * ell, tj, aq, b, d1, d2)
+            t[s, j] = tj
+    return t, seglen
+
+
+@njit(cache=True)
+def arclength_sample_cell(cp, n, aq):
+    """``contact.sample_cell``'s arrays for samples at arclength fractions: positions
+    (S n, 3) and (3, S n), derivatives r'(t_j) (S n, 3), "speeds" (S n,) = the segment's
+    length ℓ (so the pair weight is ℓ_a ℓ_b / n²), the arclengths along the yarn (S n,)
+    and the total; then the parameters t (S, n)."""
+    nseg = cp.shape[0]
+    ns = nseg * n
+    t, seglen = arclength_params(cp, n, aq)
+    pts = np.empty((ns, 3))
+    r1 = np.empty((ns, 3))
+    speed = np.empty(ns)
+    s_mid = np.empty(ns)
+    pos = np.empty((3, ns))
+    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    before = 0.0
+    for s in range(nseg):
+        for j in range(n):
+            i = s * n + j
+            _basis(t[s, j], b, d1, d2)
+            for d in range(3):
+                x = 0.0
+                y = 0.0
+                for c in range(6):
+                    x += b[c] * cp[s, c, d]
+                    y += d1[c] * cp[s, c, d]
+                pts[i, d] = x
+                pos[d, i] = x
+                r1[i, d] = y
+            speed[i] = seglen[s]
+            s_mid[i] = before + (j + 0.5) / n * seglen[s]
+        before += seglen[s]
+    return pts, pos, r1, speed, s_mid, before, t
+
+
+@njit(cache=True)
+def _arc_gradient(cp, s, t, aq, b, d1, d2, out):
+    """∂S(t)/∂P of segment s into ``out`` (6, 3)."""
+    out[:] = 0.0
+    for q in range(aq.shape[1]):
+        u = t * aq[0, q]
+        _basis(u, b, d1, d2)
+        r1x = r1y = r1z = 0.0
+        for c in range(6):
+            r1x += d1[c] * cp[s, c, 0]
+            r1y += d1[c] * cp[s, c, 1]
+            r1z += d1[c] * cp[s, c, 2]
+        f = t * aq[1, q] / np.sqrt(r1x * r1x + r1y * r1y + r1z * r1z)
+        for c in range(6):
+            out[c, 0] += f * d1[c] * r1x
+            out[c, 1] += f * d1[c] * r1y
+            out[c, 2] += f * d1[c] * r1z
+
+
+@njit(cache=True)
+def project_arclength_gradient(g, cp, r1, t, aq, grad_cp):
+    """dE/dcp (S, 6, 3) from dE/dp_j and dE/dℓ_j (``g`` (S n, 4)) at arclength samples
+    (module docstring); ``r1`` (S n, 3) the derivatives and ``t`` (S, n) the parameters
+    of ``arclength_sample_cell``."""
+    nseg, n = t.shape
+    grad_cp[:] = 0.0
+    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    dl = np.empty((6, 3))
+    ds = np.empty((6, 3))
+    for s in range(nseg):
+        _arc_gradient(cp, s, 1.0, aq, b, d1, d2, dl)
+        gl = 0.0
+        for j in range(n):
+            i = s * n + j
+            tj = t[s, j]
+            gl += g[i, 3]
+            gr = g[i, 0] * r1[i, 0] + g[i, 1] * r1[i, 1] + g[i, 2] * r1[i, 2]
+            if gr != 0.0:
+                st = _arc(cp, s, tj, aq, b, d1, d2, True)[1]
+                _arc_gradient(cp, s, tj, aq, b, d1, d2, ds)
+                f = (j + 0.5) / n
+                w = gr / st
+                for c in range(6):
+                    for d in range(3):
+                        grad_cp[s, c, d] += w * (f * dl[c, d] - ds[c, d])
+            _basis(tj, b, d1, d2)
+            for c in range(6):
+                for d in range(3):
+                    grad_cp[s, c, d] += b[c] * g[i, d]
+        for c in range(6):
+            for d in range(3):
+                grad_cp[s, c, d] += gl * dl[c, d]
+
+
+# ---- samples evenly spaced along the whole yarn --------------------------------------
+# With a rule ``aq`` of three rows (the third is not read) the S N samples sit at the
+# fractions (i + 1/2)/(S N) of the whole yarn's arclength, each in the segment that holds
+# it, so that neither the speeds nor where the joints sit along the yarn move them. Each
+# carries ℓ_tot / S as its "speed" (the pair weight (ℓ_tot / (S N))²), and with
+# F_i = S_{s_i}(t_i) − (f_i ℓ_tot − Σ_{s < s_i} ℓ_s):
+#     dt_i/dP_s = ([f_i − (s < s_i)] ∂ℓ_s/∂P − (s = s_i) ∂S_s(t_i)/∂P) / ∂S(t_i)/∂t.
+
+
+@njit(cache=True)
+def yarn_sample_cell(cp, n, aq):
+    """``arclength_sample_cell``'s arrays for samples evenly spaced along the whole yarn
+    (above); the parameters are returned as (S N, 2): segment, t."""
+    nseg = cp.shape[0]
+    ns = nseg * n
+    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    seglen = np.empty(nseg)
+    for s in range(nseg):
+        seglen[s] = _arc(cp, s, 1.0, aq, b, d1, d2, False)[0]
+    total = seglen.sum()
+    pts, r1, pos = np.empty((ns, 3)), np.empty((ns, 3)), np.empty((3, ns))
+    speed, s_mid, st = np.empty(ns), np.empty(ns), np.empty((ns, 2))
+    s, before, tj = 0, 0.0, 0.0
+    for i in range(ns):
+        goal = (i + 0.5) / ns * total
+        while s < nseg - 1 and goal - before > seglen[s]:
+            before += seglen[s]
+            s += 1
+            tj = 0.0
+        local = goal - before
+        tj = _root(cp, s, local, max(tj, min(local / seglen[s], 1.0 - 1e-12)), aq, b, d1, d2)
+        st[i, 0], st[i, 1] = s, tj
+        _basis(tj, b, d1, d2)
+        for d in range(3):
+            x = 0.0
+            y = 0.0
+            for c in range(6):
+                x += b[c] * cp[s, c, d]
+                y += d1[c] * cp[s, c, d]
+            pts[i, d] = x
+            pos[d, i] = x
+            r1[i, d] = y
+        speed[i] = total / nseg
+        s_mid[i] = goal
+    return pts, pos, r1, speed, s_mid, total, st
+
+
+@njit(cache=True)
+def project_yarn_gradient(g, cp, r1, st, aq, grad_cp):
+    """dE/dcp (S, 6, 3) from dE/dp_i and dE/dv_i (``g`` (S N, 4)) at the samples of
+    ``yarn_sample_cell`` (``st`` their segments and parameters)."""
+    nseg = cp.shape[0]
+    ns = st.shape[0]
+    grad_cp[:] = 0.0
+    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    ds = np.empty((6, 3))
+    coef = np.zeros(nseg)  # the coefficient of ∂ℓ_s/∂P
+    after = np.zeros(nseg)  # Σ A_i over the samples in segments after s
+    gv = 0.0
+    for i in range(ns):
+        s = int(st[i, 0])
+        tj = st[i, 1]
+        gv += g[i, 3]
+        gr = g[i, 0] * r1[i, 0] + g[i, 1] * r1[i, 1] + g[i, 2] * r1[i, 2]
+        if gr != 0.0:
+            a = gr / _arc(cp, s, tj, aq, b, d1, d2, True)[1]
+            f = (i + 0.5) / ns
+            for q in range(nseg):
+                coef[q] += a * f
+            for q in range(s):
+                after[q] += a
+            _arc_gradient(cp, s, tj, aq, b, d1, d2, ds)
+            for c in range(6):
+                for d in range(3):
+                    grad_cp[s, c, d] -= a * ds[c, d]
+        _basis(tj, b, d1, d2)
+        for c in range(6):
+            for d in range(3):
+                grad_cp[s, c, d] += b[c] * g[i, d]
+    for s in range(nseg):
+        _arc_gradient(cp, s, 1.0, aq, b, d1, d2, ds)
+        w = coef[s] - after[s] + gv / nseg
+        for c in range(6):
+            for d in range(3):
+                grad_cp[s, c, d] += w * ds[c, d]
