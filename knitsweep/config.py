@@ -222,12 +222,6 @@ class Fidelity(BaseModel):
         "joints sit; docs/model.md §11); every other stitch samples by parameter",
     )
 
-    @model_serializer(mode="wrap")
-    def _parameter_sampling_as_before(self, handler) -> dict[str, Any]:
-        # the default is left out of every dump (task ids, the job's hash), so that jobs
-        # from before the setting existed keep them
-        return _without_default(handler(self), "contact_sampling", "parameter")
-
 
 # ---- minimisers ----------------------------------------------------------------
 class SolverInfo(NamedTuple):

@@ -10,9 +10,10 @@ import shutil
 
 import pytest
 
-from knitsweep.config import StartSettings, StitchParams, SweepProtocol
+from knitsweep.config import Fidelity, StartSettings, StitchParams, SweepProtocol
 from knitsweep.service.adaptive import Refiner
 from knitsweep.service.id_forms import (
+    FIDELITY_FORMS,
     FORM_VERSION,
     MIGRATIONS,
     PARAMS_FORMS,
@@ -100,6 +101,7 @@ def test_each_step_migrates_down_and_up_losslessly(migration, tmp_path):
         ("[protocol]\nrest_tolerance_mJ = 1e-5\n", "protocol.rest_tolerance_mJ"),
         ("[starts]\nretries = 0\n", "starts.retries"),
         ("[starts]\nspread = 3\n", "starts.spread"),
+        ('[fidelity]\ncontact_sampling = "arclength"\n', "fidelity.contact_sampling"),
     ],
 )
 def test_a_job_using_a_later_field_keeps_it_in_its_id(tmp_path, extra, kept):
@@ -143,11 +145,12 @@ IDS_OF_LATER_FIELDS = [
     ('mode = "adaptive"\n[starts]\ncarry = true\n', '', '973c20c67fa7ac33', ('724de50c81d8716f', 'fc74bf68b4b00f88'), '6f1cf2d8863fe28f', '95c4f151e0baece8', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
     ('[starts]\nretries = 0\n', '', '7e3c08c8efc3500c', ('dc5e8ad8c49fee35', '9d396206c11ba81b'), 'cdc366748982508d', '0e39ecddc9ed937c', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
     ('[starts]\nspread = 3\n', '', '3ffc949dc8b16c92', ('e2d867a59bd68ed2', '96244a0dda331a62'), '79abda858af69b38', 'f45eb09441ae9b7d', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('[fidelity]\ncontact_sampling = "arclength"\n', '', 'f7ad0370d60a5489', ('d18f1241a907a40d', '4d1798f65f2ffa88'), 'c7e1ab83da785a1e', '484e9a6d42464867', ('1090b1f9d8215e7c', '605a7a023bf295b2')),
 ]  # fmt: skip
 """(top of the job file, [grid] lines, job hash, point ids, first and last sweep ids,
 adaptive series keys) of small jobs using each later-added field of the task settings,
-as main computed them when those fields were deleted from every dump (c6819a9; retries
-and spread, added since: 1112e92)."""
+as main computed them when those fields were deleted from every dump (c6819a9; retries,
+spread and contact_sampling, added since: 1112e92)."""
 
 
 @pytest.mark.parametrize(("top", "grid", "job_hash", "point_ids", "first", "last", "series"),
@@ -170,7 +173,7 @@ def test_the_task_forms_are_numbered_in_order():
 
 
 TASK_DUMPS = [(PARAMS_FORMS, StitchParams()), (STARTS_FORMS, StartSettings()),
-              (PROTOCOL_FORMS, SweepProtocol())]  # fmt: skip
+              (PROTOCOL_FORMS, SweepProtocol()), (FIDELITY_FORMS, Fidelity())]  # fmt: skip
 
 
 @pytest.mark.parametrize(("forms", "settings"), TASK_DUMPS, ids=lambda v: getattr(v, "what", ""))
@@ -193,6 +196,7 @@ def test_each_task_form_step_migrates_down_and_up_losslessly(forms, settings):
         (STARTS_FORMS, StartSettings(carry=True), "carry"),
         (STARTS_FORMS, StartSettings(retries=0), "retries"),
         (STARTS_FORMS, StartSettings(spread=3), "spread"),
+        (FIDELITY_FORMS, Fidelity(contact_sampling="arclength"), "contact_sampling"),
         (PROTOCOL_FORMS, SweepProtocol(rest_tolerance_mJ=1e-5), "rest_tolerance_mJ"),
     ],
 )

@@ -226,7 +226,11 @@ def test_stockinette_jobs_keep_their_hash_and_ids(name, job_hash, first_point, i
     assert digest(" ".join(p.task_id for p in points)) == ids
     # the results file's job_json: as it was but for the later task settings, which
     # dumps now write at their defaults (ids hash their versioned id forms instead)
-    later = {"starts": {"carry", "retries", "spread"}, "protocol": {"rest_tolerance_mJ"}}
+    later = {
+        "starts": {"carry", "retries", "spread"},
+        "protocol": {"rest_tolerance_mJ"},
+        "fidelity": {"contact_sampling"},
+    }
     assert digest(job.model_dump_json(exclude=later)) == job_json
     assert '"carry":false' in job.model_dump_json()
     assert "stitch" not in job.canonical() and "stitch" not in job.canonical()["grid"]

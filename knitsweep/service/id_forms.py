@@ -133,6 +133,8 @@ JOB_FORMS = FormHistory("a job (JobSpec.full_form)", (
               *_field(("starts", "retries"), RETRIES)),
     Migration(9, "starts.spread: each point and sweep also relaxed from perturbed copies "
               "(before: off)", *_field(("starts", "spread"), 1)),
+    Migration(10, "fidelity.contact_sampling: how the contact sum samples the yarn (before: "
+              "'parameter')", *_field(("fidelity", "contact_sampling"), "parameter")),
 ))  # fmt: skip
 """Every step of the job format since its first form."""
 MIGRATIONS = JOB_FORMS.migrations
@@ -159,5 +161,9 @@ PROTOCOL_FORMS = FormHistory("a sweep's protocol (SweepProtocol)", (
               "relaxes again at rest (before: the default was the only one)",
               *_field(("rest_tolerance_mJ",), REST_TOLERANCE_MJ)),
 ))  # fmt: skip
-TASK_FORMS = (PARAMS_FORMS, STARTS_FORMS, PROTOCOL_FORMS)
+FIDELITY_FORMS = FormHistory("the fidelity (Fidelity)", (
+    Migration(2, "contact_sampling: how the contact sum samples the yarn (before: "
+              "'parameter')", *_field(("contact_sampling",), "parameter")),
+))  # fmt: skip
+TASK_FORMS = (PARAMS_FORMS, STARTS_FORMS, PROTOCOL_FORMS, FIDELITY_FORMS)
 """The settings a task's id hashes, each with its forms."""

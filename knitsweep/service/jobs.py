@@ -46,7 +46,7 @@ from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
 from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
 from ..util.safe_files import read_text
 from .grid import MAX_POINTS, Grid
-from .id_forms import PARAMS_FORMS, PROTOCOL_FORMS, STARTS_FORMS, id_form
+from .id_forms import FIDELITY_FORMS, PARAMS_FORMS, PROTOCOL_FORMS, STARTS_FORMS, id_form
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -344,7 +344,7 @@ def params_form(params: StitchParams, **exclude: Any) -> dict[str, Any]:
 
 def _numerics(job: JobSpec) -> dict[str, Any]:
     return {
-        "fidelity": job.fidelity.model_dump(mode="json"),
+        "fidelity": FIDELITY_FORMS.id_form(job.fidelity.model_dump(mode="json")),
         "solver": job.solver.model_dump(mode="json"),
         "starts": STARTS_FORMS.id_form(job.starts.model_dump(mode="json")),
         "seed": job.seed,
