@@ -30,7 +30,6 @@ from pydantic import (
     Field,
     ValidationInfo,
     field_validator,
-    model_serializer,
 )
 
 from .errors import InputError as InputError  # the settings' error, re-exported
@@ -129,16 +128,6 @@ class StitchParams(BaseModel):
         DEFAULT_STITCH, description=f"stitch pattern: one of {STITCH_CHOICES}"
     )
 
-    @model_serializer(mode="wrap")
-    def _stockinette_as_before(self, handler) -> dict[str, Any]:
-        # The default stitch is left out of every dump (task ids, file attributes,
-        # tables), so that everything computed before stitches were a choice keeps
-        # its id and reads the same; any other stitch is written out.
-        out = handler(self)
-        if out.get("stitch") == DEFAULT_STITCH:
-            del out["stitch"]
-        return out
-
     @field_validator("p")
     @classmethod
     def _p_above_one(cls, v: float) -> float:
@@ -232,12 +221,6 @@ class Fidelity(BaseModel):
         "speeds) or 'yarn_arclength' (evenly spaced along the whole yarn, wherever its "
         "joints sit; docs/model.md §11); every other stitch samples by parameter",
     )
-
-    @model_serializer(mode="wrap")
-    def _parameter_sampling_as_before(self, handler) -> dict[str, Any]:
-        # the default is left out of every dump (task ids, the job's hash), so that jobs
-        # from before the setting existed keep them
-        return _without_default(handler(self), "contact_sampling", "parameter")
 
 
 # ---- minimisers ----------------------------------------------------------------
@@ -362,14 +345,6 @@ takes the lower state as the point's zero-force state (``SweepProtocol.rest_tole
 a tenth of the paper's energy-gap threshold."""
 
 
-def _without_default(out: dict[str, Any], name: str, default: Any) -> dict[str, Any]:
-    """A settings dump ``out`` without field ``name`` where it holds ``default`` (a field
-    added later, left out of task ids and job hashes so that earlier jobs keep theirs)."""
-    if name in out and type(out[name]) is type(default) and out[name] == default:
-        del out[name]
-    return out
-
-
 class SweepProtocol(BaseModel):
     """The strain schedule; defaults are the authors' (docs/model.md §8)."""
 
@@ -437,12 +412,6 @@ class SweepProtocol(BaseModel):
         "gap threshold; 1 mJ turns it off)",
     )
 
-    @model_serializer(mode="wrap")
-    def _rest_tolerance_as_before(self, handler) -> dict[str, Any]:
-        # the default is left out of every dump (task ids, the job's hash), so that jobs
-        # from before sweeps checked their zero-force state keep them
-        return _without_default(handler(self), "rest_tolerance_mJ", REST_TOLERANCE_MJ)
-
     @field_validator("observables", mode="before")
     @classmethod
     def _from_a_list(cls, v: Any) -> Any:
@@ -506,10 +475,3 @@ class StartSettings(BaseModel):
                         "copies of its winning start, each sweep from spread - 1 of its state, "
                         f"perturbed {SPREAD_PERTURBATION:g} relative: the observables' spread "
                         "(service/spread.py); 1: off")  # fmt: skip
-
-    @model_serializer(mode="wrap")
-    def _uncarried_as_before(self, handler) -> dict[str, Any]:
-        # carry = false, the default retries and spread are left out of every dump (task ids, the
-        # job's hash, the results file's job_json), so that jobs from before them keep them
-        out = _without_default(handler(self), "carry", False)
-        return _without_default(_without_default(out, "retries", RETRIES), "spread", 1)

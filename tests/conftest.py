@@ -13,6 +13,12 @@ SHIPPED = (Path(__file__).resolve().parents[1] / "knitsweep" / "stitches" / "sto
            / "data")  # the authors' Init_*.dat  # fmt: skip
 TINY = DATA / "jobs" / "tiny.toml"  # 2 points, 4 sweeps, coarse numerics: ~2 s serially
 VOLATILE = {"seconds", "relax_seconds", "wall_seconds", "rank", "host"}
+FAULT_PLUGIN = Path(__file__).resolve().parent / "fault_plugin"
+"""The tests' fault injector (``KNITSWEEP_TEST_SIGNAL_AT``): first on the PYTHONPATH of
+every process the tests start, whose ``sitecustomize`` installs it where the variable is
+set (knitsweep itself has only the named points, ``service.signals.fault_point``)."""
+os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(FAULT_PLUGIN),
+                                                         os.environ.get("PYTHONPATH")]))  # fmt: skip
 
 
 VENV_BIN = Path(sys.executable).parent

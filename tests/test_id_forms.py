@@ -1,13 +1,28 @@
 """Unit tier: a job's id is hashed from its id form (``service.id_forms``): every step of
 the job format migrates up and down losslessly, every shipped job keeps the ids it had
-before the forms were versioned, and an earlier results file still resumes."""
+before the forms were versioned, and an earlier results file still resumes. The settings
+a task's id hashes (parameters, starts, protocol) have versioned forms of their own: jobs
+using the later fields keep the task and series ids they had when those fields were
+deleted from every dump instead."""
 
 import copy
 import shutil
 
 import pytest
 
-from knitsweep.service.id_forms import FORM_VERSION, MIGRATIONS, id_form, migrate_up
+from knitsweep.config import Fidelity, StartSettings, StitchParams, SweepProtocol
+from knitsweep.service.adaptive import Refiner
+from knitsweep.service.id_forms import (
+    FIDELITY_FORMS,
+    FORM_VERSION,
+    MIGRATIONS,
+    PARAMS_FORMS,
+    PROTOCOL_FORMS,
+    STARTS_FORMS,
+    TASK_FORMS,
+    id_form,
+    migrate_up,
+)
 from knitsweep.service.jobs import load_job, plan
 
 IDS_BEFORE = [
@@ -82,6 +97,11 @@ def test_each_step_migrates_down_and_up_losslessly(migration, tmp_path):
         ('r_mm = [0.7, 0.74]\nr_core_mm = "0.44 * r_mm"\n', "grid.ties"),
         ('k_mN_per_mm2 = [0.1, 0.2]\nzip = [["L_mm", "k_mN_per_mm2"]]\n', "grid.zip"),
         ("[store]\npacking_fraction = true\n", "store.packing_fraction"),
+        ("[starts]\ncarry = true\n", "starts.carry"),
+        ("[protocol]\nrest_tolerance_mJ = 1e-5\n", "protocol.rest_tolerance_mJ"),
+        ("[starts]\nretries = 0\n", "starts.retries"),
+        ("[starts]\nspread = 3\n", "starts.spread"),
+        ('[fidelity]\ncontact_sampling = "arclength"\n', "fidelity.contact_sampling"),
     ],
 )
 def test_a_job_using_a_later_field_keeps_it_in_its_id(tmp_path, extra, kept):
@@ -111,4 +131,115 @@ def test_an_earlier_results_file_resumes_with_nothing_to_compute(data_dir, tmp_p
     new = tmp_path / "new.h5"
     service.merge(new, [old])
     summary = service.run(tiny, new, executor="serial", show_progress=False)
+    assert summary.skipped == summary.total == 6 and summary.exit_code == 0
+
+
+IDS_OF_LATER_FIELDS = [
+    ('', '', '7bc409199448f0aa', ('154183f3e9a4fc68', '763ec966b47d1865'), 'b7b99bdf35c022c9', '61cbd8f586cc22b0', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('stitch = "garter"\n', '', 'e218b85a9beee6ea', ('b6610298a421d455', '8960e816bf915787'), '85253b2e297e827f', 'b17ee7b977358fd9', ('3f06f1eb030bf66a', 'e369dd0f4430090e')),
+    ('', "stitch = ['stockinette', 'rib']\n", 'a907d4e5beeb9e72', ('154183f3e9a4fc68', '763ec966b47d1865', '3f36eb1520cb3420', '8da9655bcc1d547a'), 'b7b99bdf35c022c9', '603adb6fb46292bd', ('05f6bf1b38adfad3', '3a725d400f3d6963', '9dbe336bdd721f5e', 'b7152b2aa83fe78e')),
+    ('[starts]\ncount = 2\ncarry = true\n', '', 'a9e1ed2971a90c18', ('0dafa9b5a282fbe6', 'e8d617231db9a2eb'), '5ae9cee48d69f56b', 'd340765edd6c12f0', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('[protocol]\nrest_tolerance_mJ = 1e-5\n', '', '80866a62fe65aa3b', ('154183f3e9a4fc68', '763ec966b47d1865'), 'a77ae0b8f6771581', 'cd1f65de5a84d944', ('4d534d8cc4697d57', 'a061f7cefcda941b')),
+    ('mode = "adaptive"\n', '', '0997b2919014a1a5', ('154183f3e9a4fc68', '763ec966b47d1865'), 'b7b99bdf35c022c9', '61cbd8f586cc22b0', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('mode = "adaptive"\nstitch = "garter"\n[protocol]\nrest_tolerance_mJ = 1e-5\n', '', '15ae294abd820f4a', ('b6610298a421d455', '8960e816bf915787'), '9ae430e4d121039b', 'd5f5d7b26fbf47c3', ('ab9fc7ff96a3a5b7', 'bf337bb2a19979cb')),
+    ('mode = "adaptive"\n[starts]\ncarry = true\n', '', '973c20c67fa7ac33', ('724de50c81d8716f', 'fc74bf68b4b00f88'), '6f1cf2d8863fe28f', '95c4f151e0baece8', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('[starts]\nretries = 0\n', '', '7e3c08c8efc3500c', ('dc5e8ad8c49fee35', '9d396206c11ba81b'), 'cdc366748982508d', '0e39ecddc9ed937c', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('[starts]\nspread = 3\n', '', '3ffc949dc8b16c92', ('e2d867a59bd68ed2', '96244a0dda331a62'), '79abda858af69b38', 'f45eb09441ae9b7d', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
+    ('[fidelity]\ncontact_sampling = "arclength"\n', '', 'f7ad0370d60a5489', ('d18f1241a907a40d', '4d1798f65f2ffa88'), 'c7e1ab83da785a1e', '484e9a6d42464867', ('1090b1f9d8215e7c', '605a7a023bf295b2')),
+]  # fmt: skip
+"""(top of the job file, [grid] lines, job hash, point ids, first and last sweep ids,
+adaptive series keys) of small jobs using each later-added field of the task settings,
+as main computed them when those fields were deleted from every dump (c6819a9; retries,
+spread and contact_sampling, added since: 1112e92)."""
+
+
+@pytest.mark.parametrize(("top", "grid", "job_hash", "point_ids", "first", "last", "series"),
+                         IDS_OF_LATER_FIELDS, ids=lambda v: None)  # fmt: skip
+def test_task_and_series_ids_of_every_later_field_are_kept(tmp_path, top, grid, job_hash,
+                                                           point_ids, first, last, series):  # fmt: skip
+    path = tmp_path / "j.toml"
+    path.write_text(f'schema_version = 1\nname = "j"\n{top}[grid]\nL_mm = [11.0, 11.6]\n{grid}')
+    job = load_job(path)
+    points, sweeps = plan(job)
+    assert job.job_hash == job_hash
+    assert tuple(p.task_id for p in points) == point_ids
+    assert (sweeps[0].task_id, sweeps[-1].task_id) == (first, last)
+    assert tuple(sorted(Refiner(job).series)) == series
+
+
+def test_the_task_forms_are_numbered_in_order():
+    for forms in TASK_FORMS:
+        assert [m.version for m in forms.migrations] == list(range(2, forms.version + 1))
+
+
+TASK_DUMPS = [(PARAMS_FORMS, StitchParams()), (STARTS_FORMS, StartSettings()),
+              (PROTOCOL_FORMS, SweepProtocol()), (FIDELITY_FORMS, Fidelity())]  # fmt: skip
+
+
+@pytest.mark.parametrize(("forms", "settings"), TASK_DUMPS, ids=lambda v: getattr(v, "what", ""))
+def test_each_task_form_step_migrates_down_and_up_losslessly(forms, settings):
+    """A dump writes every field (nothing is deleted any more); each step's down form of
+    the defaults lacks its field and its up form is the dump again."""
+    full = settings.model_dump(mode="json")
+    assert set(full) == set(type(settings).model_fields)
+    for m in forms.migrations:
+        lower = m.down(copy.deepcopy(full))
+        assert lower is not None and lower != full
+        assert m.up(lower) == full
+    assert forms.migrate_up(forms.id_form(full)) == full
+
+
+@pytest.mark.parametrize(
+    ("forms", "settings", "kept"),
+    [
+        (PARAMS_FORMS, StitchParams(stitch="garter"), "stitch"),
+        (STARTS_FORMS, StartSettings(carry=True), "carry"),
+        (STARTS_FORMS, StartSettings(retries=0), "retries"),
+        (STARTS_FORMS, StartSettings(spread=3), "spread"),
+        (FIDELITY_FORMS, Fidelity(contact_sampling="arclength"), "contact_sampling"),
+        (PROTOCOL_FORMS, SweepProtocol(rest_tolerance_mJ=1e-5), "rest_tolerance_mJ"),
+    ],
+)
+def test_settings_using_a_later_field_keep_it_in_their_id_form(forms, settings, kept):
+    full = settings.model_dump(mode="json")
+    assert kept in forms.id_form(full)
+    assert forms.migrate_up(forms.id_form(full)) == full
+    assert kept not in forms.id_form(type(settings)().model_dump(mode="json"))
+
+
+def _stored_ids(path):
+    from conftest import stored_meta
+
+    return {kind: set(stored_meta(path, kind)) for kind in ("points", "sweeps")}
+
+
+def test_the_schema2_file_holds_the_task_ids_of_today(data_dir):
+    points, sweeps = plan(load_job(data_dir / "jobs" / "tiny.toml"))
+    assert _stored_ids(data_dir / "schema2_tiny.h5") == {
+        "points": {p.task_id for p in points},
+        "sweeps": {s.task_id for s in sweeps},
+    }
+
+
+def test_a_schema3_file_from_before_the_task_forms_resumes_with_nothing_to_compute(
+    data_dir, tmp_path
+):
+    """The tiny job's file as main c6819a9 wrote it (results schema 3, the task settings'
+    later fields then deleted from every dump): it holds the task ids of today and a run
+    into it finds every task done."""
+    import h5py
+
+    from knitsweep import service
+
+    old = tmp_path / "old.h5"
+    shutil.copy(data_dir / "schema3_tiny_c6819a9.h5", old)
+    with h5py.File(old, "r") as f:
+        assert int(f.attrs["schema_version"]) == 3
+        stored = str(f.attrs["job_hash"])
+    tiny = data_dir / "jobs" / "tiny.toml"
+    points, sweeps = plan(load_job(tiny))
+    assert load_job(tiny).job_hash == stored
+    assert _stored_ids(old) == {"points": {p.task_id for p in points},
+                                "sweeps": {s.task_id for s in sweeps}}  # fmt: skip
+    summary = service.run(tiny, old, executor="serial", show_progress=False)
     assert summary.skipped == summary.total == 6 and summary.exit_code == 0

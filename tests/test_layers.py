@@ -19,7 +19,6 @@ PKG = Path(__file__).resolve().parents[1] / "knitsweep"
 LAYERS = [
     ["_version"],
     ["errors"],
-    ["env"],
     ["util"],  # small helpers: plain values, forked helpers, safe file I/O
     ["kernels"],  # generic numba: knows no stitch, no settings
     ["stitches"],  # geometries behind one interface; their kernels call down into kernels

@@ -18,13 +18,16 @@ def _message(**kw):
     return describe_validation_error(e.value)
 
 
-def test_the_default_stitch_leaves_every_dump_as_before():
-    """Stockinette parameters dump (and so hash, store and tabulate) without a stitch
-    field, as before stitches were a choice; from_flat reads such a dump back."""
+def test_the_default_stitch_is_left_out_of_what_ids_hash_and_files_store():
+    """Stockinette parameters' id form (what task ids hash and task attributes store) has
+    no stitch field, as before stitches were a choice; the dump writes it, and from_flat
+    reads either back."""
+    from knitsweep.service.jobs import params_form
+
     p = StitchParams(L_mm=11.0)
-    assert "stitch" not in p.model_dump() and '"stitch"' not in p.model_dump_json()
-    assert StitchParams.from_flat(p.model_dump()) == p
-    assert p.stitch == "stockinette"
+    assert "stitch" not in params_form(p) and p.model_dump()["stitch"] == "stockinette"
+    assert StitchParams.from_flat(params_form(p)) == StitchParams.from_flat(p.model_dump()) == p
+    assert params_form(StitchParams(L_mm=11.0, stitch="garter"))["stitch"] == "garter"
 
 
 def test_defaults_are_the_papers_table_1():

@@ -78,9 +78,14 @@ def test_rib_pulled_in_x_at_11_7_mm_starts_over_from_a_lower_minimum():
 
 def test_rest_tolerance_is_a_protocol_setting_left_out_of_task_ids():
     from knitsweep.config import SweepProtocol
+    from knitsweep.service.id_forms import PROTOCOL_FORMS
 
-    assert "rest_tolerance_mJ" not in SweepProtocol().model_dump()
-    assert SweepProtocol(rest_tolerance_mJ=1e-6).model_dump()["rest_tolerance_mJ"] == 1e-6
+    def form(p):
+        return PROTOCOL_FORMS.id_form(p.model_dump(mode="json"))
+
+    assert "rest_tolerance_mJ" not in form(SweepProtocol())
+    assert "rest_tolerance_mJ" in SweepProtocol().model_dump()
+    assert form(SweepProtocol(rest_tolerance_mJ=1e-6))["rest_tolerance_mJ"] == 1e-6
     with pytest.raises(ValueError, match="rest_tolerance_mJ"):
         SweepProtocol(rest_tolerance_mJ=-1.0)
 

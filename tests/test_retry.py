@@ -69,8 +69,13 @@ def test_no_retry_when_told_so_or_nothing_failed(job, point, converged, monkeypa
 
 
 def test_retries_are_validated_and_out_of_task_ids_at_their_default(tmp_path):
-    assert "retries" not in StartSettings().model_dump()
-    assert StartSettings(retries=5).model_dump()["retries"] == 5
+    from knitsweep.service.id_forms import STARTS_FORMS
+
+    def form(s):
+        return STARTS_FORMS.id_form(s.model_dump(mode="json"))
+
+    assert "retries" not in form(StartSettings()) and "retries" in StartSettings().model_dump()
+    assert form(StartSettings(retries=5))["retries"] == 5
     bad = tmp_path / "bad.toml"
     bad.write_text(TINY.read_text().replace("[starts]\n", "[starts]\nretries = 17\n"))
     with pytest.raises(InputError, match=r"starts\.retries.*16"):

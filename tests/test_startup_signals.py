@@ -1,7 +1,8 @@
 """A signal at every stage of start-up, in every rank of ``mpirun -n 3``: imports,
 class creation (where Python wraps the signal's exception in RuntimeError), MPI_Init,
 the compile, the job's broadcast and the first hand-out. The signal is raised at the
-stage itself (``KNITSWEEP_TEST_SIGNAL_AT=<stage>@<rank>``, ``signals.test_point``),
+stage itself (``KNITSWEEP_TEST_SIGNAL_AT=<stage>@<rank>``: the tests' fault injector,
+tests/fault_plugin, at the named point ``signals.fault_point``),
 not at a wall-clock delay. Every rank reports one line and the run ends within
 seconds with exit code 3, no traceback, no process left (integration tier)."""
 
@@ -17,6 +18,7 @@ import h5py
 import pytest
 from conftest import TINY
 
+from knitsweep.service import signals
 from knitsweep.service.signals import STAGES, as_interrupt
 
 VENV_BIN = Path(sys.executable).parent
@@ -34,6 +36,25 @@ def test_a_wrapped_signal_is_still_the_signal():
         type("Made", (), {"probe": Probe()})  # what pydantic's class creation does
     assert isinstance(as_interrupt(info.value), Interrupted)
     assert as_interrupt(RuntimeError("other")) is None
+
+
+def test_the_fault_injector_is_the_tests_and_only_where_asked(tmp_path):
+    """knitsweep has no injector of its own: in a process the tests start, the plugin
+    (tests/fault_plugin) becomes it with KNITSWEEP_TEST_SIGNAL_AT set, and nothing is
+    installed without the variable."""
+    probe = ("from knitsweep.service import signals; f = signals.injector; "
+             "print(None if f is None else f.__module__)")  # fmt: skip
+    env = {k: v for k, v in os.environ.items() if k != "KNITSWEEP_TEST_SIGNAL_AT"}
+
+    def injector(**extra):
+        out = subprocess.run([sys.executable, "-c", probe], env={**env, **extra}, cwd=tmp_path,
+                             capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert out.returncode == 0, out.stderr
+        return out.stdout.strip()
+
+    assert injector() == "None"
+    assert injector(KNITSWEEP_TEST_SIGNAL_AT="handout#99") == "fault_injection"
+    assert signals.fault_point("imports") is None  # this process: no injector, no signal
 
 
 def test_signal_during_class_creation_in_a_single_process(tmp_path):

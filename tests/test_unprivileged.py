@@ -15,7 +15,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import TINY, one_error_line
+from conftest import FAULT_PLUGIN, TINY, one_error_line
 
 ROOT = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent
@@ -71,6 +71,7 @@ def home():
 def as_nobody(home: Path, *cmd, extra_env=None, timeout=900) -> subprocess.CompletedProcess:
     env = {"PATH": f"{VENV_BIN}:/usr/bin:/bin", "HOME": str(home), "OPENBLAS_NUM_THREADS": "1",
            "LANG": "C.UTF-8", **ENV, **(extra_env or {})}  # fmt: skip
+    env["PYTHONPATH"] = ":".join(filter(None, [str(FAULT_PLUGIN), env.get("PYTHONPATH")]))
     return subprocess.run(["setpriv", "--reuid", "nobody", "--regid", "nogroup", "--clear-groups",
                            *map(str, cmd)], cwd=home, env=env, capture_output=True, text=True,
                           timeout=timeout)  # fmt: skip

@@ -21,7 +21,7 @@ def main() -> None:
     signals.install(interruptible=True)
     rc = 1
     try:
-        signals.test_point("imports")
+        signals.fault_point("imports")
         from .application import main as run_cli
 
         rc = run_cli()

@@ -36,7 +36,8 @@ from typing import Any, Literal
 
 from ..analysis.transitions import transition
 from ..config import DONE, NOT_KNITTABLE, StitchParams
-from .jobs import JobSpec, digest
+from .id_forms import FIDELITY_FORMS, PROTOCOL_FORMS
+from .jobs import JobSpec, digest, params_form
 
 SeriesStatus = Literal[
     "coarse", "refining", "done", "jammed_throughout", "unjammed_at_start", "failed"
@@ -164,11 +165,11 @@ class Refiner:
                 self.series.setdefault(key, {"base": params, "direction": d, "gaps": {}})
 
     def key(self, params: StitchParams, direction: str) -> str:
-        base = params.model_dump(mode="json", exclude={"L_mm"})
+        base = params_form(params, exclude={"L_mm"})  # the id forms, as task ids'
         return digest({"series": base, "direction": direction,
                        "adaptive": self.settings.model_dump(mode="json"),
-                       "protocol": self.job.protocol.model_dump(mode="json"),
-                       "fidelity": self.job.fidelity.model_dump(mode="json")})  # fmt: skip
+                       "protocol": PROTOCOL_FORMS.id_form(self.job.protocol.model_dump(mode="json")),
+                       "fidelity": FIDELITY_FORMS.id_form(self.job.fidelity.model_dump(mode="json"))})  # fmt: skip
 
     def observe(self, sweep_meta: dict[str, Any]) -> None:
         """Take one finished sweep's gap (done: its gap; not knittable: jammed;

@@ -11,6 +11,12 @@ digest of its id form: its full form migrated down through every step it allows,
 first, so that a job that uses none of a step's additions hashes as jobs did before the
 step, and earlier results files keep their ids and resume; ``migrate_up`` brings an
 earlier form to the full one.
+
+The settings a task's id hashes have forms of their own, versioned the same way
+(``FormHistory``): ``PARAMS_FORMS`` (a point's ``StitchParams``), ``STARTS_FORMS``
+(``StartSettings``) and ``PROTOCOL_FORMS`` (``SweepProtocol``). Their dumps write every
+field; a task's id hashes each one's id form, so that a task using nothing a later field
+changed keeps the id it had before the field existed.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from ..config import REST_TOLERANCE_MJ, RETRIES
 from ..stitches import DEFAULT_STITCH
 
 Form = dict[str, Any]
@@ -78,33 +85,85 @@ def _stitch_down(d: Form) -> Form | None:
     return out
 
 
-MIGRATIONS: tuple[Migration, ...] = (
+@dataclass(frozen=True)
+class FormHistory:
+    """The versioned forms of one dict a hash is taken of: its ``migrations``, oldest
+    first (the first form is version 1, each step leads to the next)."""
+
+    what: str
+    migrations: tuple[Migration, ...]
+
+    @property
+    def version(self) -> int:
+        """The newest form: the one a full dump writes."""
+        return self.migrations[-1].version if self.migrations else 1
+
+    def id_form(self, full: Form) -> Form:
+        """The form an id hashes: ``full`` migrated down through every step it allows
+        (the newest first; a step whose addition the dict uses stays)."""
+        d = full
+        for m in reversed(self.migrations):
+            lower = m.down(d)
+            if lower is not None:
+                d = lower
+        return d
+
+    def migrate_up(self, d: Form) -> Form:
+        """A dict of any earlier form (as ``id_form`` gives) in the full form: every
+        step's ``up``, oldest first."""
+        for m in self.migrations:
+            d = m.up(d)
+        return d
+
+
+JOB_FORMS = FormHistory("a job (JobSpec.full_form)", (
     Migration(2, "stitch: the stitch of every point (before: stockinette, the paper's; "
               "several stitches are the grid axis grid.stitch)", _stitch_up, _stitch_down),
     Migration(3, "grid.ties: axes tied to others (before: none)", *_field(("grid", "ties"), {})),
     Migration(4, "grid.zip: axes varied together (before: none)", *_field(("grid", "zip"), [])),
     Migration(5, "store.packing_fraction: the packing fraction stored (before: not)",
               *_field(("store", "packing_fraction"), False)),
-)  # fmt: skip
-"""Every step of the job format since its first form, oldest first."""
-FORM_VERSION = MIGRATIONS[-1].version
+    Migration(6, "starts.carry: each point of a series starts from its neighbour's "
+              "zero-force state (before: not)", *_field(("starts", "carry"), False)),
+    Migration(7, "protocol.rest_tolerance_mJ: a sweep falling this far below its zero-force "
+              "energy relaxes again at rest (before: the default, 5e-6 mJ, was the only one)",
+              *_field(("protocol", "rest_tolerance_mJ"), REST_TOLERANCE_MJ)),
+    Migration(8, "starts.retries: a point no start of which converged walks again from "
+              "perturbed copies (the default, 3, hashes as the jobs before it)",
+              *_field(("starts", "retries"), RETRIES)),
+    Migration(9, "starts.spread: each point and sweep also relaxed from perturbed copies "
+              "(before: off)", *_field(("starts", "spread"), 1)),
+    Migration(10, "fidelity.contact_sampling: how the contact sum samples the yarn (before: "
+              "'parameter')", *_field(("fidelity", "contact_sampling"), "parameter")),
+))  # fmt: skip
+"""Every step of the job format since its first form."""
+MIGRATIONS = JOB_FORMS.migrations
+FORM_VERSION = JOB_FORMS.version
 """The form ``JobSpec.full_form`` writes."""
+id_form = JOB_FORMS.id_form
+migrate_up = JOB_FORMS.migrate_up
 
-
-def id_form(full: Form) -> Form:
-    """The form a job's id hashes: its full form migrated down through every step it
-    allows (the newest first; a step whose addition the job uses stays)."""
-    d = full
-    for m in reversed(MIGRATIONS):
-        lower = m.down(d)
-        if lower is not None:
-            d = lower
-    return d
-
-
-def migrate_up(d: Form) -> Form:
-    """A dict of any earlier form (as ``id_form`` gives, or a job of an earlier format)
-    in the full form: every step's ``up``, oldest first."""
-    for m in MIGRATIONS:
-        d = m.up(d)
-    return d
+PARAMS_FORMS = FormHistory("a point's parameters (StitchParams)", (
+    Migration(2, "stitch: the stitch pattern (before: stockinette, the paper's)",
+              *_field(("stitch",), DEFAULT_STITCH)),
+))  # fmt: skip
+STARTS_FORMS = FormHistory("the starts (StartSettings)", (
+    Migration(2, "carry: each point of a series starts from its neighbour's zero-force "
+              "state (before: not)", *_field(("carry",), False)),
+    Migration(3, "retries: a point no start of which converged walks again from perturbed "
+              "copies (the default, 3, hashes as the settings before it)",
+              *_field(("retries",), RETRIES)),
+    Migration(4, "spread: each point and sweep also relaxed from perturbed copies (before: "
+              "off)", *_field(("spread",), 1)),
+))  # fmt: skip
+PROTOCOL_FORMS = FormHistory("a sweep's protocol (SweepProtocol)", (
+    Migration(2, "rest_tolerance_mJ: a sweep falling this far below its zero-force energy "
+              "relaxes again at rest (before: the default was the only one)",
+              *_field(("rest_tolerance_mJ",), REST_TOLERANCE_MJ)),
+))  # fmt: skip
+FIDELITY_FORMS = FormHistory("the fidelity (Fidelity)", (
+    Migration(2, "contact_sampling: how the contact sum samples the yarn (before: "
+              "'parameter')", *_field(("contact_sampling",), "parameter")),
+))  # fmt: skip
+TASK_FORMS = (PARAMS_FORMS, STARTS_FORMS, PROTOCOL_FORMS, FIDELITY_FORMS)
+"""The settings a task's id hashes, each with its forms."""

@@ -18,7 +18,7 @@ import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar, Literal
+from typing import Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -46,7 +46,7 @@ from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
 from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
 from ..util.safe_files import read_text
 from .grid import MAX_POINTS, Grid
-from .id_forms import id_form
+from .id_forms import FIDELITY_FORMS, PARAMS_FORMS, PROTOCOL_FORMS, STARTS_FORMS, id_form
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -66,11 +66,15 @@ class Store(BaseModel):
 
     model_config = _STRICT
 
-    states: bool = Field(False, description="the 30-entry state at every strain step")
+    states: bool = Field(
+        False, description="the state (n_state entries: 30 for stockinette) at every strain step"
+    )
     contact_forces: bool = Field(
         False, description="contact forces by class (self, same row, NN/NNN column) per step"
     )
-    geometry: bool = Field(False, description="control points (8, 6, 3) at every strain step")
+    geometry: bool = Field(
+        False, description="control points (n_segments, 6, 3) at every strain step"
+    )
     packing_fraction: bool = Field(
         False, description="packing fraction φ (quasi-Monte Carlo over the tube) of every state"
     )
@@ -124,24 +128,11 @@ class AdaptiveSettings(BaseModel):
     max_refinements: int = Field(40, ge=1, le=1000, description="refinements per series, at most")
 
 
-class _ClassCreationProbe:
-    """Where a test has the start-up signal arrive inside pydantic's class creation
-    (``signals.test_point("class")``): Python then wraps the signal's exception in
-    RuntimeError, which every entry point must still see as the signal."""
-
-    def __set_name__(self, owner, name) -> None:
-        from . import signals
-
-        signals.test_point("class")
-
-
 class JobSpec(BaseModel):
     """A whole job. ``fidelity``, ``solver`` and ``protocol`` start from ``preset``
     and take any field given explicitly."""
 
     model_config = _STRICT
-    _probe: ClassVar[_ClassCreationProbe] = _ClassCreationProbe()
-
     schema_version: int = Field(
         description=f"job file format; this knitsweep reads {JOB_SCHEMA_VERSION}"
     )
@@ -345,11 +336,17 @@ class SweepTask:
     direction: str
 
 
+def params_form(params: StitchParams, **exclude: Any) -> dict[str, Any]:
+    """A point's parameters as task ids hash them: their id form
+    (``id_forms.PARAMS_FORMS``; ``exclude`` as ``model_dump``'s)."""
+    return PARAMS_FORMS.id_form(params.model_dump(mode="json", **exclude))
+
+
 def _numerics(job: JobSpec) -> dict[str, Any]:
     return {
-        "fidelity": job.fidelity.model_dump(mode="json"),
+        "fidelity": FIDELITY_FORMS.id_form(job.fidelity.model_dump(mode="json")),
         "solver": job.solver.model_dump(mode="json"),
-        "starts": job.starts.model_dump(mode="json"),
+        "starts": STARTS_FORMS.id_form(job.starts.model_dump(mode="json")),
         "seed": job.seed,
     }
 
@@ -358,7 +355,7 @@ def point_task(job: JobSpec, params: StitchParams, carried_from: str | None = No
     """The zero-force task of one point; its id hashes the parameters and numerics
     and, for a carried point, the id of the point it starts from (and so the chain of
     its series up to it)."""
-    what = {"params": params.model_dump(mode="json"), **_numerics(job)}
+    what = {"params": params_form(params), **_numerics(job)}
     if carried_from is not None:
         what["carried_from"] = carried_from
     pid = digest(what)
@@ -368,12 +365,12 @@ def point_task(job: JobSpec, params: StitchParams, carried_from: str | None = No
 
 def series_key(params: StitchParams) -> str:
     """The series a point belongs to: its parameters but L."""
-    return canonical_json(params.model_dump(mode="json", exclude={"L_mm"}))
+    return canonical_json(params_form(params, exclude={"L_mm"}))
 
 
 def sweep_task(job: JobSpec, point_id: str, direction: str) -> SweepTask:
     sid = digest({"point": point_id, "direction": direction,
-                  "protocol": job.protocol.model_dump(mode="json")})  # fmt: skip
+                  "protocol": PROTOCOL_FORMS.id_form(job.protocol.model_dump(mode="json"))})  # fmt: skip
     return SweepTask(sid, point_id, direction)
 
 

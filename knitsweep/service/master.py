@@ -36,7 +36,7 @@ from ..store.journal import StorageError, atomic_write_bytes
 from ..store.writer import ResultWriter
 from . import signals
 from .adaptive import Refiner
-from .jobs import JobSpec, PointTask, SweepTask, point_task, series_key, sweep_task
+from .jobs import JobSpec, PointTask, SweepTask, params_form, point_task, series_key, sweep_task
 from .progress import RunProgress, task_line
 from .run_plan import RunSummary, shard_tasks, varying_parameters
 from .signals import Interrupted
@@ -249,9 +249,10 @@ class _Master:
     def _meta(self, task, status: str, message: str, reply: Reply | None = None) -> dict[str, Any]:
         pid = task.point_id if isinstance(task, SweepTask) else task.task_id
         described = self._described.get(pid)
-        if described is None:  # a point's parameters, dumped once for it and its sweeps
+        if described is None:  # a point's parameters (their id form, as files always held
+            # them), dumped once for it and its sweeps
             params = self.points[pid].params
-            described = {**params.model_dump(mode="json"), "L_over_r": params.L_over_r}
+            described = {**params_form(params), "L_over_r": params.L_over_r}
             self._described[pid] = described
         meta: dict[str, Any] = {"status": status, "message": message, **described}
         if isinstance(task, SweepTask):

@@ -24,6 +24,7 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Callable
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 EXIT_INTERRUPTED = 3
@@ -106,70 +107,34 @@ def as_interrupt(e: BaseException) -> Interrupted | None:
 
 
 STAGES = ("imports", "class", "mpi_init", "broadcast", "compile", "handout")
-"""Start-up stages at which a test can have the signal arrive (``test_point``)."""
+"""Start-up stages at which a test can have the signal arrive (``fault_point``; ``class``
+is reached by the tests' injector inside JobSpec's class creation)."""
 COMPILE_STAGES = ("kernel", "llvm")
-"""Test points inside the compile itself: ``kernel`` is reached before each kernel that
+"""Fault points inside the compile itself: ``kernel`` is reached before each kernel that
 ``compilation.compile_group`` compiles (or loads), so ``kernel#<n>`` is between the
 (n-1)-th and the n-th; with a delay (``kernel#<n>+<seconds>``) the signal arrives while
-numba compiles the n-th. ``llvm`` is reached each time LLVM hands numba the machine
-code of a module it compiled (``arm_llvm_test_point``): the first Python code to run
-after LLVM's long stretch of C, so where most signals sent during a compile land."""
+numba compiles the n-th. ``llvm`` is reached (by the tests' injector, armed at the point
+``compiling`` before the kernels compile) each time LLVM hands numba the machine code of a
+module it compiled: the first Python code to run after LLVM's long stretch of C, so where
+most signals sent during a compile land."""
+
+injector: Callable[[str], None] | None = None
+"""Called with the stage at each ``fault_point``: the tests' fault injector
+(tests/fault_plugin, which sends this process a signal at the stage its test names), set
+only in processes the tests start; None in every other process."""
 
 
-_reached: dict[str, int] = {}
-"""How often this process has reached each test point (``test_point``)."""
+def fault_point(stage: str) -> None:
+    """A named point of the start-up or the compile (``STAGES``, ``COMPILE_STAGES``) at
+    which the tests' fault injector, if installed, may have the signal arrive.
 
-
-def test_point(stage: str) -> None:
-    """Fault injection for the tests: with
-    ``KNITSWEEP_TEST_SIGNAL_AT=<stage>[#<n>][+<seconds>][@<rank>]`` (``<n>``: the n-th
-    time this process reaches the stage, default the first; ``<seconds>``: that long
-    after it, from a timer thread, so that the signal lands wherever the main thread then
-    is; ``<rank>``: the MPI rank, from the launcher's PMI_RANK; default every rank) this
-    process sends itself SIGTERM at that stage, so the signal arrives exactly there.
-    Does nothing otherwise."""
-    from ..env import setting
-
-    wanted = setting("TEST_SIGNAL_AT")
-    if not wanted:
-        return
-    where, _, rank = wanted.partition("@")
-    where, _, delay = where.partition("+")
-    where, _, nth = where.partition("#")
-    if where != stage or (rank and rank != os.environ.get("PMI_RANK", "0")):
-        return
-    _reached[stage] = _reached.get(stage, 0) + 1
-    if _reached[stage] != int(nth or 1):
-        return
-    if delay:
-        timer = threading.Timer(float(delay), os.kill, (os.getpid(), signal.SIGTERM))
-        timer.daemon = True
-        timer.start()
-        return
-    os.kill(os.getpid(), signal.SIGTERM)  # the handler runs before the next bytecode
-
-
-def arm_llvm_test_point() -> None:
-    """With ``KNITSWEEP_TEST_SIGNAL_AT=llvm...``: make llvmlite's object-cache callbacks,
-    which LLVM calls from C through ctypes as it looks for and emits a module's machine
-    code, reach ``test_point("llvm")`` first (their first call,
-    ``ExecutionEngine._find_module_ptr``, is looked up at each call). A signal's exception
-    raised inside such a callback does not propagate: ctypes reports it as unraisable and
-    returns to LLVM, and numba then lacks the module's code. Does nothing otherwise."""
-    from ..env import setting
-
-    if not (setting("TEST_SIGNAL_AT") or "").startswith("llvm") or _state.get("llvm_armed"):
-        return
-    from llvmlite.binding.executionengine import ExecutionEngine
-
-    find = ExecutionEngine._find_module_ptr
-
-    def reached(engine, module_ptr):
-        test_point("llvm")
-        return find(engine, module_ptr)
-
-    ExecutionEngine._find_module_ptr = reached
-    _state["llvm_armed"] = True
+    The one test hook left in production code, and why: the signals under test land in
+    child processes (the command line, MPI ranks), at points inside the functions that
+    start a run, which a test cannot reach from outside; the injector itself (parsing
+    KNITSWEEP_TEST_SIGNAL_AT, sending the signal) lives in the tests. Without one
+    installed a point costs a global lookup and a comparison."""
+    if injector is not None:
+        injector(stage)
 
 
 def mpi_handshake_done() -> None:

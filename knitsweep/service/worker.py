@@ -94,9 +94,9 @@ def prepare(
         signals.check()  # a signal whose exception numba swallowed (see below) ends it here
         if between is not None:
             between()
-        signals.test_point("kernel")
+        signals.fault_point("kernel")
 
-    signals.arm_llvm_test_point()
+    signals.fault_point("compiling")  # (the tests' injector arms its llvm point here)
     t0 = time.perf_counter()
     try:
         if not kernels_cached(job):

@@ -1,7 +1,7 @@
 """Contact volumes and the packing fraction of a stitch (paper SI "Contact Volumes",
 Figs. 6a–f; docs/model.md §9): the paper's voxel method and a quasi-Monte-Carlo
 estimator over the tube with an error estimate. Inputs are a state's control points
-(``CellModel.control_points``, (8, 6, 3) mm), its periods and the yarn radius.
+(``CellModel.control_points``, (n_segments, 6, 3) mm), its periods and the yarn radius.
 
 Uses numba (the distance search) and scipy (Sobol points); not imported by
 ``knitsweep.analysis`` itself.

@@ -82,7 +82,7 @@ def _mpi_world():
     """MPI_COMM_WORLD; MPI_Init runs deferred: a signal during it is recorded, and
     rank 0 raises it only after it can release the workers (``runs.run``)."""
     with signals.deferred():
-        signals.test_point("mpi_init")
+        signals.fault_point("mpi_init")
         try:
             from mpi4py import MPI
         except ImportError as e:

@@ -53,7 +53,7 @@ class SerialExecutor:
             idle()  # this process is about to compute for a while
         task, zero = self._queue.popleft()
         with signals.interruptible():  # a signal abandons the task; it is redone on resume
-            signals.test_point("handout")
+            signals.fault_point("handout")
             reply = execute(self.job, task, zero, rank=0)
         self._last_seconds = reply.seconds
         return reply

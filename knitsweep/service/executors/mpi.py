@@ -81,10 +81,10 @@ class MPIExecutor:
 
     def _start(self) -> None:
         with signals.interruptible():  # compile once, into numba's cache, before the workers
-            signals.test_point("compile")
+            signals.fault_point("compile")
             if not kernels_cached(self.job):  # (cached: the workers load them, all at once)
                 self.compile_seconds = prepare(self.job, stderr_notice, self._worker_left)
-            signals.test_point("broadcast")
+            signals.fault_point("broadcast")
         with signals.deferred():
             for rank in self._outstanding:
                 self.comm.send(self.job.model_dump_json(), dest=rank, tag=JOB)
@@ -120,7 +120,7 @@ class MPIExecutor:
         return sum(self._outstanding.values()) + len(self._ready)
 
     def submit(self, task, zero: dict | None) -> None:
-        signals.test_point("handout")  # (deferred here: the master's loop sees it)
+        signals.fault_point("handout")  # (deferred here: the master's loop sees it)
         if not self._started:
             self._start()
         live = [r for r in self._outstanding if r not in self._left]
@@ -281,13 +281,13 @@ def _worker(comm) -> int | None:
         message = comm.recv(source=0, tag=status.Get_tag())
         if status.Get_tag() == JOB:
             break
-    signals.test_point("broadcast")  # recorded here; the compile below raises it
+    signals.fault_point("broadcast")  # recorded here; the compile below raises it
     if message is None or isinstance(message, int):  # no job: refused, or interrupted
         return message
     job = JobSpec.model_validate_json(message)
     try:
         with signals.interruptible():
-            signals.test_point("compile")
+            signals.fault_point("compile")
             # loads the cache rank 0 filled, if this node shares it; else one rank of
             # the node compiles (``worker.compile_lock``) and the others wait
             prepare(job, _rank_notice(comm.Get_rank()))
@@ -335,7 +335,7 @@ def _serve(comm, job, status, backoff: Backoff) -> int | None:
         task, zero = queue.popleft()
         try:
             with signals.interruptible():
-                signals.test_point("handout")
+                signals.fault_point("handout")
                 reply = execute(job, task, zero, rank)
         except Interrupted:
             send_replies()
