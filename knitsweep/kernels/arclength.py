@@ -55,6 +55,22 @@ def _basis(t, b, d1, d2):
 
 
 @njit(cache=True)
+def _put_sample(cp, s, t, i, b, d1, d2, pts, pos, r1):
+    """Sample ``i``: segment ``s``'s point and first derivative at parameter ``t`` into
+    ``pts[i]``, ``pos[:, i]`` and ``r1[i]`` (``b``, ``d1``, ``d2``: the basis buffers)."""
+    _basis(t, b, d1, d2)
+    for d in range(3):
+        x = 0.0
+        y = 0.0
+        for c in range(6):
+            x += b[c] * cp[s, c, d]
+            y += d1[c] * cp[s, c, d]
+        pts[i, d] = x
+        pos[d, i] = x
+        r1[i, d] = y
+
+
+@njit(cache=True)
 def _arc(cp, s, t, aq, b, d1, d2, want_dt):
     """(S(t), ∂S/∂t) of segment s (``want_dt`` False: ∂S/∂t = 0)."""
     val, der = 0.0, 0.0
@@ -132,16 +148,7 @@ def arclength_sample_cell(cp, n, aq):
     for s in range(nseg):
         for j in range(n):
             i = s * n + j
-            _basis(t[s, j], b, d1, d2)
-            for d in range(3):
-                x = 0.0
-                y = 0.0
-                for c in range(6):
-                    x += b[c] * cp[s, c, d]
-                    y += d1[c] * cp[s, c, d]
-                pts[i, d] = x
-                pos[d, i] = x
-                r1[i, d] = y
+            _put_sample(cp, s, t[s, j], i, b, d1, d2, pts, pos, r1)
             speed[i] = seglen[s]
             s_mid[i] = before + (j + 0.5) / n * seglen[s]
         before += seglen[s]
@@ -234,16 +241,7 @@ def yarn_sample_cell(cp, n, aq):
         local = goal - before
         tj = _root(cp, s, local, max(tj, min(local / seglen[s], 1.0 - 1e-12)), aq, b, d1, d2)
         st[i, 0], st[i, 1] = s, tj
-        _basis(tj, b, d1, d2)
-        for d in range(3):
-            x = 0.0
-            y = 0.0
-            for c in range(6):
-                x += b[c] * cp[s, c, d]
-                y += d1[c] * cp[s, c, d]
-            pts[i, d] = x
-            pos[d, i] = x
-            r1[i, d] = y
+        _put_sample(cp, s, tj, i, b, d1, d2, pts, pos, r1)
         speed[i] = total / nseg
         s_mid[i] = goal
     return pts, pos, r1, speed, s_mid, total, st
