@@ -194,7 +194,7 @@ class StitchParams(BaseModel):
 
 
 ImageMode = Literal["cutoff", "reference"]
-ContactSampling = Literal["parameter", "arclength", "yarn_arclength"]
+ContactSampling = Literal["auto", "parameter", "arclength", "yarn_arclength"]
 
 
 class Fidelity(BaseModel):
@@ -214,13 +214,23 @@ class Fidelity(BaseModel):
         "touch) or 'reference' (the authors' fixed box m in -1..1, n in -3..3)",
     )
     contact_sampling: ContactSampling = Field(
-        "parameter",
-        description="where a pattern's (garter, rib, seed) contact samples sit in each "
-        "segment: 'parameter' (at the curve parameters (j + 1/2)/N, the paper's) or "
-        "'arclength' (at those fractions of the segment's arclength, whatever its end "
-        "speeds) or 'yarn_arclength' (evenly spaced along the whole yarn, wherever its "
-        "joints sit; docs/model.md §11); every other stitch samples by parameter",
+        "auto",
+        description="where a free yarn's (stockinette_free, garter, rib, seed) contact "
+        "samples sit: 'auto' (the default: 'yarn_arclength' for a free yarn), "
+        "'yarn_arclength' (evenly spaced along the whole yarn by arclength, its end speeds "
+        "held at L/8 as the parametrisation's gauge; docs/model.md §11), 'parameter' (at "
+        "the curve parameters (j + 1/2)/N of each segment, the paper's, with the free "
+        "yarn's speed box) or 'arclength' (at those fractions of each segment's "
+        "arclength); the paper's ansatz (stockinette) samples by parameter whatever this is",
     )
+
+    def sampling_for(self, free_yarn: bool) -> str:
+        """The placement a stitch's contact sum uses: ``contact_sampling`` with 'auto'
+        resolved ('yarn_arclength' for a free yarn, 'parameter' otherwise); a stitch
+        that is no free yarn (the ansatz) samples by parameter whatever it says."""
+        if not free_yarn:
+            return "parameter"
+        return "yarn_arclength" if self.contact_sampling == "auto" else self.contact_sampling
 
 
 # ---- minimisers ----------------------------------------------------------------

@@ -94,17 +94,23 @@ class CellModel:
             basis_tables(midpoints(self.fidelity.samples_per_segment))[:2]
         )
         self._aq = np.empty((2, 0))
-        """The arclength rule of contact samples placed by arclength (a pattern's free
-        yarn with ``Fidelity.contact_sampling = "arclength"``, ``kernels.arclength``);
-        empty: the samples sit at the curve parameters of ``_ctab``."""
-        sampling = self.fidelity.contact_sampling
-        if sampling != "parameter" and self.image_group.checks_resolution:
+        """The arclength rule of contact samples placed by arclength (a free yarn's,
+        ``Fidelity.contact_sampling``, ``kernels.arclength``); empty: the samples sit at
+        the curve parameters of ``_ctab``."""
+        free_yarn = bool(self.stitch.gauge_entries) and self.image_group.checks_resolution
+        sampling = self.fidelity.sampling_for(free_yarn)
+        if sampling != "parameter":
             self._aq = arclength_rule(ARC_PANELS, ARC_NODES)
             if sampling == "yarn_arclength":  # a third row asks for the whole yarn's
                 self._aq = np.ascontiguousarray(np.vstack([self._aq, self._aq[:1]]))
-        self.sampling = sampling if self._aq.shape[1] > 0 else "parameter"
-        """Where this model's contact samples sit: "parameter" or "arclength" (its state
-        bounds follow, ``relax.problem``)."""
+        self.sampling = sampling
+        """Where this model's contact samples sit: "parameter", "arclength" or
+        "yarn_arclength" (its state bounds follow, ``relax.problem``)."""
+        self.gauge = np.array(self.stitch.gauge_entries if sampling == "yarn_arclength"
+                              else (), dtype=np.int64)  # fmt: skip
+        """The entries a relaxation holds fixed (``gauged``): a free yarn's end speeds
+        when its samples sit along the yarn (docs/model.md §11, "The speeds as a
+        gauge"); empty otherwise."""
         self._mode = IMAGES_CUTOFF if self.fidelity.images == "cutoff" else IMAGES_REFERENCE
         self._grad_e = np.empty(self.stitch.n_state)
         self._grad_l = np.empty(self.stitch.n_state)
@@ -158,6 +164,26 @@ class CellModel:
         if not valid:  # the sums came from the full search; refresh the list here
             self._rebuild(x, nl)
         return eb, ec, length
+
+    def gauged(self, x: np.ndarray) -> np.ndarray:
+        """State ``x`` in this model's gauge (``gauge``): unchanged where there is none
+        or it holds already; a gauged state of another yarn length with its end speeds
+        set to this one's L/8; any other state (a shipped start, a state sampled by
+        parameter) re-interpolated at equal fractions of its arclength
+        (``Stitch.regauge``). A new array where it changes."""
+        if not self.gauge.size:
+            return x
+        x = self._as_state(x)
+        speeds = x[self.gauge]
+        speed = self.ip.L / self.stitch.n_segments
+        if np.all(speeds == speed):
+            return x
+        if np.all(speeds == speeds[0]):
+            out = x.copy()
+            out[self.gauge] = speed
+            return out
+        assert self.stitch.regauge is not None
+        return self.stitch.regauge(x, self.control_points(x), self.ip.L)
 
     def control_points(self, x: np.ndarray) -> np.ndarray:
         """The S segments' control points in path order, shape (S, 6, 3), mm (a new

@@ -23,7 +23,7 @@ from knitsweep.service.id_forms import (
     id_form,
     migrate_up,
 )
-from knitsweep.service.jobs import load_job, plan
+from knitsweep.service.jobs import fidelity_form, load_job, plan
 
 IDS_BEFORE = [
     ('jobs/adaptive_k0.1.toml', '006c3b907e2aa31a', '3190d5abd8ca4252', '94467af5906a59dd'),
@@ -49,7 +49,6 @@ IDS_BEFORE = [
     ('jobs/paper_table_s4_more.toml', 'ce0c8ac1485893b8', 'd92cad96b9149817', '19bbb71b63efa920'),
     ('jobs/paper_table_s4_wide.toml', '43170e294bbb15ba', 'c279a8409f717635', 'aa743069203e15b4'),
     ('jobs/paper_z_strain.toml', '3b948ba153365bd3', '3190d5abd8ca4252', '0cf41a08dd79d8e8'),
-    ('tests/data/jobs/patterns_k0.1_abb5628.toml', 'f44acfdf395afb3d', 'da017eefb5a084e4', '8de3dc7305e4d9f1'),
     ('jobs/phase_small.toml', 'e554074ab663132d', '3a2600d2625ffe82', 'de0a29b331dbded7'),
     ('tests/data/jobs/tiny.toml', '6cdd72bb5f539776', '43f8c26538190f30', '417c51d15c2f579e'),
     ('tests/data/jobs/tiny_adaptive.toml', 'f89071521ff529b2', '6dc22d11a8f7587f', 'dbfed6b46a829520'),
@@ -57,7 +56,34 @@ IDS_BEFORE = [
 """(job file, job hash, first point's id, first sweep's id) of every shipped job, as the
 ids were before the job format's forms were versioned (main at abb5628). The patterns
 job has since gained stockinette_free (a new job, new ids): its form of abb5628 is kept
-in tests/data/jobs."""
+in tests/data/jobs (``PATTERNS_BEFORE``)."""
+PATTERNS_BEFORE = ('tests/data/jobs/patterns_k0.1_abb5628.toml', 'f44acfdf395afb3d',
+                   'da017eefb5a084e4', '8de3dc7305e4d9f1')  # fmt: skip
+"""The patterns job of abb5628: its free yarns then sampled their contacts by parameter."""
+
+
+def test_a_job_of_free_yarns_hashes_where_their_samples_sit():
+    """Free yarns now sample along the yarn by arclength by default ('auto'), so a job of
+    patterns computes something new and gets a new hash; its stockinette (ansatz) tasks,
+    which sample by parameter whatever the setting, keep their ids, and the same job
+    asking for samples by parameter keeps its old hash."""
+    from pathlib import Path
+
+    path, job_hash, point_id, sweep_id = PATTERNS_BEFORE
+    job = load_job(Path(__file__).resolve().parents[1] / path)
+    points, sweeps = plan(job)
+    assert points[0].params.stitch == "stockinette"
+    assert (points[0].task_id, sweeps[0].task_id) == (point_id, sweep_id)
+    assert job.job_hash != job_hash
+    explicit = job.model_copy(update={"fidelity": job.fidelity.model_copy(
+        update={"contact_sampling": "yarn_arclength"})})  # fmt: skip
+    assert explicit.job_hash == job.job_hash
+    by_parameter = job.model_copy(update={"fidelity": job.fidelity.model_copy(
+        update={"contact_sampling": "parameter"})})  # fmt: skip
+    assert by_parameter.job_hash == job_hash
+    garter = [p for p in points if p.params.stitch == "garter"][0]
+    again = [p for p in plan(by_parameter)[0] if p.params == garter.params][0]
+    assert again.task_id != garter.task_id
 
 
 @pytest.mark.parametrize(("path", "job_hash", "point_id", "sweep_id"), IDS_BEFORE,
@@ -136,12 +162,12 @@ def test_an_earlier_results_file_resumes_with_nothing_to_compute(data_dir, tmp_p
 
 IDS_OF_LATER_FIELDS = [
     ('', '', '7bc409199448f0aa', ('154183f3e9a4fc68', '763ec966b47d1865'), 'b7b99bdf35c022c9', '61cbd8f586cc22b0', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
-    ('stitch = "garter"\n', '', 'e218b85a9beee6ea', ('b6610298a421d455', '8960e816bf915787'), '85253b2e297e827f', 'b17ee7b977358fd9', ('3f06f1eb030bf66a', 'e369dd0f4430090e')),
-    ('', "stitch = ['stockinette', 'rib']\n", 'a907d4e5beeb9e72', ('154183f3e9a4fc68', '763ec966b47d1865', '3f36eb1520cb3420', '8da9655bcc1d547a'), 'b7b99bdf35c022c9', '603adb6fb46292bd', ('05f6bf1b38adfad3', '3a725d400f3d6963', '9dbe336bdd721f5e', 'b7152b2aa83fe78e')),
+    ('stitch = "garter"\n[fidelity]\ncontact_sampling = "parameter"\n', '', 'e218b85a9beee6ea', ('b6610298a421d455', '8960e816bf915787'), '85253b2e297e827f', 'b17ee7b977358fd9', ('3f06f1eb030bf66a', 'e369dd0f4430090e')),
+    ('[fidelity]\ncontact_sampling = "parameter"\n', "stitch = ['stockinette', 'rib']\n", 'a907d4e5beeb9e72', ('154183f3e9a4fc68', '763ec966b47d1865', '3f36eb1520cb3420', '8da9655bcc1d547a'), 'b7b99bdf35c022c9', '603adb6fb46292bd', ('05f6bf1b38adfad3', '3a725d400f3d6963', '9dbe336bdd721f5e', 'b7152b2aa83fe78e')),
     ('[starts]\ncount = 2\ncarry = true\n', '', 'a9e1ed2971a90c18', ('0dafa9b5a282fbe6', 'e8d617231db9a2eb'), '5ae9cee48d69f56b', 'd340765edd6c12f0', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
     ('[protocol]\nrest_tolerance_mJ = 1e-5\n', '', '80866a62fe65aa3b', ('154183f3e9a4fc68', '763ec966b47d1865'), 'a77ae0b8f6771581', 'cd1f65de5a84d944', ('4d534d8cc4697d57', 'a061f7cefcda941b')),
     ('mode = "adaptive"\n', '', '0997b2919014a1a5', ('154183f3e9a4fc68', '763ec966b47d1865'), 'b7b99bdf35c022c9', '61cbd8f586cc22b0', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
-    ('mode = "adaptive"\nstitch = "garter"\n[protocol]\nrest_tolerance_mJ = 1e-5\n', '', '15ae294abd820f4a', ('b6610298a421d455', '8960e816bf915787'), '9ae430e4d121039b', 'd5f5d7b26fbf47c3', ('ab9fc7ff96a3a5b7', 'bf337bb2a19979cb')),
+    ('mode = "adaptive"\nstitch = "garter"\n[fidelity]\ncontact_sampling = "parameter"\n[protocol]\nrest_tolerance_mJ = 1e-5\n', '', '15ae294abd820f4a', ('b6610298a421d455', '8960e816bf915787'), '9ae430e4d121039b', 'd5f5d7b26fbf47c3', ('ab9fc7ff96a3a5b7', 'bf337bb2a19979cb')),
     ('mode = "adaptive"\n[starts]\ncarry = true\n', '', '973c20c67fa7ac33', ('724de50c81d8716f', 'fc74bf68b4b00f88'), '6f1cf2d8863fe28f', '95c4f151e0baece8', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
     ('[starts]\nretries = 0\n', '', '7e3c08c8efc3500c', ('dc5e8ad8c49fee35', '9d396206c11ba81b'), 'cdc366748982508d', '0e39ecddc9ed937c', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
     ('[starts]\nspread = 3\n', '', '3ffc949dc8b16c92', ('e2d867a59bd68ed2', '96244a0dda331a62'), '79abda858af69b38', 'f45eb09441ae9b7d', ('05f6bf1b38adfad3', '3a725d400f3d6963')),
@@ -150,7 +176,9 @@ IDS_OF_LATER_FIELDS = [
 """(top of the job file, [grid] lines, job hash, point ids, first and last sweep ids,
 adaptive series keys) of small jobs using each later-added field of the task settings,
 as main computed them when those fields were deleted from every dump (c6819a9; retries,
-spread and contact_sampling, added since: 1112e92)."""
+spread and contact_sampling, added since: 1112e92). The jobs of free yarns (garter, rib) ask
+for contact samples by parameter, as every job then had them: the default ('auto') now
+places a free yarn's along the yarn, which computes something else and hashes so."""
 
 
 @pytest.mark.parametrize(("top", "grid", "job_hash", "point_ids", "first", "last", "series"),
@@ -173,7 +201,11 @@ def test_the_task_forms_are_numbered_in_order():
 
 
 TASK_DUMPS = [(PARAMS_FORMS, StitchParams()), (STARTS_FORMS, StartSettings()),
-              (PROTOCOL_FORMS, SweepProtocol()), (FIDELITY_FORMS, Fidelity())]  # fmt: skip
+              (PROTOCOL_FORMS, SweepProtocol()),
+              (FIDELITY_FORMS, Fidelity(contact_sampling="parameter"))]  # fmt: skip
+"""Each form's settings as the earliest form had them (the fidelity's 'auto' sampling is
+resolved per stitch before it is hashed, ``jobs.fidelity_form``: 'parameter' for the
+ansatz)."""
 
 
 @pytest.mark.parametrize(("forms", "settings"), TASK_DUMPS, ids=lambda v: getattr(v, "what", ""))
@@ -204,7 +236,19 @@ def test_settings_using_a_later_field_keep_it_in_their_id_form(forms, settings, 
     full = settings.model_dump(mode="json")
     assert kept in forms.id_form(full)
     assert forms.migrate_up(forms.id_form(full)) == full
-    assert kept not in forms.id_form(type(settings)().model_dump(mode="json"))
+    default = dict(TASK_DUMPS)[forms]
+    assert kept not in forms.id_form(default.model_dump(mode="json"))
+
+
+def test_the_fidelity_of_a_task_hashes_its_stitchs_sampling():
+    """'auto' is 'parameter' for the ansatz (ids as before the setting) and
+    'yarn_arclength' for a free yarn (as if asked for)."""
+    auto = Fidelity()
+    assert fidelity_form(auto, "stockinette") == FIDELITY_FORMS.id_form(
+        Fidelity(contact_sampling="parameter").model_dump(mode="json"))
+    for stitch in ("stockinette_free", "garter", "rib", "seed"):
+        assert fidelity_form(auto, stitch) == FIDELITY_FORMS.id_form(
+            Fidelity(contact_sampling="yarn_arclength").model_dump(mode="json"))
 
 
 def _stored_ids(path):

@@ -43,7 +43,7 @@ def soft_distance(model: CellModel, keep: Chain, other: Chain, fixed: str | None
     """½ |δᵀ B δ| (mJ) between the two chains' states: δ = other.x − keep.x over the
     free entries, projected onto the tangent of ℓ at keep.x; B = ∇²E − λ∇²ℓ at keep's
     state (its carried curvature, or measured there if it has none)."""
-    free = free_entries(model.stitch, fixed)
+    free = free_entries(model.stitch, fixed, model.gauge)
     curv = keep.relaxer.curvature
     prob = keep.relaxer.problem(model, keep.x, free)
     pt = prob.evaluate(keep.x[free])

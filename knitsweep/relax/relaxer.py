@@ -18,7 +18,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,11 +57,13 @@ def single_threaded():
             _DEPTH[0] -= 1
 
 
-def free_entries(stitch: Stitch, fixed: Direction | None) -> np.ndarray:
+def free_entries(stitch: Stitch, fixed: Direction | None, gauge: Iterable[int] = ()) -> np.ndarray:
     """Indices of the free entries of a ``stitch`` state: all, or all but the pulled
-    period."""
-    held = None if fixed is None else stitch.period_index(fixed)
-    return np.array([i for i in range(stitch.n_state) if i != held])
+    period, and never the ``gauge`` entries (``CellModel.gauge``)."""
+    held = set(int(i) for i in gauge)
+    if fixed is not None:
+        held.add(stitch.period_index(fixed))
+    return np.array([i for i in range(stitch.n_state) if i not in held])
 
 
 Minimiser = Callable[[Problem, np.ndarray, SolverSettings, object], Minimum]
@@ -130,8 +132,8 @@ class Relaxer:
         """
         settings = settings or self.settings
         t0 = time.perf_counter()
-        x0 = np.asarray(x0, dtype=float)
-        free = free_entries(model.stitch, fixed)
+        x0 = model.gauged(np.asarray(x0, dtype=float))
+        free = free_entries(model.stitch, fixed, model.gauge)
         with single_threaded():  # the unrecorded sub-steps too
             walked = self._walk(model, x0, fixed, settings)
             if walked is not None:
@@ -173,7 +175,7 @@ class Relaxer:
         if not SOLVERS[settings.method].walks or fixed is None or anchor is None:
             return None
         i = model.stitch.period_index(fixed)
-        free = free_entries(model.stitch, fixed)
+        free = free_entries(model.stitch, fixed, model.gauge)
         change = float(x0[i] - anchor.x[i])
         n = math.ceil(abs(change) / settings.substep_mm - 1e-9)
         if n <= 1 or not np.array_equal(anchor.x[free], x0[free]):

@@ -36,8 +36,8 @@ from typing import Any, Literal
 
 from ..analysis.transitions import transition
 from ..config import DONE, NOT_KNITTABLE, StitchParams
-from .id_forms import FIDELITY_FORMS, PROTOCOL_FORMS
-from .jobs import JobSpec, digest, params_form
+from .id_forms import PROTOCOL_FORMS
+from .jobs import JobSpec, digest, fidelity_form, params_form
 
 SeriesStatus = Literal[
     "coarse", "refining", "done", "jammed_throughout", "unjammed_at_start", "failed"
@@ -169,7 +169,7 @@ class Refiner:
         return digest({"series": base, "direction": direction,
                        "adaptive": self.settings.model_dump(mode="json"),
                        "protocol": PROTOCOL_FORMS.id_form(self.job.protocol.model_dump(mode="json")),
-                       "fidelity": FIDELITY_FORMS.id_form(self.job.fidelity.model_dump(mode="json"))})  # fmt: skip
+                       "fidelity": fidelity_form(self.job.fidelity, params.stitch)})  # fmt: skip
 
     def observe(self, sweep_meta: dict[str, Any]) -> None:
         """Take one finished sweep's gap (done: its gap; not knittable: jammed;

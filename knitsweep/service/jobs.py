@@ -43,7 +43,7 @@ from ..config import (
 )
 from ..errors import MAX_SEED, describe_validation_error
 from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
-from ..stitches import DEFAULT_STITCH, STITCH_CHOICES
+from ..stitches import DEFAULT_STITCH, STITCH_CHOICES, get_stitch
 from ..util.safe_files import read_text
 from .grid import MAX_POINTS, Grid
 from .id_forms import FIDELITY_FORMS, PARAMS_FORMS, PROTOCOL_FORMS, STARTS_FORMS, id_form
@@ -287,6 +287,7 @@ class JobSpec(BaseModel):
         d = self.model_dump(mode="json", exclude={"name", "description", "run", "preset"})
         d.pop("stitch", None)  # one stitch where it was before, several as an axis of the grid
         stitches = self.stitches
+        d["fidelity"] = fidelity_dump(self.fidelity, stitches)
         d["grid"] = self.grid.axes() | {"twist_bound": self.grid.twist_bound}
         if len(stitches) == 1:
             d["stitch"] = stitches[0]
@@ -342,9 +343,27 @@ def params_form(params: StitchParams, **exclude: Any) -> dict[str, Any]:
     return PARAMS_FORMS.id_form(params.model_dump(mode="json", **exclude))
 
 
-def _numerics(job: JobSpec) -> dict[str, Any]:
+def fidelity_dump(fidelity: Fidelity, stitches: tuple[str, ...]) -> dict[str, Any]:
+    """``fidelity`` dumped with its 'auto' contact sampling resolved for ``stitches``:
+    'yarn_arclength' where one of them is a free yarn, else 'parameter' (what the ansatz
+    always uses), so that the ansatz's jobs and tasks keep the ids they had before the
+    setting existed and a free yarn's hash what it computes."""
+    d = fidelity.model_dump(mode="json")
+    if d["contact_sampling"] == "auto":
+        free = any(get_stitch(name).gauge_entries for name in stitches)
+        d["contact_sampling"] = fidelity.sampling_for(free)
+    return d
+
+
+def fidelity_form(fidelity: Fidelity, stitch: str) -> dict[str, Any]:
+    """The fidelity as the ids of a ``stitch``'s tasks and series hash it: its id form
+    (``id_forms.FIDELITY_FORMS``) with 'auto' resolved (``fidelity_dump``)."""
+    return FIDELITY_FORMS.id_form(fidelity_dump(fidelity, (stitch,)))
+
+
+def _numerics(job: JobSpec, stitch: str) -> dict[str, Any]:
     return {
-        "fidelity": FIDELITY_FORMS.id_form(job.fidelity.model_dump(mode="json")),
+        "fidelity": fidelity_form(job.fidelity, stitch),
         "solver": job.solver.model_dump(mode="json"),
         "starts": STARTS_FORMS.id_form(job.starts.model_dump(mode="json")),
         "seed": job.seed,
@@ -355,7 +374,7 @@ def point_task(job: JobSpec, params: StitchParams, carried_from: str | None = No
     """The zero-force task of one point; its id hashes the parameters and numerics
     and, for a carried point, the id of the point it starts from (and so the chain of
     its series up to it)."""
-    what = {"params": params_form(params), **_numerics(job)}
+    what = {"params": params_form(params), **_numerics(job, params.stitch)}
     if carried_from is not None:
         what["carried_from"] = carried_from
     pid = digest(what)

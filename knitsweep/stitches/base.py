@@ -118,6 +118,13 @@ class Stitch:
     ``SolverSettings.continuation_dL_mm`` (None: that setting). Rib's shipped starts
     (11.28 mm) reach 9.3–13.3 mm in one stage of 2 mm; garter's rows come apart in
     stages of 0.5 mm, so it keeps the setting."""
+    gauge_entries: tuple[int, ...] = ()
+    """Entries a relaxation holds fixed when the contact samples sit along the yarn by
+    arclength (a free yarn's end speeds, each L/8: the parametrisation's gauge,
+    docs/model.md §11); empty for a stitch without such a gauge."""
+    regauge: Callable[[np.ndarray, np.ndarray, float], np.ndarray] | None = None
+    """``regauge(x, control_points, L)``: a state brought into the gauge, its curve kept
+    (``stockinette_free.gauge.regauge``); None where ``gauge_entries`` is empty."""
     _loaded: dict = field(default_factory=dict, repr=False)  # kernels, starts: loaded once
 
     def __post_init__(self) -> None:

@@ -14,8 +14,8 @@ from __future__ import annotations
 from types import ModuleType
 from typing import Any
 
-from ..base import MIRROR_CLASSES, TRANSLATION_CLASSES, Stitch
-from . import layout
+from ..base import MIRROR_CLASSES, Stitch
+from . import gauge, layout
 
 
 def free_yarn_stitch(name: str, description: str, package: str, *,
@@ -24,11 +24,13 @@ def free_yarn_stitch(name: str, description: str, package: str, *,
     """A stitch of the free periodic yarn (this package's 8 segments, each counted once,
     no twist entry): the state, bounds and starts of the layout module ``state`` (this
     package's ``layout``; garter's adds z0), its starts in ``package + ".data"``, its
-    geometry kernel in ``package + ".geometry"`` (or ``geometry_module``). A
-    ``mirror_parity`` other than (0, 0) makes it a knit/purl pattern: glide images, the
-    mirrored contact classes, and relaxed as a rough stitch (``Stitch.rough``).
-    ``options``: the rest of ``Stitch``'s fields (``stage_dL_mm``)."""
-    glides = any(mirror_parity)
+    geometry kernel in ``package + ".geometry"`` (or ``geometry_module``), its end speeds
+    the gauge (``gauge``). Every free yarn sums its contacts over the glide group's
+    kernels, which take samples placed along the yarn by arclength; with
+    ``mirror_parity`` (0, 0) (no image mirrored) they sum the translations' images. A
+    ``mirror_parity`` other than (0, 0) makes it a knit/purl pattern, relaxed as a rough
+    stitch (``Stitch.rough``). ``options``: the rest of ``Stitch``'s fields
+    (``stage_dL_mm``)."""
     return Stitch(
         name=name,
         description=description,
@@ -40,12 +42,14 @@ def free_yarn_stitch(name: str, description: str, package: str, *,
         starts=state.STARTS,
         data_package=f"{package}.data",
         geometry_module=geometry_module or f"{package}.geometry",
-        images="glides" if glides else "translations",
-        contact_classes=MIRROR_CLASSES if glides else TRANSLATION_CLASSES,
+        images="glides",
+        contact_classes=MIRROR_CLASSES,
         path_order=tuple(range(state.N_SEGMENTS)),
         closing_shift=(1, 0),
         mirror_parity=mirror_parity,
-        rough=glides,
+        rough=any(mirror_parity),
+        gauge_entries=gauge.SPEED_ENTRIES,
+        regauge=gauge.regauge,
         **options,
     )
 
