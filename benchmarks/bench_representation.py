@@ -13,10 +13,14 @@ force relaxed from the 1x minimum and its sweeps from there. Printed per point:
 * the jamming gaps (ΔE_c in x, ΔE_b in y) at 1x and their change at 2x (mJ);
 * every state entry within 1e-9 (relative) of its bound at the zero-force state and at
   any converged sweep step, by name (``bounds:`` a count and the names);
-* CPU s of the 1x point (zero force + both sweeps) and of the 2x one.
+* CPU s of the 1x point (zero force + both sweeps) and of the 2x one;
+* for a gauged free yarn (samples along the yarn, its end speeds held at L/8,
+  docs/model.md §11), what the gauge costs: the 1x zero-force state relaxed again with
+  its speeds free, the energy it falls by (mJ; ``nan`` where that relaxation did not
+  converge) and its CPU s.
 
 Run: ``python benchmarks/bench_representation.py [--stitches rib,seed] [--L 11.6]
-[--sampling arclength] [--samples 15] [--nodes 48]`` (the contact sampling, the 1x samples
+[--sampling parameter] [--samples 15] [--nodes 48]`` (the contact sampling, the 1x samples
 and nodes; the bounds checked are those the relaxation uses for that sampling).
 """
 
@@ -32,6 +36,7 @@ from knitsweep.analysis.metrics import energy_gaps
 from knitsweep.config import Fidelity, StartSettings, StitchParams
 from knitsweep.model import CellModel
 from knitsweep.presets import Numerics
+from knitsweep.relax import Relaxer
 from knitsweep.relax.problem import _state_box
 from knitsweep.relax.zero_force import zero_force
 from knitsweep.strain_sweep import strain_sweep
@@ -49,6 +54,21 @@ def on_bounds(model: CellModel, x: np.ndarray) -> set[str]:
                | (np.isfinite(hi) & (np.abs(x - hi) <= ON_BOUND_RTOL * np.maximum(1.0, np.abs(hi)))))  # fmt: skip
     low = np.isfinite(lo) & (np.abs(x - lo) <= ON_BOUND_RTOL * np.maximum(1.0, np.abs(lo)))
     return {st.state_names[i] + ("<" if low[i] else ">") for i in np.flatnonzero(hit)}
+
+
+def released(row: dict) -> tuple[float, float]:
+    """(energy fall in mJ, CPU s) of the zero-force state of ``row`` relaxed again with
+    its gauge released (every end speed free); (0, 0) where the model has no gauge."""
+    model = CellModel(row["params"], row["fid"])
+    if not model.gauge.size:
+        return 0.0, 0.0
+    model.gauge = np.empty(0, dtype=np.int64)
+    n = Numerics.from_preset("converged")
+    t0 = time.process_time()
+    r = Relaxer(n.solver).relax(model, row["zero"].x, None)
+    cpu = time.process_time() - t0
+    fall = row["zero"].total_energy - r.total_energy if r.converged else float("nan")
+    return fall, cpu
 
 
 def point(stitch: str, L: float, k: float, scale: int, base: Fidelity, carried=None) -> dict:
@@ -87,8 +107,8 @@ def main() -> None:
     ap.add_argument("--k", type=float, default=0.1)
     ap.add_argument(
         "--sampling",
-        choices=("parameter", "arclength", "yarn_arclength"),
-        default="parameter",
+        choices=("auto", "parameter", "arclength", "yarn_arclength"),
+        default="auto",
         help="where the contact samples sit (Fidelity.contact_sampling)",
     )
     ap.add_argument(
@@ -115,7 +135,7 @@ def main() -> None:
           "change at 2x; CPU s of the 1x and 2x points")  # fmt: skip
     print(f"{'stitch':16} {'L':>5} {'status':13} {'E':>9} {'E_c':>9} {'dEc fix%':>8} "
           f"{'dEc 2x%':>8} | {'gap x':>8} {'d gap x':>9} {'gap y':>8} {'d gap y':>9} | "
-          f"{'1x s':>6} {'2x s':>6} | bounds")  # fmt: skip
+          f"{'1x s':>6} {'2x s':>6} | {'gauge mJ':>8} {'s':>5} | bounds")  # fmt: skip
     with threadpool_limits(1):
         for stitch in args.stitches.split(","):
             for L in args.L:
@@ -139,9 +159,11 @@ def main() -> None:
                     g2 = two["gaps"].get(d, float("nan"))
                     cells.append(f"{g1:8.2e} {g2 - g1:+9.1e}")
                 b = sorted(one["bounds"] | two["bounds"])
+                fall, cpu = released(one)
                 print(f"{stitch:16} {L:5.2f} {z.status:13} {z.total_energy:9.6f} {ec:9.3e} "
                       f"{dfix:+8.2f} {d2:+8.2f} | {cells[0]} {cells[1]} | {one['cpu']:6.2f} "
-                      f"{two['cpu']:6.2f} | {len(b)} {' '.join(b)}", flush=True)  # fmt: skip
+                      f"{two['cpu']:6.2f} | {fall:8.1e} {cpu:5.1f} | {len(b)} {' '.join(b)}",
+                      flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":
