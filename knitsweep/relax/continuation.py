@@ -11,6 +11,7 @@ import numpy as np
 from ..config import CONVERGED, NOT_CONVERGED, NOT_KNITTABLE, Fidelity, SolverSettings, StitchParams
 from ..model import CellModel
 from ..stitches import get_stitch
+from ..stitches.topology import TOPOLOGY_CHANGED
 from .chains import Chain, merge_chains
 from .relaxer import Relaxer
 from .result import Relaxation, with_status
@@ -165,7 +166,7 @@ def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
     ``ROUGH_SLSQP_MAXITER`` times the iteration limit), then SLSQP alone from ``x`` with
     that limit. The two descents take different paths and land in different minima
     (rib at 11.6 mm: 0.2510962 and 0.2510620 mJ), neither always lower. Kept: the lowest
-    converged (else knittable, else any) result, with the iterations, evaluations and
+    converged (else knittable, else one whose cores overlap, else any) result, with the iterations, evaluations and
     seconds of all; if it is not the relaxer's own, the relaxer's curvature is dropped
     (it belongs to another point). With the Newton solver, a converged minimum that
     Newton did not end at (SLSQP's) is relaxed once more by Newton, which is kept if it
@@ -179,8 +180,11 @@ def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
     tried.append(Relaxer(slsqp).relax(model, x, None))
 
     def rank(r: Relaxation) -> tuple[int, float]:
+        # converged, then a fabric that did not converge, then cores that overlap, then
+        # a yarn that left its stitch's crossings (rows pulled apart: no state of it)
         e = r.total_energy
-        order = 0 if r.status == CONVERGED else 1 if r.status != NOT_KNITTABLE else 2
+        order = (0 if r.status == CONVERGED else 2 if r.status == NOT_KNITTABLE
+                 else 3 if r.message.startswith(TOPOLOGY_CHANGED) else 1)  # fmt: skip
         return order, e if math.isfinite(e) else math.inf
 
     best = min(tried, key=rank)

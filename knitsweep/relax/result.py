@@ -111,6 +111,13 @@ def assess(model: CellModel, x0: np.ndarray, x: np.ndarray, free: np.ndarray, su
     stationary = kkt <= KKT_RTOL * scale
     if not finite:
         status, why = NOT_CONVERGED, f"non-finite energy: {message}"
+    elif zeta < CORE_EPS and not (success or stationary):
+        # the minimiser stopped with the cores overlapping, where the hard core's energy
+        # (10^2 mJ a pair at CORE_EPS, §6) dwarfs any fabric's: it could not get them apart
+        # at this yarn length (seed below 9.1 mm, every descent, docs/model.md §11)
+        status = NOT_KNITTABLE
+        why = (f"{CORES_OVERLAP} where the minimiser stopped (smallest zeta = {zeta:.3g} < "
+               f"{CORE_EPS:g}; not converged: {message})")  # fmt: skip
     elif abs(residual) > settings.length_tol_mm:
         status, why = NOT_CONVERGED, f"length constraint missed by {residual:.3g} mm: {message}"
     elif margin < -TWIST_ACTIVE_TOL:

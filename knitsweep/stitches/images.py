@@ -44,7 +44,7 @@ from ..kernels.mirrored import mirrored_forces_by_class, mirrored_pair_forces_by
 from ..kernels.neighbours import NO_LIST, build_neighbour_list
 from ..kernels.pattern_cell import pattern_cell_energy
 from .patterns import min_zeta_where
-from .topology import topology_word
+from .topology import TOPOLOGY_CHANGED, topology_word
 
 
 def _nothing() -> None:
@@ -201,7 +201,7 @@ class Glides(Translations):
         if got == ref:
             return ""
         count = sum(len(signs) for _, signs in ref)
-        return (f"topology changed: the rows cross in projection as {_runs(got)} (row offset: "
+        return (f"{TOPOLOGY_CHANGED}: the rows cross in projection as {_runs(got)} (row offset: "
                 f"signs), the {stitch.name} stitch has {count} crossings as "
                 f"{_runs(ref)}")  # fmt: skip
 
