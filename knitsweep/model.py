@@ -198,15 +198,17 @@ class CellModel:
         return cp, jac
 
     def check_start(self, x: np.ndarray, label: str = "start") -> float:
-        """min ζ of a start ``x`` of this stitch (at this model's samples per segment),
+        """min ζ of a start ``x`` of this stitch (at this model's samples, where they sit),
         or InputError naming the segment of the cell and the image where the hard cores
-        overlap (``stitches.patterns.check_start``; numpy, so that a command can check a
-        start before any kernel compiles). The same ζ as ``min_zeta``, for every stitch."""
+        overlap (``stitches.patterns.check_start``; numpy where the samples sit by
+        parameter, so that a command can check a start before any kernel compiles; a free
+        yarn's samples along it are placed by the compiled check). The same ζ as
+        ``min_zeta``, for every stitch."""
         ip = self.ip
         x = self._as_state(x)
         return check_start(self.control_points(x), x[-2], x[-1], ip.r, ip.rc,
                            self.stitch.mirror_parity, label, self.fidelity.samples_per_segment,
-                           compiled=False)  # fmt: skip
+                           compiled=False, arc_rule=self._aq)  # fmt: skip
 
     def min_zeta(self, x: np.ndarray) -> float:
         """Smallest compression zeta over all counted contacts (1.0 if none);

@@ -20,6 +20,7 @@ from knitsweep.stitches.stockinette_free.layout import SEG0
 
 ARC = Fidelity(contact_sampling="arclength")
 YARN = Fidelity(contact_sampling="yarn_arclength")
+PARAM = Fidelity(contact_sampling="parameter")
 PATTERNS = ("garter", "rib", "seed")
 SAMPLINGS = [(name, f) for name in PATTERNS for f in (ARC, YARN)]
 
@@ -107,21 +108,25 @@ def test_culled_sum_is_the_exhaustive_one(name, fid):
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-18)
 
 
-def test_the_parameter_sampling_is_unchanged_and_the_default():
-    assert Fidelity().contact_sampling == "parameter"
-    from knitsweep.service.id_forms import FIDELITY_FORMS
-
-    assert "contact_sampling" not in FIDELITY_FORMS.id_form(Fidelity().model_dump(mode="json"))
-    assert _model("rib", Fidelity())._aq.shape == (2, 0)
-    # the ansatz stitch and the free stockinette (translations) sample by parameter
-    assert _model("stockinette").sampling == "parameter"
+def test_a_free_yarn_samples_along_itself_by_default_and_the_ansatz_by_parameter():
+    """'auto' (the default) is 'yarn_arclength' for every free yarn, with its end speeds as
+    the gauge; the ansatz samples by parameter whatever the setting, with no gauge."""
+    assert Fidelity().contact_sampling == "auto"
+    for name in ("stockinette_free", *PATTERNS):
+        m = _model(name, Fidelity())
+        assert m.sampling == "yarn_arclength" and m._aq.shape == (3, 16)
+        assert m.gauge.size == 16
+        assert _model(name, PARAM).sampling == "parameter" and _model(name, PARAM).gauge.size == 0
+    for fidelity in (Fidelity(), YARN, ARC):
+        ansatz = _model("stockinette", fidelity)
+        assert ansatz.sampling == "parameter" and ansatz.gauge.size == 0
     with pytest.raises(ValidationError, match="contact_sampling"):
         Fidelity(contact_sampling="even")
 
 
 def test_samples_by_arclength_drop_the_speed_box():
     p = _model("garter")
-    q = _model("garter", Fidelity())
+    q = _model("garter", PARAM)
     lo, hi = _state_box(p.stitch, p.ip.L, p.ip.r, p.sampling)
     qlo, qhi = _state_box(q.stitch, q.ip.L, q.ip.r, q.sampling)
     speeds = [SEG0 + 4 * s + e for s in range(8) for e in (0, 2)]
@@ -134,7 +139,7 @@ def test_min_zeta_uses_the_same_samples():
     its ζ is not the fixed parameters' one."""
     m = _model("seed")
     x = m.stitch.start(1)
-    z_arc, z_par = m.min_zeta(x), _model("seed", Fidelity()).min_zeta(x)
+    z_arc, z_par = m.min_zeta(x), _model("seed", PARAM).min_zeta(x)
     assert 0.0 < z_arc < 1.0 and z_arc != z_par
 
 
@@ -164,7 +169,7 @@ def test_along_the_yarn_the_under_resolved_rib_shows_its_overlap(data_dir):
 
     m = _model("rib", YARN, L=11.6)
     x = np.loadtxt(data_dir / "rib_under_resolved_L11.6_k0.1.dat")
-    assert m.min_zeta(x) < 0.0 < _model("rib", Fidelity(), L=11.6).min_zeta(x)
+    assert m.min_zeta(x) < 0.0 < _model("rib", PARAM, L=11.6).min_zeta(x)
     assert m.resolution_change(x).startswith(CORES_OVERLAP)
     y = np.loadtxt(data_dir / "rib_relaxed_L11.6_k0.1.dat")
     assert m.resolution_change(y) == ""

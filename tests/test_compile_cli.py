@@ -101,6 +101,7 @@ def test_a_runs_cache_check_names_the_kernels_its_stitches_need():
         kkt_step_rows,
     }
     assert kernels_of("stockinette_free") - every_task == {geometry("stockinette_free"),
+                                                           pattern_cell_energy,
                                                            kkt_step_rows}  # fmt: skip
     energy = kernels_of("garter", what="energy")
     assert energy == {geometry("garter"), pattern_cell_energy}

@@ -4,7 +4,7 @@ its Jacobian is exact, and relaxing in it never raises the ansatz's energy."""
 import numpy as np
 import pytest
 
-from knitsweep.config import StitchParams
+from knitsweep.config import Fidelity, StitchParams
 from knitsweep.model import CellModel
 from knitsweep.relax import Relaxer
 from knitsweep.stitches import get_stitch
@@ -18,7 +18,9 @@ PF = P.model_copy(update={"stitch": "stockinette_free"})
 
 @pytest.fixture(scope="module")
 def models():
-    return CellModel(P), CellModel(PF)
+    """The ansatz, and the free yarn with its contact samples where the ansatz has them
+    (by parameter), so that the map between them is exact."""
+    return CellModel(P), CellModel(PF, Fidelity(contact_sampling="parameter"))
 
 
 @pytest.mark.parametrize("i", range(1, 8))
@@ -34,6 +36,10 @@ def test_ansatz_states_have_the_same_energies_in_the_free_yarn(models, i):
         assert abs(a - b) <= 1e-12 * max(abs(a), 1.0)
     # the shipped free starts are exactly these maps
     np.testing.assert_allclose(mf.stitch.start(i), xf, rtol=1e-15, atol=1e-15)
+    # by default (samples along the yarn) the bending energy and length are the same
+    ed = CellModel(PF).energies(xf)
+    assert abs(ed.bending_energy - ea.bending_energy) <= 1e-12 * ea.bending_energy
+    assert abs(ed.length - ea.length) <= 1e-12 * ea.length
 
 
 def test_free_layout():

@@ -81,8 +81,8 @@ def test_a_job_of_free_yarns_hashes_where_their_samples_sit():
     by_parameter = job.model_copy(update={"fidelity": job.fidelity.model_copy(
         update={"contact_sampling": "parameter"})})  # fmt: skip
     assert by_parameter.job_hash == job_hash
-    garter = [p for p in points if p.params.stitch == "garter"][0]
-    again = [p for p in plan(by_parameter)[0] if p.params == garter.params][0]
+    garter = next(p for p in points if p.params.stitch == "garter")
+    again = next(p for p in plan(by_parameter)[0] if p.params == garter.params)
     assert again.task_id != garter.task_id
 
 
@@ -245,10 +245,12 @@ def test_the_fidelity_of_a_task_hashes_its_stitchs_sampling():
     'yarn_arclength' for a free yarn (as if asked for)."""
     auto = Fidelity()
     assert fidelity_form(auto, "stockinette") == FIDELITY_FORMS.id_form(
-        Fidelity(contact_sampling="parameter").model_dump(mode="json"))
+        Fidelity(contact_sampling="parameter").model_dump(mode="json")
+    )
     for stitch in ("stockinette_free", "garter", "rib", "seed"):
         assert fidelity_form(auto, stitch) == FIDELITY_FORMS.id_form(
-            Fidelity(contact_sampling="yarn_arclength").model_dump(mode="json"))
+            Fidelity(contact_sampling="yarn_arclength").model_dump(mode="json")
+        )
 
 
 def _stored_ids(path):

@@ -50,7 +50,7 @@ MODULE_ORDER = {
     "stitches": ["base", "topology", "patterns", "images", "stockinette", "stockinette_free",
                  "garter", "rib", "seed"],
     "stitches.stockinette": ["layout", "crossover", "geometry", "data"],
-    "stitches.stockinette_free": ["layout", "geometry", "ansatz", "data"],
+    "stitches.stockinette_free": ["layout", "geometry", "ansatz", "gauge", "data"],
     "stitches.garter": ["layout", "geometry", "data"],
     "analysis": ["_common", "fitting", "stress_strain", "metrics", "transitions", "paper",
                  "volumes"],

@@ -5,7 +5,7 @@ naming where it overlaps; the overlap search agrees with the contact kernel's.""
 import numpy as np
 import pytest
 
-from knitsweep.config import StitchParams
+from knitsweep.config import Fidelity, StitchParams
 from knitsweep.errors import InputError
 from knitsweep.model import CellModel
 from knitsweep.stitches.patterns import (
@@ -76,7 +76,11 @@ def test_garter_stitch_shipped_starts_and_exact_gradients():
     # the yarn as built, translated in the fabric plane only (the mirror plane stays)
     np.testing.assert_allclose(mg.control_points(xg), g - [g[0, 0, 0], g[0, 0, 1], 0.0],
                                atol=1e-12)  # fmt: skip
-    assert mg.min_zeta(xg) == pytest.approx(check_start(g, ax, ay, IP.r, IP.rc, (0, 1)), rel=1e-12)
+    # by parameter min ζ is the numpy check's; along the yarn (the default) the model's own
+    by_parameter = CellModel(mg.params, Fidelity(contact_sampling="parameter"))
+    assert by_parameter.min_zeta(xg) == pytest.approx(check_start(g, ax, ay, IP.r, IP.rc, (0, 1)),
+                                                      rel=1e-12)  # fmt: skip
+    assert mg.min_zeta(xg) == pytest.approx(mg.check_start(xg), rel=1e-12)
     e, ge, gl = mg.energy_and_gradients(xg)
     h = 1e-6
     for k in (*range(0, 88, 7), 85, 86, 87):
@@ -239,7 +243,7 @@ def test_a_yarn_whose_samples_spread_out_is_under_resolved(data_dir):
     from knitsweep.stitches.stockinette_free.layout import SEG0, SPEED_BOUNDS
 
     p = StitchParams(stitch="rib", L_mm=11.6, k_mN_per_mm2=0.1)
-    rib = CellModel(p)
+    rib = CellModel(p, Fidelity(contact_sampling="parameter"))  # the samples it was made with
     x = np.loadtxt(data_dir / "rib_under_resolved_L11.6_k0.1.dat")
     why = rib.resolution_change(x)
     assert why.startswith("contact under-resolved: E_c = 0.008363 mJ, with 20 samples"), why

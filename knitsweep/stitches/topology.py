@@ -23,12 +23,12 @@ from math import comb
 
 import numpy as np
 
+from ..kernels.checks import polyline_crossings
+from .base import image_points
+
 TOPOLOGY_CHANGED = "topology changed"
 """How every verdict of a relaxed free yarn that left its stitch's crossings begins
 (``CellModel.topology_change``)."""
-
-from ..kernels.checks import polyline_crossings
-from .base import image_points
 
 SAMPLES = 48
 """Polyline pieces per segment."""

@@ -22,6 +22,8 @@ Hermite interpolant of the curve at those joints.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from . import layout
@@ -81,7 +83,7 @@ def regauge(x: np.ndarray, cp: np.ndarray, L: float) -> np.ndarray:
     edges = np.linspace(0.0, 1.0, _PIECES + 1)
     cums = []
     for c in cp:
-        pieces = [_arc(c, a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        pieces = [_arc(c, a, b) for a, b in itertools.pairwise(edges)]
         cums.append(np.concatenate([[0.0], np.cumsum(pieces)]))
     lengths = np.array([cum[-1] for cum in cums])
     starts = np.concatenate([[0.0], np.cumsum(lengths)])
