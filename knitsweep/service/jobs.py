@@ -297,6 +297,15 @@ class JobSpec(BaseModel):
         d["grid"]["zip"] = self.grid.zip
         return d
 
+    def unread_settings(self) -> tuple[str, ...]:
+        """Paths of the canonical form (``full_form``) that this job's results do not
+        depend on: ``fidelity.contact_sampling`` when none of its stitches is a free yarn
+        (the ansatz samples by parameter whatever it says), so that such a job's file
+        can grow by a free yarn, whose placement the setting then resolves."""
+        if any(get_stitch(name).gauge_entries for name in self.stitches):
+            return ()
+        return ("fidelity.contact_sampling",)
+
     def canonical(self) -> dict[str, Any]:
         """The dict the job's id hashes: its full form migrated down to the earliest
         form of the job format that holds it (``id_forms.id_form``), so that a job

@@ -42,14 +42,17 @@ def check_compatible(path: Path, job, root: dict[str, Any] | None = None) -> str
     from pydantic import ValidationError
 
     try:  # the job's own class parses the file's spec: the store knows no job schema
-        theirs = type(job).model_validate_json(str(root["job_json"])).canonical()
+        their_job = type(job).model_validate_json(str(root["job_json"]))
     except ValidationError:
         raise InputError(
             f"{path} holds results of a job whose spec this knitsweep cannot read; choose "
             "another --out file, or rerun the job that made it with the knitsweep that made it"
         ) from None
-    diff = _differences(theirs, job.canonical())
-    fixed = [d for d in diff if d.split(".")[0] not in GROWABLE]
+    diff = _differences(their_job.canonical(), job.canonical())
+    # settings the file's results do not depend on (``unread_settings``: the contact
+    # placement of a job of the ansatz alone) may differ too
+    unread = set(their_job.unread_settings())
+    fixed = [d for d in diff if d.split(".")[0] not in GROWABLE and d not in unread]
     if fixed or not diff:
         raise InputError(
             f"{path} holds results of a job with other settings (differs in "
