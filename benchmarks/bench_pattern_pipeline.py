@@ -14,8 +14,9 @@ pattern over stockinette's at the same L. a_x and a_y are per-stitch spacings fo
 pattern, and the strain is the fabric's, so the rows compare directly.
 
 Run: ``python benchmarks/bench_pattern_pipeline.py [--stitches stockinette,rib]
-[--L 11.6] [--repeats 1] [--sampling arclength]`` (``--sampling``: where a pattern's
-contact samples sit, ``Fidelity.contact_sampling``; stockinette's are its own).
+[--L 11.6] [--repeats 1] [--sampling parameter]`` (``--sampling``: where a free yarn's
+contact samples sit, ``Fidelity.contact_sampling``, by default along the yarn with the
+speeds as a gauge; stockinette's are its own).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from knitsweep.stitches import STITCH_NAMES
 from knitsweep.strain_sweep import strain_sweep
 
 
-def one(stitch: str, L: float, k: float, sampling: str = "parameter") -> dict:
+def one(stitch: str, L: float, k: float, sampling: str = "auto") -> dict:
     params = StitchParams(stitch=stitch, L_mm=L, k_mN_per_mm2=k)
     n = Numerics.from_preset("converged", observables=("energy_gaps", "secant_modulus"))
     n = n.model_copy(update={"fidelity": n.fidelity.model_copy(
@@ -64,13 +65,13 @@ def _f(v, fmt: str) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--stitches", default=",".join(s for s in STITCH_NAMES
-                                                  if s != "stockinette_free"))  # fmt: skip
+    ap.add_argument("--stitches", default=",".join(STITCH_NAMES))
     ap.add_argument("--L", type=float, nargs="+", default=[10.5, 11.6, 12.2])
     ap.add_argument("--k", type=float, default=0.1)
     ap.add_argument("--repeats", type=int, default=1)
-    ap.add_argument("--sampling", choices=("parameter", "arclength", "yarn_arclength"), default="parameter",
-                    help="a pattern's contact samples (Fidelity.contact_sampling)")  # fmt: skip
+    ap.add_argument("--sampling", choices=("auto", "parameter", "arclength", "yarn_arclength"),
+                    default="auto",
+                    help="a free yarn's contact samples (Fidelity.contact_sampling)")  # fmt: skip
     args = ap.parse_args()
     stitches = args.stitches.split(",")
     print(f"k = {args.k} mN/mm^2, converged preset, 1 start; CPU s (median of {args.repeats}); "

@@ -82,7 +82,8 @@ ARCLENGTH_SPEED_BOUNDS = (0.01, 1.0)
 """End speeds α in units of L when the contact samples sit by arclength
 (``Fidelity.contact_sampling = "arclength"``): the samples no longer depend on the speeds,
 so these only keep a segment's end regular (α > 0) and far from anything a yarn of length
-L reaches (docs/model.md §11, "Resolution")."""
+L reaches (docs/model.md §11, "Resolution"). Along the whole yarn (``"yarn_arclength"``,
+the default) the speeds are not free at all: they are held at L/8 (``gauge``)."""
 ARCLENGTH_OFFSET_BOUND = 0.5
 """|β| <= L/2 with samples by arclength."""
 
