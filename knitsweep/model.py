@@ -64,6 +64,10 @@ RESOLUTION_RTOL = 0.25
 at most this fraction (measured at relaxed states with speeds within
 ``stockinette_free.layout.SPEED_BOUNDS``: 4–9 %; a yarn whose cores pass between sparse
 samples: 12-fold, docs/model.md §11)."""
+GAUGE_RTOL = 1e-9
+"""End speeds this close (relative) count as one gauge's (``CellModel.gauged``): the
+copies of a state perturbed by 1e-15 or 1e-12 (``[starts] spread``, ``retries``) stay
+copies of it, not re-interpolations."""
 ARC_PANELS, ARC_NODES = 2, 8
 """The composite Gauss rule (panels, nodes per panel) of a segment's arclength S(t) when
 the contact samples are placed by arclength (``kernels.arclength``)."""
@@ -167,10 +171,12 @@ class CellModel:
 
     def gauged(self, x: np.ndarray) -> np.ndarray:
         """State ``x`` in this model's gauge (``gauge``): unchanged where there is none
-        or it holds already; a gauged state of another yarn length with its end speeds
-        set to this one's L/8; any other state (a shipped start, a state sampled by
-        parameter) re-interpolated at equal fractions of its arclength
-        (``Stitch.regauge``). A new array where it changes."""
+        or it holds already; a gauged state (its end speeds equal to within
+        ``GAUGE_RTOL``: of another yarn length, or a copy perturbed by round-off, whose
+        perturbation of the other entries is kept) with its end speeds set to this one's
+        L/8; any other state (a shipped start, a state sampled by parameter)
+        re-interpolated at equal fractions of its arclength (``Stitch.regauge``). A new
+        array where it changes."""
         if not self.gauge.size:
             return x
         x = self._as_state(x)
@@ -178,7 +184,7 @@ class CellModel:
         speed = self.ip.L / self.stitch.n_segments
         if np.all(speeds == speed):
             return x
-        if np.all(speeds == speeds[0]):
+        if np.ptp(speeds) <= GAUGE_RTOL * abs(speeds[0]):
             out = x.copy()
             out[self.gauge] = speed
             return out

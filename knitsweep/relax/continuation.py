@@ -166,12 +166,12 @@ def relax_rough(relaxer: Relaxer, model: CellModel, x: np.ndarray,
     ``ROUGH_SLSQP_MAXITER`` times the iteration limit), then SLSQP alone from ``x`` with
     that limit. The two descents take different paths and land in different minima
     (rib at 11.6 mm: 0.2510962 and 0.2510620 mJ), neither always lower. Kept: the lowest
-    converged (else knittable, else one whose cores overlap, else any) result, with the iterations, evaluations and
-    seconds of all; if it is not the relaxer's own, the relaxer's curvature is dropped
-    (it belongs to another point). With the Newton solver, a converged minimum that
-    Newton did not end at (SLSQP's) is relaxed once more by Newton, which is kept if it
-    converges no higher: SLSQP stops when E stops changing, Newton only where the state
-    is stationary."""
+    converged (else knittable, else one whose cores overlap, else any) result, with the
+    iterations, evaluations and seconds of all; if it is not the relaxer's own, the
+    relaxer's curvature is dropped (it belongs to another point). With the Newton
+    solver, a converged minimum that Newton did not end at (SLSQP's) is relaxed once
+    more by Newton, which is kept if it converges no higher: SLSQP stops when E stops
+    changing, Newton only where the state is stationary."""
     first = relaxer.relax(model, x, None, settings)
     slsqp = _slsqp(settings)
     tried = [first]
