@@ -43,6 +43,9 @@ class Energies:
     bending_energy: float
     contact_energy: float
     length: float
+    gauge_energy: float = 0.0
+    """A free yarn's gauge penalty on its joints' slides (mJ; ``CellModel.gauge``): what a
+    relaxation minimises besides the energy, never part of it (``total_energy``)."""
 
     @property
     def total_energy(self) -> float:
@@ -101,7 +104,7 @@ class CellModel:
         """The arclength rule of contact samples placed by arclength (a free yarn's,
         ``Fidelity.contact_sampling``, ``kernels.arclength``); empty: the samples sit at
         the curve parameters of ``_ctab``."""
-        free_yarn = bool(self.stitch.gauge_entries) and self.image_group.checks_resolution
+        free_yarn = self.stitch.gauge is not None and self.image_group.checks_resolution
         sampling = self.fidelity.sampling_for(free_yarn)
         if sampling != "parameter":
             self._aq = arclength_rule(ARC_PANELS, ARC_NODES)
@@ -110,11 +113,13 @@ class CellModel:
         self.sampling = sampling
         """Where this model's contact samples sit: "parameter", "arclength" or
         "yarn_arclength" (its state bounds follow, ``relax.problem``)."""
-        self.gauge = np.array(self.stitch.gauge_entries if sampling == "yarn_arclength"
-                              else (), dtype=np.int64)  # fmt: skip
+        gauged = free_yarn and sampling == "yarn_arclength"
+        self._gauge = self.stitch.gauge if gauged else None
+        self.gauge = np.array(self._gauge.entries if self._gauge else (), dtype=np.int64)
         """The entries a relaxation holds fixed (``gauged``): a free yarn's end speeds
         when its samples sit along the yarn (docs/model.md §11, "The speeds as a
-        gauge"); empty otherwise."""
+        gauge"); empty otherwise. With them, the energy's gradient holds the gauge's
+        penalty on the joints' slides (``Energies.gauge_energy``)."""
         self._mode = IMAGES_CUTOFF if self.fidelity.images == "cutoff" else IMAGES_REFERENCE
         self._grad_e = np.empty(self.stitch.n_state)
         self._grad_l = np.empty(self.stitch.n_state)
@@ -131,15 +136,27 @@ class CellModel:
         cp, jac = self._geometry_of(x)
         return self.image_group.energy(self, cp, jac, x, with_grad)
 
+    def _gauge_penalty(self, with_grad: bool) -> float:
+        """The gauge's penalty (mJ) at the geometry in this model's buffers, its gradient
+        added to ``_grad_e`` with ``with_grad``; 0 without a gauge."""
+        if self._gauge is None or not self.gauge.size:
+            return 0.0
+        e, g = self._gauge.penalty(self._cp, self._jac, with_grad)
+        if with_grad:
+            self._grad_e += g
+        return e
+
     def energies(self, x: np.ndarray) -> Energies:
         """Bending and contact energy (mJ) and yarn length (mm) of state ``x``."""
         eb, ec, length = self._call(x, False)
-        return Energies(eb, ec, length)
+        return Energies(eb, ec, length, self._gauge_penalty(False))
 
     def energy_and_gradients(
         self, x: np.ndarray, neighbours: NeighbourList | None = None
     ) -> tuple[Energies, np.ndarray, np.ndarray]:
-        """Energies plus the exact gradients dE/dx and dl/dx, each shape (n,).
+        """Energies plus the exact gradients dE/dx and dl/dx, each shape (n,); with a
+        gauge (``gauge``) dE/dx is that of E + ``gauge_energy``, what a relaxation
+        minimises.
 
         With a ``NeighbourList`` (from ``neighbour_list``) the contact sum runs over
         its pairs: the same numbers, bit for bit, faster; the list rebuilds itself
@@ -149,7 +166,8 @@ class CellModel:
             eb, ec, length = self._call(x, True)
         else:
             eb, ec, length = self._call_listed(self._as_state(x), neighbours)
-        return Energies(eb, ec, length), self._grad_e.copy(), self._grad_l.copy()
+        gauge = self._gauge_penalty(True)
+        return Energies(eb, ec, length, gauge), self._grad_e.copy(), self._grad_l.copy()
 
     def neighbour_list(self, x: np.ndarray, skin: float = 0.1) -> NeighbourList:
         """A Verlet list of the contact candidates around state ``x`` (skin in mm)."""
@@ -175,7 +193,7 @@ class CellModel:
         ``GAUGE_RTOL``: of another yarn length, or a copy perturbed by round-off, whose
         perturbation of the other entries is kept) with its end speeds set to this one's
         L/8; any other state (a shipped start, a state sampled by parameter)
-        re-interpolated at equal fractions of its arclength (``Stitch.regauge``). A new
+        re-interpolated at equal fractions of its arclength (``Gauge.regauge``). A new
         array where it changes."""
         if not self.gauge.size:
             return x
@@ -188,8 +206,8 @@ class CellModel:
             out = x.copy()
             out[self.gauge] = speed
             return out
-        assert self.stitch.regauge is not None
-        return self.stitch.regauge(x, self.control_points(x), self.ip.L)
+        assert self._gauge is not None
+        return self._gauge.regauge(x, self.control_points(x), self.ip.L)
 
     def control_points(self, x: np.ndarray) -> np.ndarray:
         """The S segments' control points in path order, shape (S, 6, 3), mm (a new

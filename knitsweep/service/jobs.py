@@ -302,7 +302,7 @@ class JobSpec(BaseModel):
         depend on: ``fidelity.contact_sampling`` when none of its stitches is a free yarn
         (the ansatz samples by parameter whatever it says), so that such a job's file
         can grow by a free yarn, whose placement the setting then resolves."""
-        if any(get_stitch(name).gauge_entries for name in self.stitches):
+        if any(get_stitch(name).gauge is not None for name in self.stitches):
             return ()
         return ("fidelity.contact_sampling",)
 
@@ -359,7 +359,7 @@ def fidelity_dump(fidelity: Fidelity, stitches: tuple[str, ...]) -> dict[str, An
     setting existed and a free yarn's hash what it computes."""
     d = fidelity.model_dump(mode="json")
     if d["contact_sampling"] == "auto":
-        free = any(get_stitch(name).gauge_entries for name in stitches)
+        free = any(get_stitch(name).gauge is not None for name in stitches)
         d["contact_sampling"] = fidelity.sampling_for(free)
     return d
 

@@ -84,6 +84,19 @@ def image_points(points: np.ndarray, m: int, n: int, a_x: float, a_y: float,
     return points + np.array([m * a_x, n * a_y, 0.0])
 
 
+@dataclass(frozen=True)
+class Gauge:
+    """How a free yarn fixes its parametrisation (``stitches.stockinette_free.gauge``):
+    the ``entries`` a relaxation holds at L / n_segments (its end speeds), ``regauge(x,
+    control_points, L)`` bringing any state into the gauge with its curve kept, and
+    ``penalty(control_points, jacobian, with_grad) -> (mJ, gradient (n,) or None)``, the
+    weak term on the joints' slides that a relaxation minimises with the energy."""
+
+    entries: tuple[int, ...]
+    regauge: Callable[[np.ndarray, np.ndarray, float], np.ndarray]
+    penalty: Callable[[np.ndarray, np.ndarray, bool], tuple[float, np.ndarray | None]]
+
+
 @dataclass(frozen=True, eq=False)
 class Stitch:
     """One stitch geometry (the module docstring states the contract)."""
@@ -118,13 +131,9 @@ class Stitch:
     ``SolverSettings.continuation_dL_mm`` (None: that setting). Rib's shipped starts
     (11.28 mm) reach 9.3–13.3 mm in one stage of 2 mm; garter's rows come apart in
     stages of 0.5 mm, so it keeps the setting."""
-    gauge_entries: tuple[int, ...] = ()
-    """Entries a relaxation holds fixed when the contact samples sit along the yarn by
-    arclength (a free yarn's end speeds, each L/8: the parametrisation's gauge,
-    docs/model.md §11); empty for a stitch without such a gauge."""
-    regauge: Callable[[np.ndarray, np.ndarray, float], np.ndarray] | None = None
-    """``regauge(x, control_points, L)``: a state brought into the gauge, its curve kept
-    (``stockinette_free.gauge.regauge``); None where ``gauge_entries`` is empty."""
+    gauge: Gauge | None = None
+    """A free yarn's parametrisation gauge, used when its contact samples sit along the
+    yarn by arclength (docs/model.md §11); None for a stitch without one (the ansatz)."""
     _loaded: dict = field(default_factory=dict, repr=False)  # kernels, starts: loaded once
 
     def __post_init__(self) -> None:

@@ -14,8 +14,11 @@ from __future__ import annotations
 from types import ModuleType
 from typing import Any
 
-from ..base import MIRROR_CLASSES, Stitch
+from ..base import MIRROR_CLASSES, Gauge, Stitch
 from . import gauge, layout
+
+GAUGE = Gauge(gauge.SPEED_ENTRIES, gauge.regauge, gauge.joint_gauge)
+"""The free yarn's gauge: end speeds at L/8, joints near equal fractions of the yarn."""
 
 
 def free_yarn_stitch(name: str, description: str, package: str, *,
@@ -48,8 +51,7 @@ def free_yarn_stitch(name: str, description: str, package: str, *,
         closing_shift=(1, 0),
         mirror_parity=mirror_parity,
         rough=any(mirror_parity),
-        gauge_entries=gauge.SPEED_ENTRIES,
-        regauge=gauge.regauge,
+        gauge=GAUGE,
         **options,
     )
 

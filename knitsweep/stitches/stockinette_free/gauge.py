@@ -12,6 +12,14 @@ relaxation; the offsets β stay free): its segments are then parametrised at nea
 speed of an arclength parametrisation and its joints sit near equal fractions of the
 yarn, and the rest of the state says where the curve goes.
 
+The joints can still slide along the yarn (a speed held at L/8 at both ends of two
+segments of different lengths makes the slide cost a little bending, 10⁻⁶–3·10⁻⁵ mJ/mm²
+at stockinette_free's minimum at 10.5 mm, against 10⁻⁴ and up for the physical modes):
+``joint_gauge`` is the weak penalty JOINT_STIFFNESS Σ_s (ℓ_s − ℓ/8)² on the segments'
+lengths that makes those slides as stiff as the softest physical mode. It enters what a
+relaxation minimises, never a reported energy (``Energies.gauge_energy``), and at the
+minima it moves the energy by less than 10⁻⁶ mJ (measured, docs/model.md §11).
+
 ``regauge`` brings any state of the free yarn into the gauge without moving its curve
 more than 8 quintics must: the joints are put at equal fractions of the curve's
 arclength, each with the curve's own point, tangent and curvature vector there (joint 0,
@@ -23,6 +31,7 @@ Hermite interpolant of the curve at those joints.
 from __future__ import annotations
 
 import itertools
+from math import comb
 
 import numpy as np
 
@@ -33,8 +42,15 @@ SPEED_ENTRIES = tuple(layout.SEG0 + layout.PER_SEGMENT * s + e
 """The end speeds α0, α1 of every segment: the gauge's entries (16)."""
 OFFSET_ENTRIES = tuple(i + 1 for i in SPEED_ENTRIES)
 """The offsets β0, β1 of every segment."""
+JOINT_STIFFNESS = 1e-4
+"""mJ/mm²: the weight of the joints' penalty (``joint_gauge``)."""
 _PIECES, _NODES = 64, 8  # composite Gauss rule of a segment's arclength
 _GX, _GW = np.polynomial.legendre.leggauss(_NODES)
+_JX, _JW = np.polynomial.legendre.leggauss(16)  # the penalty's segment lengths
+_JX, _JW = 0.5 * (_JX + 1.0), 0.5 * _JW
+_JD = (np.stack([comb(4, i) * _JX**i * (1.0 - _JX) ** (4 - i) for i in range(5)], axis=1)
+       @ (5.0 * (np.eye(5, 6, 1) - np.eye(5, 6))))  # fmt: skip
+"""(16, 6): r'(u) at the nodes = _JD @ (a segment's control points)."""
 
 
 def _derivatives(c: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -109,7 +125,20 @@ def regauge(x: np.ndarray, cp: np.ndarray, L: float) -> np.ndarray:
     return out
 
 
-def is_gauged(x: np.ndarray) -> bool:
-    """Whether every end speed of state ``x`` is the same (a gauged state, at any L)."""
-    a = np.asarray(x)[list(SPEED_ENTRIES)]
-    return bool(np.all(a == a[0]))
+def joint_gauge(
+    cp: np.ndarray, jac: np.ndarray, with_grad: bool
+) -> tuple[float, np.ndarray | None]:
+    """The joints' penalty JOINT_STIFFNESS Σ_s (ℓ_s − ℓ/8)² (mJ) of control points ``cp``
+    (8, 6, 3), the segments' lengths ℓ_s by a 16-node Gauss rule, and with ``with_grad``
+    its exact gradient through ``jac`` (8, 6, 3, n) (else None)."""
+    rp = np.einsum("qc,scd->sqd", _JD, cp)
+    speed = np.sqrt(np.einsum("sqd,sqd->sq", rp, rp))
+    d = speed @ _JW
+    d -= d.mean()
+    energy = JOINT_STIFFNESS * float(d @ d)
+    if not with_grad:
+        return energy, None
+    # dℓ_s/dcp_s = Σ_q w_q _JD[q, c] r'/|r'|; Σ_s d_s = 0 drops the mean's share
+    dl = np.einsum("q,qc,sqd->scd", _JW, _JD, rp / speed[..., None])
+    grad = np.einsum("scd,scdk->k", (2.0 * JOINT_STIFFNESS) * d[:, None, None] * dl, jac)
+    return energy, grad
