@@ -51,6 +51,12 @@ class Energies:
     def total_energy(self) -> float:
         return self.bending_energy + self.contact_energy
 
+    @property
+    def objective(self) -> float:
+        """What a relaxation minimises (mJ): the energy plus a free yarn's gauge penalty;
+        ``CellModel.energy_and_gradients``'s dE/dx is its gradient."""
+        return self.total_energy + self.gauge_energy
+
     def as_dict(self) -> dict[str, float]:
         return {
             "bending_energy": self.bending_energy,
@@ -155,8 +161,8 @@ class CellModel:
         self, x: np.ndarray, neighbours: NeighbourList | None = None
     ) -> tuple[Energies, np.ndarray, np.ndarray]:
         """Energies plus the exact gradients dE/dx and dl/dx, each shape (n,); with a
-        gauge (``gauge``) dE/dx is that of E + ``gauge_energy``, what a relaxation
-        minimises.
+        gauge (``gauge``) dE/dx is that of ``Energies.objective``, E plus the gauge's
+        penalty, what a relaxation minimises.
 
         With a ``NeighbourList`` (from ``neighbour_list``) the contact sum runs over
         its pairs: the same numbers, bit for bit, faster; the list rebuilds itself

@@ -88,7 +88,7 @@ def test_garter_stitch_shipped_starts_and_exact_gradients():
         xp[k] += h
         xm[k] -= h
         ep, em = mg.energies(xp), mg.energies(xm)
-        fe = (ep.total_energy - em.total_energy) / (2 * h)
+        fe = (ep.objective - em.objective) / (2 * h)
         fl = (ep.length - em.length) / (2 * h)
         assert fe == pytest.approx(ge[k], rel=1e-5, abs=1e-8), k
         assert fl == pytest.approx(gl[k], rel=1e-5, abs=1e-8), k

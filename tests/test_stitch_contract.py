@@ -100,7 +100,7 @@ def test_gradients_match_central_differences(model):
         xp[k] += H
         xm[k] -= H
         ep, em = model.energies(xp), model.energies(xm)
-        fe = (ep.total_energy - em.total_energy) / (2 * H)
+        fe = (ep.objective - em.objective) / (2 * H)
         fl = (ep.length - em.length) / (2 * H)
         assert abs(fe - ge[k]) <= 1e-6 * max(1.0, abs(ge[k])), k
         assert abs(fl - gl[k]) <= 1e-6 * max(1.0, abs(gl[k])), k

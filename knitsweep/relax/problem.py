@@ -95,8 +95,7 @@ class Problem:
             return last
         e, ge, gl = self.model.energy_and_gradients(self.full(z), self.neighbours)
         self.evaluations += 1
-        objective = e.total_energy + e.gauge_energy  # a free yarn's gauge term (model.py)
-        point = Point(z.copy(), objective, ge[self.free], e.length - self.L, gl[self.free],
+        point = Point(z.copy(), e.objective, ge[self.free], e.length - self.L, gl[self.free],
                       ge, gl)  # fmt: skip
         self._last, self.last_full = point, (e, ge, gl)
         return point
