@@ -212,6 +212,11 @@ PATTERNS_TABLE = (
     "docs/patterns.md: the table run again with stockinette_free, the shifts against it and the "
     "fabric's thickness (issue 34)"
 )
+PATTERNS_REMEASURED = (
+    "docs/patterns.md: the patterns job, its costs and the resolution check as "
+    "measured again with the free yarns sampled along themselves and gauged "
+    "(issue 34; the superseded figures stay in docs/model.md §11)"
+)
 REWRITTEN = {
     (
         "Install and run the main job (a small example: 4 s on 2 cores, plus ~15–30 s to "
@@ -228,6 +233,18 @@ REWRITTEN = {
     "garter 14.166 unjammed from 12.74 (L = 9.425 mm) on 3.266, 1.462 0.45 4.60 0.3092 0.146, 0.016": PATTERNS_TABLE,
     "1×1 rib 13.542 12.223 1.583, 2.268 1.43 3.19 0.2476 0.066, 0.133": PATTERNS_TABLE,
     "seed 15.045 15.270 2.766, 1.676 0.61 3.43 0.3533 0.095, 0.254": PATTERNS_TABLE,
+    "`jobs/patterns_k0.1.toml`: stockinette, garter, 1×1 rib and seed, each found adaptively in L in x and y (156 tasks, 29 s of wall time under `mpirun -n 3` on this project's 2 cores).": PATTERNS_REMEASURED,
+    "(a) the unjamming transition (L/r)_trans, the bar its bracket (▼: garter pulled in y is unjammed wherever it can be knitted, from L = 9.425 mm);": PATTERNS_REMEASURED,
+    "(c) the zero-force stitch's a_y/a_x. a_x and a_y are the course and wale spacing per stitch for every pattern, and the strain is the fabric's, so the patterns compare directly.": PATTERNS_REMEASURED,
+    "Starts come from the authors' Init files: garter's tilted out of the plane, rib's as they are, seed's cut at the middle of the sinker loop and tilted (each with the pattern's crossing signs and the cores apart; a start whose cores overlap is refused, naming the segments).": PATTERNS_REMEASURED,
+    "Its resolution: the free yarn's contact samples sit at fixed curve parameters, so the segment speeds are bounded to [0.05, 0.3] L and a state whose contact energy moves by more than 25 % with twice the samples is not converged; where the cores overlap with twice the samples it is too tight to knit.": PATTERNS_REMEASURED,
+    "(Before these bounds rib's relaxations had shortened segments to 0.05 mm and let hard cores pass between sparse samples: E_c 0.008 mJ at 10 samples per segment, 23 mJ at 40.)": PATTERNS_REMEASURED,
+    "And they unjam at shorter yarn: stockinette at (L/r)_trans = 15.5 in both directions (the paper's 15.54), seed at 15.0–15.3, garter at 14.2 across the course, rib at 13.5 and 12.2: mixing knit and purl stitches frees room that a stockinette stitch of the same yarn does not have. knitsweep's verdicts per pattern (transitions, figures, tables, the adaptive search, the HTML report) are the stockinette study's own functions with a `stitch` column;": PATTERNS_REMEASURED,
+    "`benchmarks/bench_pattern_pipeline.py` measures a pattern's point (zero force and both sweeps, one start, median of 3, two rounds alternately) at 1.0–2.0 CPU s, 9.7–12.4× stockinette's at L = 10.5 mm and 8.0–17× at 11.6 and 12.2 mm, where stockinette's own costs 0.08–0.19 s (before the new step 1.3–5.0 s, 12.5–32× and 9.4–30×; 19–42× and 17–69× before the checks were compiled; 32–378× before the grid); the patterns job 59–67 → 43–45 CPU s.": PATTERNS_REMEASURED,
+    "The step's rounding moves the patterns' minima by up to ~10⁻⁴ mJ either way, as much as a change of a few ulps in the old step's Hessian does (docs/model.md §11).": PATTERNS_REMEASURED,
+    "A minimum that SLSQP ended at (it stops when E stops changing) is relaxed once more by Newton, kept if no higher: rib's minimum at 11.6 mm fell by 4·10⁻⁶ mJ, and its sweeps' first steps no longer crawl (373 and 380 Newton iterations → 2–3) along the near-flat modes of a free yarn, its joints sliding along it (rib's point there 0.99–1.05 → 0.87–0.90 CPU s; the others within noise).": PATTERNS_REMEASURED,
+    "What is left is the zero-force descents (Newton walking back from the last continuation stage with bounds taken and let go one at a time; garter's 30 SLSQP stages) and SLSQP; spacing the joints evenly along the yarn (a penalty) stops the crawl but raises the minima by up to 7·10⁻⁴ mJ and slowed garter's sweeps at 12.2 mm 9× (docs/model.md §11).": PATTERNS_REMEASURED,
+    "A pattern's point stays 6–15× stockinette's at 11.6 and 12.2 mm (2× was the aim).": PATTERNS_REMEASURED,
 }
 
 
