@@ -53,6 +53,10 @@ def series(path: Path) -> tuple[dict, int]:
     return rows, int(res.problems["status"].isin(["failed", "damaged"]).sum())
 
 
+FINAL = ("done", "unjammed_at_start", "jammed_throughout")
+"""The adaptive refinement's statuses of a series that has its answer."""
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("job", type=Path)
@@ -80,8 +84,10 @@ def main() -> int:
     agree = not any(k.endswith("_failed") for k in found)
     for key in sorted(set(found["host"]) | set(found["generic"])):
         h, g = found["host"].get(key), found["generic"].get(key)
+        # the same verdict: a transition (refined to the tolerance) or an edge of the range
+        # (unjammed at the first point, jammed throughout), the same within the tolerance
         same = (h is not None and g is not None and h.status == g.status
-                and h.adaptive_status == g.adaptive_status == "done"
+                and h.adaptive_status == g.adaptive_status in FINAL
                 and abs(h.L_over_r_trans - g.L_over_r_trans) <= tol)  # fmt: skip
         agree &= same
 
