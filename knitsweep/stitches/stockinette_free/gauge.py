@@ -51,6 +51,7 @@ _JX, _JW = 0.5 * (_JX + 1.0), 0.5 * _JW
 _JD = (np.stack([comb(4, i) * _JX**i * (1.0 - _JX) ** (4 - i) for i in range(5)], axis=1)
        @ (5.0 * (np.eye(5, 6, 1) - np.eye(5, 6))))  # fmt: skip
 """(16, 6): r'(u) at the nodes = _JD @ (a segment's control points)."""
+_JDW = np.ascontiguousarray((_JD * _JW[:, None]).T)  # (6, 16): Σ_q w_q _JD[q, c] ·
 
 
 def _derivatives(c: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -131,14 +132,14 @@ def joint_gauge(
     """The joints' penalty JOINT_STIFFNESS Σ_s (ℓ_s − ℓ/8)² (mJ) of control points ``cp``
     (8, 6, 3), the segments' lengths ℓ_s by a 16-node Gauss rule, and with ``with_grad``
     its exact gradient through ``jac`` (8, 6, 3, n) (else None)."""
-    rp = np.einsum("qc,scd->sqd", _JD, cp)
-    speed = np.sqrt(np.einsum("sqd,sqd->sq", rp, rp))
+    rp = _JD @ cp  # (8, 16, 3): r' at the nodes
+    speed = np.sqrt((rp * rp).sum(axis=2))
     d = speed @ _JW
     d -= d.mean()
     energy = JOINT_STIFFNESS * float(d @ d)
     if not with_grad:
         return energy, None
     # dℓ_s/dcp_s = Σ_q w_q _JD[q, c] r'/|r'|; Σ_s d_s = 0 drops the mean's share
-    dl = np.einsum("q,qc,sqd->scd", _JW, _JD, rp / speed[..., None])
-    grad = np.einsum("scd,scdk->k", (2.0 * JOINT_STIFFNESS) * d[:, None, None] * dl, jac)
-    return energy, grad
+    dl = _JDW @ (rp / speed[..., None])  # (8, 6, 3)
+    coef = ((2.0 * JOINT_STIFFNESS) * d[:, None, None] * dl).reshape(-1)
+    return energy, coef @ jac.reshape(coef.size, -1)
