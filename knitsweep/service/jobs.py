@@ -302,9 +302,7 @@ class JobSpec(BaseModel):
         depend on: ``fidelity.contact_sampling`` when none of its stitches is a free yarn
         (the ansatz samples by parameter whatever it says), so that such a job's file
         can grow by a free yarn, whose placement the setting then resolves."""
-        if any(get_stitch(name).gauge is not None for name in self.stitches):
-            return ()
-        return ("fidelity.contact_sampling",)
+        return () if _has_free_yarn(self.stitches) else ("fidelity.contact_sampling",)
 
     def canonical(self) -> dict[str, Any]:
         """The dict the job's id hashes: its full form migrated down to the earliest
@@ -359,9 +357,14 @@ def fidelity_dump(fidelity: Fidelity, stitches: tuple[str, ...]) -> dict[str, An
     setting existed and a free yarn's hash what it computes."""
     d = fidelity.model_dump(mode="json")
     if d["contact_sampling"] == "auto":
-        free = any(get_stitch(name).gauge is not None for name in stitches)
-        d["contact_sampling"] = fidelity.sampling_for(free)
+        d["contact_sampling"] = fidelity.sampling_for(_has_free_yarn(stitches))
     return d
+
+
+def _has_free_yarn(stitches: tuple[str, ...]) -> bool:
+    """Whether one of ``stitches`` is a free yarn (has a gauge: its contact sampling is
+    the setting's; the ansatz's is always by parameter)."""
+    return any(get_stitch(name).gauge is not None for name in stitches)
 
 
 def fidelity_form(fidelity: Fidelity, stitch: str) -> dict[str, Any]:
