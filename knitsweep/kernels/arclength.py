@@ -39,65 +39,95 @@ def arclength_rule(panels: int, nodes: int) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
-def _basis(t, b, d1, d2):
-    """Quintic Bernstein values ``b`` (6,), first ``d1`` (6,) and second ``d2`` (6,)
-    t-derivatives at t."""
+def _basis(t, b, d1):
+    """Quintic Bernstein values ``b`` (6,) and first t-derivatives ``d1`` (6,) at t."""
     u = 1.0 - t
-    t2, t3, t4, t5 = t * t, t * t * t, t**4, t**5
-    u2, u3, u4, u5 = u * u, u * u * u, u**4, u**5
-    b[0], b[1], b[2], b[3], b[4], b[5] = u5, 5 * t * u4, 10 * t2 * u3, 10 * t3 * u2, 5 * t4 * u, t5
-    q0, q1, q2, q3, q4 = u4, 4 * t * u3, 6 * t2 * u2, 4 * t3 * u, t4  # degree 4
+    t2, u2 = t * t, u * u
+    b[0], b[1], b[2] = u2 * u2 * u, 5 * t * u2 * u2, 10 * t2 * u2 * u
+    b[3], b[4], b[5] = 10 * t2 * t * u2, 5 * t2 * t2 * u, t2 * t2 * t
+    _derivative_basis(t, d1)
+
+
+@njit(cache=True, inline="always")
+def _derivative_basis(t, d1):
+    """The quintic Bernstein basis's t-derivatives ``d1`` (6,) at t."""
+    u = 1.0 - t
+    t2, u2 = t * t, u * u
+    q0, q1, q2, q3, q4 = u2 * u2, 4 * t * u2 * u, 6 * t2 * u2, 4 * t2 * t * u, t2 * t2
     d1[0], d1[1], d1[2] = -5 * q0, 5 * (q0 - q1), 5 * (q1 - q2)
     d1[3], d1[4], d1[5] = 5 * (q2 - q3), 5 * (q3 - q4), 5 * q4
-    c0, c1, c2, c3 = u3, 3 * t * u2, 3 * t2 * u, t3  # degree 3
-    d2[0], d2[1], d2[2] = 20 * c0, 20 * (c1 - 2 * c0), 20 * (c0 - 2 * c1 + c2)
-    d2[3], d2[4], d2[5] = 20 * (c1 - 2 * c2 + c3), 20 * (c2 - 2 * c3), 20 * c3
 
 
 @njit(cache=True)
-def _put_sample(cp, s, t, i, b, d1, d2, pts, pos, r1):
+def derivative_coefficients(cp):
+    """(S, 9, 3): each segment's r'(u) = Σ_k C[k] u^k (rows 0–4) and r''(u) = Σ_k C[5 + k]
+    u^k (rows 5–8) in the power basis, so that a quadrature node costs a Horner sum."""
+    nseg = cp.shape[0]
+    co = np.empty((nseg, 9, 3))
+    a = np.empty(6)
+    for s in range(nseg):
+        for d in range(3):
+            p0, p1, p2 = cp[s, 0, d], cp[s, 1, d], cp[s, 2, d]
+            p3, p4, p5 = cp[s, 3, d], cp[s, 4, d], cp[s, 5, d]
+            # r(u) = Σ_k a_k u^k from the Bernstein form
+            a[1] = 5.0 * (p1 - p0)
+            a[2] = 10.0 * (p2 - 2.0 * p1 + p0)
+            a[3] = 10.0 * (p3 - 3.0 * p2 + 3.0 * p1 - p0)
+            a[4] = 5.0 * (p4 - 4.0 * p3 + 6.0 * p2 - 4.0 * p1 + p0)
+            a[5] = p5 - 5.0 * p4 + 10.0 * p3 - 10.0 * p2 + 5.0 * p1 - p0
+            for k in range(5):
+                co[s, k, d] = (k + 1) * a[k + 1]
+            for k in range(4):
+                co[s, 5 + k, d] = (k + 2) * (k + 1) * a[k + 2]
+    return co
+
+
+@njit(cache=True, inline="always")
+def _velocity(co, s, u):
+    """r'(u) of segment s (Horner on ``derivative_coefficients``)."""
+    x = (((co[s, 4, 0] * u + co[s, 3, 0]) * u + co[s, 2, 0]) * u + co[s, 1, 0]) * u + co[s, 0, 0]
+    y = (((co[s, 4, 1] * u + co[s, 3, 1]) * u + co[s, 2, 1]) * u + co[s, 1, 1]) * u + co[s, 0, 1]
+    z = (((co[s, 4, 2] * u + co[s, 3, 2]) * u + co[s, 2, 2]) * u + co[s, 1, 2]) * u + co[s, 0, 2]
+    return x, y, z
+
+
+@njit(cache=True)
+def _put_sample(cp, co, s, t, i, b, d1, pts, pos, r1):
     """Sample ``i``: segment ``s``'s point and first derivative at parameter ``t`` into
-    ``pts[i]``, ``pos[:, i]`` and ``r1[i]`` (``b``, ``d1``, ``d2``: the basis buffers)."""
-    _basis(t, b, d1, d2)
+    ``pts[i]``, ``pos[:, i]`` and ``r1[i]`` (``b``, ``d1``: basis buffers)."""
+    _basis(t, b, d1)
     for d in range(3):
         x = 0.0
-        y = 0.0
         for c in range(6):
             x += b[c] * cp[s, c, d]
-            y += d1[c] * cp[s, c, d]
         pts[i, d] = x
         pos[d, i] = x
-        r1[i, d] = y
+    r1[i, 0], r1[i, 1], r1[i, 2] = _velocity(co, s, t)
 
 
 @njit(cache=True)
-def _arc(cp, s, t, aq, b, d1, d2, want_dt):
-    """(S(t), ∂S/∂t) of segment s (``want_dt`` False: ∂S/∂t = 0)."""
+def _arc(co, s, t, aq, want_dt):
+    """(S(t), ∂S/∂t) of segment s (``want_dt`` False: ∂S/∂t = 0); ``co`` the segments'
+    ``derivative_coefficients``."""
     val, der = 0.0, 0.0
     for q in range(aq.shape[1]):
         u = t * aq[0, q]
-        _basis(u, b, d1, d2)
-        r1x = r1y = r1z = r2x = r2y = r2z = 0.0
-        for c in range(6):
-            r1x += d1[c] * cp[s, c, 0]
-            r1y += d1[c] * cp[s, c, 1]
-            r1z += d1[c] * cp[s, c, 2]
-            if want_dt:
-                r2x += d2[c] * cp[s, c, 0]
-                r2y += d2[c] * cp[s, c, 1]
-                r2z += d2[c] * cp[s, c, 2]
+        r1x, r1y, r1z = _velocity(co, s, u)
         v = np.sqrt(r1x * r1x + r1y * r1y + r1z * r1z)
         val += aq[1, q] * v
         if want_dt:
+            r2x = ((co[s, 8, 0] * u + co[s, 7, 0]) * u + co[s, 6, 0]) * u + co[s, 5, 0]
+            r2y = ((co[s, 8, 1] * u + co[s, 7, 1]) * u + co[s, 6, 1]) * u + co[s, 5, 1]
+            r2z = ((co[s, 8, 2] * u + co[s, 7, 2]) * u + co[s, 6, 2]) * u + co[s, 5, 2]
             der += aq[1, q] * (v + u * (r1x * r2x + r1y * r2y + r1z * r2z) / v)
     return t * val, der
 
 
 @njit(cache=True)
-def _root(cp, s, goal, tj, aq, b, d1, d2):
+def _root(co, s, goal, tj, aq):
     """The parameter t of segment s where S(t) = ``goal``, by Newton from ``tj``."""
     for _ in range(NEWTON_STEPS):
-        val, der = _arc(cp, s, tj, aq, b, d1, d2, True)
+        val, der = _arc(co, s, tj, aq, True)
         step = (val - goal) / der
         tn = tj - step
         # stay inside (0, 1): S is increasing, so the root lies between
@@ -115,16 +145,20 @@ def _root(cp, s, goal, tj, aq, b, d1, d2):
 def arclength_params(cp, n, aq):
     """(t (S, n): each sample's parameter, seglen (S,): each segment's length S(1)) of
     the samples at arclength fractions (j + 1/2)/n of every segment."""
-    nseg = cp.shape[0]
+    return _arclength_params(derivative_coefficients(cp), n, aq)
+
+
+@njit(cache=True)
+def _arclength_params(co, n, aq):
+    nseg = co.shape[0]
     t = np.empty((nseg, n))
     seglen = np.empty(nseg)
-    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
     for s in range(nseg):
-        ell = _arc(cp, s, 1.0, aq, b, d1, d2, False)[0]
+        ell = _arc(co, s, 1.0, aq, False)[0]
         seglen[s] = ell
         tj = 0.5 / n  # then each sample's Newton starts from the previous root
         for j in range(n):
-            tj = _root(cp, s, (j + 0.5) / n * ell, tj, aq, b, d1, d2)
+            tj = _root(co, s, (j + 0.5) / n * ell, tj, aq)
             t[s, j] = tj
     return t, seglen
 
@@ -137,18 +171,19 @@ def arclength_sample_cell(cp, n, aq):
     and the total; then the parameters t (S, n)."""
     nseg = cp.shape[0]
     ns = nseg * n
-    t, seglen = arclength_params(cp, n, aq)
+    co = derivative_coefficients(cp)
+    t, seglen = _arclength_params(co, n, aq)
     pts = np.empty((ns, 3))
     r1 = np.empty((ns, 3))
     speed = np.empty(ns)
     s_mid = np.empty(ns)
     pos = np.empty((3, ns))
-    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    b, d1 = np.empty(6), np.empty(6)
     before = 0.0
     for s in range(nseg):
         for j in range(n):
             i = s * n + j
-            _put_sample(cp, s, t[s, j], i, b, d1, d2, pts, pos, r1)
+            _put_sample(cp, co, s, t[s, j], i, b, d1, pts, pos, r1)
             speed[i] = seglen[s]
             s_mid[i] = before + (j + 0.5) / n * seglen[s]
         before += seglen[s]
@@ -156,22 +191,25 @@ def arclength_sample_cell(cp, n, aq):
 
 
 @njit(cache=True)
-def _arc_gradient(cp, s, t, aq, b, d1, d2, out):
-    """∂S(t)/∂P of segment s into ``out`` (6, 3)."""
+def _arc_gradient(co, s, t, aq, d1, out):
+    """∂S(t)/∂P of segment s into ``out`` (6, 3); returns ∂S/∂t (``_arc``'s)."""
     out[:] = 0.0
+    der = 0.0
     for q in range(aq.shape[1]):
         u = t * aq[0, q]
-        _basis(u, b, d1, d2)
-        r1x = r1y = r1z = 0.0
-        for c in range(6):
-            r1x += d1[c] * cp[s, c, 0]
-            r1y += d1[c] * cp[s, c, 1]
-            r1z += d1[c] * cp[s, c, 2]
-        f = t * aq[1, q] / np.sqrt(r1x * r1x + r1y * r1y + r1z * r1z)
+        _derivative_basis(u, d1)
+        r1x, r1y, r1z = _velocity(co, s, u)
+        v = np.sqrt(r1x * r1x + r1y * r1y + r1z * r1z)
+        r2x = ((co[s, 8, 0] * u + co[s, 7, 0]) * u + co[s, 6, 0]) * u + co[s, 5, 0]
+        r2y = ((co[s, 8, 1] * u + co[s, 7, 1]) * u + co[s, 6, 1]) * u + co[s, 5, 1]
+        r2z = ((co[s, 8, 2] * u + co[s, 7, 2]) * u + co[s, 6, 2]) * u + co[s, 5, 2]
+        der += aq[1, q] * (v + u * (r1x * r2x + r1y * r2y + r1z * r2z) / v)
+        f = t * aq[1, q] / v
         for c in range(6):
             out[c, 0] += f * d1[c] * r1x
             out[c, 1] += f * d1[c] * r1y
             out[c, 2] += f * d1[c] * r1z
+    return der
 
 
 @njit(cache=True)
@@ -180,12 +218,13 @@ def project_arclength_gradient(g, cp, r1, t, aq, grad_cp):
     (module docstring); ``r1`` (S n, 3) the derivatives and ``t`` (S, n) the parameters
     of ``arclength_sample_cell``."""
     nseg, n = t.shape
+    co = derivative_coefficients(cp)
     grad_cp[:] = 0.0
-    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    b, d1 = np.empty(6), np.empty(6)
     dl = np.empty((6, 3))
     ds = np.empty((6, 3))
     for s in range(nseg):
-        _arc_gradient(cp, s, 1.0, aq, b, d1, d2, dl)
+        _arc_gradient(co, s, 1.0, aq, d1, dl)
         gl = 0.0
         for j in range(n):
             i = s * n + j
@@ -193,14 +232,13 @@ def project_arclength_gradient(g, cp, r1, t, aq, grad_cp):
             gl += g[i, 3]
             gr = g[i, 0] * r1[i, 0] + g[i, 1] * r1[i, 1] + g[i, 2] * r1[i, 2]
             if gr != 0.0:
-                st = _arc(cp, s, tj, aq, b, d1, d2, True)[1]
-                _arc_gradient(cp, s, tj, aq, b, d1, d2, ds)
+                st = _arc_gradient(co, s, tj, aq, d1, ds)
                 f = (j + 0.5) / n
                 w = gr / st
                 for c in range(6):
                     for d in range(3):
                         grad_cp[s, c, d] += w * (f * dl[c, d] - ds[c, d])
-            _basis(tj, b, d1, d2)
+            _basis(tj, b, d1)
             for c in range(6):
                 for d in range(3):
                     grad_cp[s, c, d] += b[c] * g[i, d]
@@ -224,10 +262,11 @@ def yarn_sample_cell(cp, n, aq):
     (above); the parameters are returned as (S N, 2): segment, t."""
     nseg = cp.shape[0]
     ns = nseg * n
-    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    co = derivative_coefficients(cp)
+    b, d1 = np.empty(6), np.empty(6)
     seglen = np.empty(nseg)
     for s in range(nseg):
-        seglen[s] = _arc(cp, s, 1.0, aq, b, d1, d2, False)[0]
+        seglen[s] = _arc(co, s, 1.0, aq, False)[0]
     total = seglen.sum()
     pts, r1, pos = np.empty((ns, 3)), np.empty((ns, 3)), np.empty((3, ns))
     speed, s_mid, st = np.empty(ns), np.empty(ns), np.empty((ns, 2))
@@ -239,9 +278,9 @@ def yarn_sample_cell(cp, n, aq):
             s += 1
             tj = 0.0
         local = goal - before
-        tj = _root(cp, s, local, max(tj, min(local / seglen[s], 1.0 - 1e-12)), aq, b, d1, d2)
+        tj = _root(co, s, local, max(tj, min(local / seglen[s], 1.0 - 1e-12)), aq)
         st[i, 0], st[i, 1] = s, tj
-        _put_sample(cp, s, tj, i, b, d1, d2, pts, pos, r1)
+        _put_sample(cp, co, s, tj, i, b, d1, pts, pos, r1)
         speed[i] = total / nseg
         s_mid[i] = goal
     return pts, pos, r1, speed, s_mid, total, st
@@ -253,8 +292,9 @@ def project_yarn_gradient(g, cp, r1, st, aq, grad_cp):
     ``yarn_sample_cell`` (``st`` their segments and parameters)."""
     nseg = cp.shape[0]
     ns = st.shape[0]
+    co = derivative_coefficients(cp)
     grad_cp[:] = 0.0
-    b, d1, d2 = np.empty(6), np.empty(6), np.empty(6)
+    b, d1 = np.empty(6), np.empty(6)
     ds = np.empty((6, 3))
     coef = np.zeros(nseg)  # the coefficient of ∂ℓ_s/∂P
     after = np.zeros(nseg)  # Σ A_i over the samples in segments after s
@@ -265,23 +305,48 @@ def project_yarn_gradient(g, cp, r1, st, aq, grad_cp):
         gv += g[i, 3]
         gr = g[i, 0] * r1[i, 0] + g[i, 1] * r1[i, 1] + g[i, 2] * r1[i, 2]
         if gr != 0.0:
-            a = gr / _arc(cp, s, tj, aq, b, d1, d2, True)[1]
+            a = gr / _arc_gradient(co, s, tj, aq, d1, ds)
             f = (i + 0.5) / ns
             for q in range(nseg):
                 coef[q] += a * f
             for q in range(s):
                 after[q] += a
-            _arc_gradient(cp, s, tj, aq, b, d1, d2, ds)
             for c in range(6):
                 for d in range(3):
                     grad_cp[s, c, d] -= a * ds[c, d]
-        _basis(tj, b, d1, d2)
+        _basis(tj, b, d1)
         for c in range(6):
             for d in range(3):
                 grad_cp[s, c, d] += b[c] * g[i, d]
     for s in range(nseg):
-        _arc_gradient(cp, s, 1.0, aq, b, d1, d2, ds)
+        _arc_gradient(co, s, 1.0, aq, d1, ds)
         w = coef[s] - after[s] + gv / nseg
         for c in range(6):
             for d in range(3):
                 grad_cp[s, c, d] += w * ds[c, d]
+
+
+@njit(cache=True)
+def length_spread(cp, jac, aq, stiffness, with_grad):
+    """(stiffness Σ_s (ℓ_s − ℓ̄)², its gradient (n,)) of control points ``cp`` (S, 6, 3):
+    ℓ_s the segments' lengths by the rule ``aq`` (``arclength_rule``), ℓ̄ their mean; the
+    gradient through ``jac`` (S, 6, 3, n), zero without ``with_grad`` (Σ_s (ℓ_s − ℓ̄) = 0
+    drops the mean's share)."""
+    nseg = cp.shape[0]
+    co = derivative_coefficients(cp)
+    ell = np.empty(nseg)
+    for s in range(nseg):
+        ell[s] = _arc(co, s, 1.0, aq, False)[0]
+    dev = ell - ell.mean()
+    grad = np.zeros(jac.shape[3])
+    if with_grad:
+        d1, ds = np.empty(6), np.empty((6, 3))
+        for s in range(nseg):
+            _arc_gradient(co, s, 1.0, aq, d1, ds)
+            w = 2.0 * stiffness * dev[s]
+            for c in range(6):
+                for d in range(3):
+                    f = w * ds[c, d]
+                    for k in range(grad.size):
+                        grad[k] += f * jac[s, c, d, k]
+    return stiffness * (dev @ dev), grad

@@ -31,7 +31,6 @@ Hermite interpolant of the curve at those joints.
 from __future__ import annotations
 
 import itertools
-from math import comb
 
 import numpy as np
 
@@ -46,12 +45,8 @@ JOINT_STIFFNESS = 1e-4
 """mJ/mm²: the weight of the joints' penalty (``joint_gauge``)."""
 _PIECES, _NODES = 64, 8  # composite Gauss rule of a segment's arclength
 _GX, _GW = np.polynomial.legendre.leggauss(_NODES)
-_JX, _JW = np.polynomial.legendre.leggauss(16)  # the penalty's segment lengths
-_JX, _JW = 0.5 * (_JX + 1.0), 0.5 * _JW
-_JD = (np.stack([comb(4, i) * _JX**i * (1.0 - _JX) ** (4 - i) for i in range(5)], axis=1)
-       @ (5.0 * (np.eye(5, 6, 1) - np.eye(5, 6))))  # fmt: skip
-"""(16, 6): r'(u) at the nodes = _JD @ (a segment's control points)."""
-_JDW = np.ascontiguousarray((_JD * _JW[:, None]).T)  # (6, 16): Σ_q w_q _JD[q, c] ·
+_JRULE = np.ascontiguousarray((np.polynomial.legendre.leggauss(16) + np.array([[1.0], [0.0]])) / 2)
+"""(2, 16): the penalty's rule for the segments' lengths (nodes, weights on [0, 1])."""
 
 
 def _derivatives(c: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -131,15 +126,9 @@ def joint_gauge(
 ) -> tuple[float, np.ndarray | None]:
     """The joints' penalty JOINT_STIFFNESS Σ_s (ℓ_s − ℓ/8)² (mJ) of control points ``cp``
     (8, 6, 3), the segments' lengths ℓ_s by a 16-node Gauss rule, and with ``with_grad``
-    its exact gradient through ``jac`` (8, 6, 3, n) (else None)."""
-    rp = _JD @ cp  # (8, 16, 3): r' at the nodes
-    speed = np.sqrt((rp * rp).sum(axis=2))
-    d = speed @ _JW
-    d -= d.mean()
-    energy = JOINT_STIFFNESS * float(d @ d)
-    if not with_grad:
-        return energy, None
-    # dℓ_s/dcp_s = Σ_q w_q _JD[q, c] r'/|r'|; Σ_s d_s = 0 drops the mean's share
-    dl = _JDW @ (rp / speed[..., None])  # (8, 6, 3)
-    coef = ((2.0 * JOINT_STIFFNESS) * d[:, None, None] * dl).reshape(-1)
-    return energy, coef @ jac.reshape(coef.size, -1)
+    its exact gradient through ``jac`` (8, 6, 3, n) (else None). Compiled
+    (``kernels.arclength.length_spread``): a relaxation calls it with every evaluation."""
+    from ...kernels.arclength import length_spread  # numba: only relaxations call it
+
+    energy, grad = length_spread(cp, jac, _JRULE, JOINT_STIFFNESS, with_grad)
+    return energy, grad if with_grad else None
