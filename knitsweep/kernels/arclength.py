@@ -125,7 +125,9 @@ def _arc(co, s, t, aq, want_dt):
 
 @njit(cache=True)
 def _root(co, s, goal, tj, aq):
-    """The parameter t of segment s where S(t) = ``goal``, by Newton from ``tj``."""
+    """(t, ∂S/∂t near t): the parameter t of segment s where S(t) = ``goal``, by Newton
+    from ``tj``, and the derivative its last step used (for the next root's guess)."""
+    der = 1.0
     for _ in range(NEWTON_STEPS):
         val, der = _arc(co, s, tj, aq, True)
         step = (val - goal) / der
@@ -138,7 +140,7 @@ def _root(co, s, goal, tj, aq):
         tj = tn
         if abs(step) < 1e-11:  # quadratic convergence: the root to round-off
             break
-    return tj
+    return tj, der
 
 
 @njit(cache=True)
@@ -158,7 +160,7 @@ def _arclength_params(co, n, aq):
         seglen[s] = ell
         tj = 0.5 / n  # then each sample's Newton starts from the previous root
         for j in range(n):
-            tj = _root(co, s, (j + 0.5) / n * ell, tj, aq)
+            tj = _root(co, s, (j + 0.5) / n * ell, tj, aq)[0]
             t[s, j] = tj
     return t, seglen
 
@@ -270,15 +272,19 @@ def yarn_sample_cell(cp, n, aq):
     total = seglen.sum()
     pts, r1, pos = np.empty((ns, 3)), np.empty((ns, 3)), np.empty((3, ns))
     speed, s_mid, st = np.empty(ns), np.empty(ns), np.empty((ns, 2))
-    s, before, tj = 0, 0.0, 0.0
+    s, before, tj, der, last = 0, 0.0, 0.0, 1.0, -1.0
     for i in range(ns):
         goal = (i + 0.5) / ns * total
         while s < nseg - 1 and goal - before > seglen[s]:
             before += seglen[s]
             s += 1
-            tj = 0.0
+            last = -1.0
         local = goal - before
-        tj = _root(co, s, local, max(tj, min(local / seglen[s], 1.0 - 1e-12)), aq)
+        # Newton from the tangent line at the segment's previous root (S' there), or
+        # from the segment's mean speed for its first
+        guess = tj + (local - last) / der if last >= 0.0 else local / seglen[s]
+        tj, der = _root(co, s, local, min(max(guess, 1e-12), 1.0 - 1e-12), aq)
+        last = local
         st[i, 0], st[i, 1] = s, tj
         _put_sample(cp, co, s, tj, i, b, d1, pts, pos, r1)
         speed[i] = total / nseg
