@@ -34,8 +34,9 @@ from contextlib import contextmanager
 import numpy as np
 from numba import njit
 
-import knitsweep.model as model_module
+import knitsweep.stitches.images as images_module
 from knitsweep.config import StartSettings, StitchParams
+from knitsweep.kernels.arclength import length_spread
 from knitsweep.kernels.bending import bending_and_length
 from knitsweep.kernels.cell import _state_gradients
 from knitsweep.kernels.mirrored import N_MIRROR_CLASSES, mirrored_contact_energy_exhaustive
@@ -49,18 +50,22 @@ PARAMS = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)
 
 
 @njit(cache=True)
-def _pattern_cell_energy_exhaustive(cp, jac, ax, ay, qtab, qw, ctab, seg_w, bend, reg, r, rc, k,
-                                    p, pm, pn, with_grad, grad_e, grad_l):  # fmt: skip
+def _pattern_cell_energy_exhaustive(cp, jac, ax, ay, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc,
+                                    k, p, pm, pn, gauge_rule, gauge_stiffness, with_grad, grad_e,
+                                    grad_l):  # fmt: skip
     """``pattern_cell.pattern_cell_energy`` with the exhaustive contact kernel."""
     ge, gl, gc = np.empty_like(cp), np.empty_like(cp), np.empty_like(cp)
     gcell = np.zeros(2)
     eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
     ce = np.zeros(N_MIRROR_CLASSES)
-    ec = mirrored_contact_energy_exhaustive(cp, ctab, ax, ay, r, rc, k, p, pm, pn, -1, with_grad,
-                                            gc, gcell, ce)  # fmt: skip
+    ec = mirrored_contact_energy_exhaustive(cp, ctab, aq, ax, ay, r, rc, k, p, pm, pn, -1,
+                                            with_grad, gc, gcell, ce)  # fmt: skip
+    penalty = 0.0
+    if gauge_stiffness > 0.0:
+        penalty = length_spread(cp, gauge_rule, gauge_stiffness, with_grad, ge)
     if with_grad:
         _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
-    return eb, ec, length
+    return eb, ec, length, penalty
 
 
 KERNELS = {"culled": pattern_cell_energy, "exhaustive": _pattern_cell_energy_exhaustive}
@@ -69,12 +74,12 @@ KERNELS = {"culled": pattern_cell_energy, "exhaustive": _pattern_cell_energy_exh
 @contextmanager
 def garter_kernel(name: str):
     """CellModel's pattern kernel replaced by ``KERNELS[name]`` for the block."""
-    saved = model_module.pattern_cell_energy
-    model_module.pattern_cell_energy = KERNELS[name]
+    saved = images_module.pattern_cell_energy
+    images_module.pattern_cell_energy = KERNELS[name]
     try:
         yield
     finally:
-        model_module.pattern_cell_energy = saved
+        images_module.pattern_cell_energy = saved
 
 
 class Clock:

@@ -80,6 +80,8 @@ copies of it, not re-interpolations."""
 ARC_PANELS, ARC_NODES = 2, 8
 """The composite Gauss rule (panels, nodes per panel) of a segment's arclength S(t) when
 the contact samples are placed by arclength (``kernels.arclength``)."""
+_NO_RULE = np.zeros((2, 0))
+"""The gauge rule passed where there is no gauge penalty (the kernel reads none)."""
 
 
 class CellModel:
@@ -137,26 +139,22 @@ class CellModel:
         self._geometry(x, self._cp, self._jac)
         return self._cp, self._jac
 
-    def _call(self, x: np.ndarray, with_grad: bool) -> tuple[float, float, float]:
+    def _call(self, x: np.ndarray, with_grad: bool) -> tuple[float, float, float, float]:
         x = self._as_state(x)
         cp, jac = self._geometry_of(x)
         return self.image_group.energy(self, cp, jac, x, with_grad)
 
-    def _gauge_penalty(self, with_grad: bool) -> float:
-        """The gauge's penalty (mJ) at the geometry in this model's buffers, its gradient
-        added to ``_grad_e`` with ``with_grad``; 0 without a gauge."""
-        if not self.gauge.size:  # no gauge, or one released (benchmarks, tests)
-            return 0.0
-        assert self._gauge is not None
-        e, g = self._gauge.penalty(self._cp, self._jac, with_grad)
-        if with_grad:
-            self._grad_e += g
-        return e
+    def gauge_penalty_args(self) -> tuple[np.ndarray, float]:
+        """(the rule of the segments' lengths, the stiffness in mJ/mm²) of the gauge's
+        penalty that the pattern kernel sums with the energy; stiffness 0 without a gauge
+        or with it released (``gauge`` emptied: benchmarks, tests)."""
+        if self._gauge is None or not self.gauge.size:
+            return _NO_RULE, 0.0
+        return self._gauge.rule, self._gauge.stiffness
 
     def energies(self, x: np.ndarray) -> Energies:
         """Bending and contact energy (mJ) and yarn length (mm) of state ``x``."""
-        eb, ec, length = self._call(x, False)
-        return Energies(eb, ec, length, self._gauge_penalty(False))
+        return Energies(*self._call(x, False))
 
     def energy_and_gradients(
         self, x: np.ndarray, neighbours: NeighbourList | None = None
@@ -170,11 +168,10 @@ class CellModel:
         when the state has moved too far for it.
         """
         if neighbours is None or not self.image_group.lists_neighbours:
-            eb, ec, length = self._call(x, True)
+            energies = Energies(*self._call(x, True))
         else:
-            eb, ec, length = self._call_listed(self._as_state(x), neighbours)
-        gauge = self._gauge_penalty(True)
-        return Energies(eb, ec, length, gauge), self._grad_e.copy(), self._grad_l.copy()
+            energies = Energies(*self._call_listed(self._as_state(x), neighbours))
+        return energies, self._grad_e.copy(), self._grad_l.copy()
 
     def neighbour_list(self, x: np.ndarray, skin: float = 0.1) -> NeighbourList:
         """A Verlet list of the contact candidates around state ``x`` (skin in mm)."""
@@ -187,12 +184,12 @@ class CellModel:
         nl.arrays = build_neighbour_list(*self.image_group.neighbour_args(self, cp, x, nl.skin))
         nl.rebuilds += 1
 
-    def _call_listed(self, x: np.ndarray, nl: NeighbourList) -> tuple[float, float, float]:
+    def _call_listed(self, x: np.ndarray, nl: NeighbourList) -> tuple[float, float, float, float]:
         cp, jac = self._geometry_of(x)
         eb, ec, length, valid = self.image_group.energy_listed(self, cp, jac, x, nl.arrays)
         if not valid:  # the sums came from the full search; refresh the list here
             self._rebuild(x, nl)
-        return eb, ec, length
+        return eb, ec, length, 0.0  # a listed sum's stitch has no gauge
 
     def gauged(self, x: np.ndarray) -> np.ndarray:
         """State ``x`` in this model's gauge (``gauge``): unchanged where there is none

@@ -133,26 +133,30 @@ def test_a_relaxation_stopped_with_overlapping_cores_is_not_knittable():
 
 
 def test_the_joints_penalty_and_its_gradient():
-    """``joint_gauge``: JOINT_STIFFNESS Σ (ℓ_s − ℓ/8)², zero where the segments are equally
-    long, its gradient exact (central differences), part of what the model's gradient holds
-    but never of a reported energy."""
-    from knitsweep.stitches.stockinette_free.gauge import JOINT_STIFFNESS, joint_gauge
+    """The joints' penalty JOINT_STIFFNESS Σ (ℓ_s − ℓ/8)², summed by the pattern kernel: its
+    gradient exact (central differences of the penalty alone: the gradient with the gauge
+    less the gradient with it released), part of what the model's gradient holds but never
+    of a reported energy."""
+    from knitsweep.stitches.stockinette_free.gauge import JOINT_STIFFNESS
 
     m = _model("stockinette_free")
     x = m.gauged(m.stitch.start(2))
-    cp, jac = m.control_points_and_jacobian(x)
-    e, g = joint_gauge(cp, jac, True)
+    energies, g, _ = m.energy_and_gradients(x)
+    e = energies.gauge_energy
     assert 0.0 < e < JOINT_STIFFNESS * 8 * (0.1 * x[m.gauge[0]]) ** 2
+    entries = m.gauge
+    m.gauge = np.empty(0, dtype=np.int64)  # released: no penalty
+    released, g0, _ = m.energy_and_gradients(x)
+    assert released.gauge_energy == 0.0
+    assert released.total_energy == energies.total_energy
+    m.gauge = entries
     h = 1e-6
     for k in range(0, x.size, 5):
         xp, xm = x.copy(), x.copy()
         xp[k] += h
         xm[k] -= h
-        fd = (joint_gauge(m.control_points(xp), jac, False)[0]
-              - joint_gauge(m.control_points(xm), jac, False)[0]) / (2 * h)  # fmt: skip
-        assert g[k] == pytest.approx(fd, rel=1e-6, abs=1e-12)
-    energies = m.energy_and_gradients(x)[0]
-    assert energies.gauge_energy == e
+        fd = (m.energies(xp).gauge_energy - m.energies(xm).gauge_energy) / (2 * h)
+        assert g[k] - g0[k] == pytest.approx(fd, rel=1e-6, abs=1e-12)
     assert energies.total_energy == energies.bending_energy + energies.contact_energy
     plain = _model("stockinette_free", sampling="parameter")
     assert plain.energies(x).gauge_energy == 0.0

@@ -333,18 +333,17 @@ def project_yarn_gradient(g, cp, r1, st, aq, grad_cp):
 
 
 @njit(cache=True)
-def length_spread(cp, jac, aq, stiffness, with_grad):
-    """(stiffness Σ_s (ℓ_s − ℓ̄)², its gradient (n,)) of control points ``cp`` (S, 6, 3):
-    ℓ_s the segments' lengths by the rule ``aq`` (``arclength_rule``), ℓ̄ their mean; the
-    gradient through ``jac`` (S, 6, 3, n), zero without ``with_grad`` (Σ_s (ℓ_s − ℓ̄) = 0
-    drops the mean's share)."""
+def length_spread(cp, aq, stiffness, with_grad, grad_cp):
+    """stiffness Σ_s (ℓ_s − ℓ̄)² of control points ``cp`` (S, 6, 3), ℓ_s the segments'
+    lengths by the rule ``aq`` (``arclength_rule``), ℓ̄ their mean; with ``with_grad`` its
+    gradient added into ``grad_cp`` (S, 6, 3) (Σ_s (ℓ_s − ℓ̄) = 0 drops the mean's share).
+    A free yarn's gauge penalty on its joints' slides (``stitches.base.Gauge``)."""
     nseg = cp.shape[0]
     co = derivative_coefficients(cp)
     ell = np.empty(nseg)
     for s in range(nseg):
         ell[s] = _arc(co, s, 1.0, aq, False)[0]
     dev = ell - ell.mean()
-    grad = np.zeros(jac.shape[3])
     if with_grad:
         d1, ds = np.empty(6), np.empty((6, 3))
         for s in range(nseg):
@@ -352,7 +351,5 @@ def length_spread(cp, jac, aq, stiffness, with_grad):
             w = 2.0 * stiffness * dev[s]
             for c in range(6):
                 for d in range(3):
-                    f = w * ds[c, d]
-                    for k in range(grad.size):
-                        grad[k] += f * jac[s, c, d, k]
-    return stiffness * (dev @ dev), grad
+                    grad_cp[s, c, d] += w * ds[c, d]
+    return stiffness * (dev @ dev)

@@ -84,17 +84,20 @@ def image_points(points: np.ndarray, m: int, n: int, a_x: float, a_y: float,
     return points + np.array([m * a_x, n * a_y, 0.0])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Gauge:
     """How a free yarn fixes its parametrisation (``stitches.stockinette_free.gauge``):
     the ``entries`` a relaxation holds at L / n_segments (its end speeds), ``regauge(x,
-    control_points, L)`` bringing any state into the gauge with its curve kept, and
-    ``penalty(control_points, jacobian, with_grad) -> (mJ, gradient (n,) or None)``, the
-    weak term on the joints' slides that a relaxation minimises with the energy."""
+    control_points, L)`` bringing any state into the gauge with its curve kept, and the
+    weak term on the joints' slides that a relaxation minimises with the energy,
+    ``stiffness`` (mJ/mm²) × Σ_s (ℓ_s − ℓ̄)² over the segments' lengths ℓ_s by the
+    quadrature ``rule`` (2, K) (nodes, weights on [0, 1]), which the pattern kernel sums
+    with the energy (``kernels.pattern_cell``)."""
 
     entries: tuple[int, ...]
     regauge: Callable[[np.ndarray, np.ndarray, float], np.ndarray]
-    penalty: Callable[[np.ndarray, np.ndarray, bool], tuple[float, np.ndarray | None]]
+    stiffness: float
+    rule: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)

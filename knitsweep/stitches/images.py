@@ -81,8 +81,9 @@ class Translations:
         return (cp, jac, x[-2], x[-1], m._qtab, m._qw, m._ctab, m._seg_w, ip.bend, ip.reg,
                 ip.r, ip.rc, ip.k, ip.p, m._mode, with_grad, m._grad_e, m._grad_l)  # fmt: skip
 
-    def energy(self, m, cp, jac, x, with_grad) -> tuple[float, float, float]:
-        return cell_energy(*self.energy_args(m, cp, jac, x, with_grad))
+    def energy(self, m, cp, jac, x, with_grad) -> tuple[float, float, float, float]:
+        """(E_b, E_c, length, gauge penalty: none here) with the gradients (``energy_args``)."""
+        return (*cell_energy(*self.energy_args(m, cp, jac, x, with_grad)), 0.0)
 
     def energy_listed(self, m, cp, jac, x, arrays) -> tuple[float, float, float, bool]:
         """The energies and gradients over a neighbour list's pairs (``arrays``), and
@@ -157,10 +158,10 @@ class Glides(Translations):
     def energy_args(self, m, cp, jac, x, with_grad) -> tuple:
         ip = m.ip
         return (cp, jac, x[-2], x[-1], m._qtab, m._qw, m._ctab, m._aq, m._seg_w, ip.bend,
-                ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.parity, with_grad, m._grad_e,
-                m._grad_l)  # fmt: skip
+                ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.parity, *m.gauge_penalty_args(),
+                with_grad, m._grad_e, m._grad_l)  # fmt: skip
 
-    def energy(self, m, cp, jac, x, with_grad) -> tuple[float, float, float]:
+    def energy(self, m, cp, jac, x, with_grad) -> tuple[float, float, float, float]:
         return pattern_cell_energy(*self.energy_args(m, cp, jac, x, with_grad))
 
     def energy_listed(self, m, cp, jac, x, arrays):

@@ -17,7 +17,7 @@ from typing import Any
 from ..base import MIRROR_CLASSES, Gauge, Stitch
 from . import gauge, layout
 
-GAUGE = Gauge(gauge.SPEED_ENTRIES, gauge.regauge, gauge.joint_gauge)
+GAUGE = Gauge(gauge.SPEED_ENTRIES, gauge.regauge, gauge.JOINT_STIFFNESS, gauge.JOINT_RULE)
 """The free yarn's gauge: end speeds at L/8, joints near equal fractions of the yarn."""
 
 

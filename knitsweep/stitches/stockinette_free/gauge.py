@@ -15,9 +15,9 @@ yarn, and the rest of the state says where the curve goes.
 The joints can still slide along the yarn (a speed held at L/8 at both ends of two
 segments of different lengths makes the slide cost a little bending, 10⁻⁶–3·10⁻⁵ mJ/mm²
 at stockinette_free's minimum at 10.5 mm, against 10⁻⁴ and up for the physical modes):
-``joint_gauge`` is the weak penalty JOINT_STIFFNESS Σ_s (ℓ_s − ℓ/8)² on the segments'
-lengths that makes those slides as stiff as the softest physical mode. It enters what a
-relaxation minimises, never a reported energy (``Energies.gauge_energy``), and at the
+the weak penalty JOINT_STIFFNESS Σ_s (ℓ_s − ℓ/8)² on the segments' lengths makes those
+slides as stiff as the softest physical mode (summed with the energy by the pattern kernel,
+``kernels.arclength.length_spread``). It enters what a relaxation minimises, never a reported energy (``Energies.gauge_energy``), and at the
 minima it moves the energy by less than 10⁻⁶ mJ (measured, docs/model.md §11).
 
 ``regauge`` brings any state of the free yarn into the gauge without moving its curve
@@ -42,11 +42,12 @@ SPEED_ENTRIES = tuple(layout.SEG0 + layout.PER_SEGMENT * s + e
 OFFSET_ENTRIES = tuple(i + 1 for i in SPEED_ENTRIES)
 """The offsets β0, β1 of every segment."""
 JOINT_STIFFNESS = 1e-4
-"""mJ/mm²: the weight of the joints' penalty (``joint_gauge``)."""
+"""mJ/mm²: the weight of the joints' penalty (module docstring)."""
 _PIECES, _NODES = 64, 8  # composite Gauss rule of a segment's arclength
 _GX, _GW = np.polynomial.legendre.leggauss(_NODES)
-_JRULE = np.ascontiguousarray((np.polynomial.legendre.leggauss(16) + np.array([[1.0], [0.0]])) / 2)
-"""(2, 16): the penalty's rule for the segments' lengths (nodes, weights on [0, 1])."""
+JOINT_RULE = np.ascontiguousarray((np.polynomial.legendre.leggauss(16) + np.array([[1.0], [0]])) / 2)
+"""(2, 16): the penalty's rule for the segments' lengths, 16 Gauss nodes and weights on
+[0, 1] (``kernels.arclength.length_spread`` sums it)."""
 
 
 def _derivatives(c: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -119,16 +120,3 @@ def regauge(x: np.ndarray, cp: np.ndarray, L: float) -> np.ndarray:
     out[list(SPEED_ENTRIES)] = L / layout.N_SEGMENTS
     out[list(OFFSET_ENTRIES)] = L / (5 * layout.N_SEGMENTS)
     return out
-
-
-def joint_gauge(
-    cp: np.ndarray, jac: np.ndarray, with_grad: bool
-) -> tuple[float, np.ndarray | None]:
-    """The joints' penalty JOINT_STIFFNESS Σ_s (ℓ_s − ℓ/8)² (mJ) of control points ``cp``
-    (8, 6, 3), the segments' lengths ℓ_s by a 16-node Gauss rule, and with ``with_grad``
-    its exact gradient through ``jac`` (8, 6, 3, n) (else None). Compiled
-    (``kernels.arclength.length_spread``): a relaxation calls it with every evaluation."""
-    from ...kernels.arclength import length_spread  # numba: only relaxations call it
-
-    energy, grad = length_spread(cp, jac, _JRULE, JOINT_STIFFNESS, with_grad)
-    return energy, grad if with_grad else None
