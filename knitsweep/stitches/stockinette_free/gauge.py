@@ -45,7 +45,8 @@ JOINT_STIFFNESS = 1e-4
 """mJ/mm²: the weight of the joints' penalty (module docstring)."""
 _PIECES, _NODES = 64, 8  # composite Gauss rule of a segment's arclength
 _GX, _GW = np.polynomial.legendre.leggauss(_NODES)
-JOINT_RULE = np.ascontiguousarray((np.polynomial.legendre.leggauss(16) + np.array([[1.0], [0]])) / 2)
+_JX, _JW = np.polynomial.legendre.leggauss(16)
+JOINT_RULE = np.ascontiguousarray([(_JX + 1.0) / 2, _JW / 2])
 """(2, 16): the penalty's rule for the segments' lengths, 16 Gauss nodes and weights on
 [0, 1] (``kernels.arclength.length_spread`` sums it)."""
 
