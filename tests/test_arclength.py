@@ -8,7 +8,11 @@ import pytest
 from pydantic import ValidationError
 
 from knitsweep.config import Fidelity, StitchParams
-from knitsweep.kernels.arclength import arclength_params, arclength_rule
+from knitsweep.kernels.arclength import (
+    arclength_params,
+    arclength_rule,
+    derivative_coefficients,
+)
 from knitsweep.kernels.mirrored import (
     N_MIRROR_CLASSES,
     mirrored_contact_energy,
@@ -27,6 +31,28 @@ SAMPLINGS = [(name, f) for name in PATTERNS for f in (ARC, YARN)]
 
 def _model(name, fidelity=ARC, L=11.0):
     return CellModel(StitchParams(L_mm=L, k_mN_per_mm2=0.1, stitch=name), fidelity)
+
+
+def test_power_basis_derivatives_are_the_bernstein_ones():
+    """``derivative_coefficients``: r' and r'' of every segment of a pattern's start, as
+    the power basis's Horner sums, equal the Bernstein form's derivatives (the
+    differences of the control points on the degree-4 and degree-3 bases) to round-off."""
+    from math import comb
+
+    m = _model("seed")
+    cp = m.control_points(m.stitch.start(1))
+    co = derivative_coefficients(cp)
+    u = np.linspace(0.0, 1.0, 11)
+    d1 = 5.0 * np.diff(cp, axis=1)  # (S, 5, 3)
+    d2 = 4.0 * np.diff(d1, axis=1)  # (S, 4, 3)
+    b4 = np.stack([comb(4, i) * u**i * (1 - u) ** (4 - i) for i in range(5)], axis=1)
+    b3 = np.stack([comb(3, i) * u**i * (1 - u) ** (3 - i) for i in range(4)], axis=1)
+    powers = np.stack([u**k for k in range(5)], axis=1)
+    scale = np.abs(cp).max()
+    np.testing.assert_allclose(np.einsum("uk,skd->sud", powers, co[:, :5]),
+                               np.einsum("ui,sid->sud", b4, d1), atol=1e-12 * scale)  # fmt: skip
+    np.testing.assert_allclose(np.einsum("uk,skd->sud", powers[:, :4], co[:, 5:]),
+                               np.einsum("ui,sid->sud", b3, d2), atol=1e-11 * scale)  # fmt: skip
 
 
 def _arclength(cp_s, t, nodes=200):

@@ -91,6 +91,15 @@ def _velocity(co, s, u):
     return x, y, z
 
 
+@njit(cache=True, inline="always")
+def _acceleration(co, s, u):
+    """r''(u) of segment s (Horner on ``derivative_coefficients``)."""
+    x = ((co[s, 8, 0] * u + co[s, 7, 0]) * u + co[s, 6, 0]) * u + co[s, 5, 0]
+    y = ((co[s, 8, 1] * u + co[s, 7, 1]) * u + co[s, 6, 1]) * u + co[s, 5, 1]
+    z = ((co[s, 8, 2] * u + co[s, 7, 2]) * u + co[s, 6, 2]) * u + co[s, 5, 2]
+    return x, y, z
+
+
 @njit(cache=True)
 def _put_sample(cp, co, s, t, i, b, d1, pts, pos, r1):
     """Sample ``i``: segment ``s``'s point and first derivative at parameter ``t`` into
@@ -116,9 +125,7 @@ def _arc(co, s, t, aq, want_dt):
         v = np.sqrt(r1x * r1x + r1y * r1y + r1z * r1z)
         val += aq[1, q] * v
         if want_dt:
-            r2x = ((co[s, 8, 0] * u + co[s, 7, 0]) * u + co[s, 6, 0]) * u + co[s, 5, 0]
-            r2y = ((co[s, 8, 1] * u + co[s, 7, 1]) * u + co[s, 6, 1]) * u + co[s, 5, 1]
-            r2z = ((co[s, 8, 2] * u + co[s, 7, 2]) * u + co[s, 6, 2]) * u + co[s, 5, 2]
+            r2x, r2y, r2z = _acceleration(co, s, u)
             der += aq[1, q] * (v + u * (r1x * r2x + r1y * r2y + r1z * r2z) / v)
     return t * val, der
 
@@ -202,9 +209,7 @@ def _arc_gradient(co, s, t, aq, d1, out):
         _derivative_basis(u, d1)
         r1x, r1y, r1z = _velocity(co, s, u)
         v = np.sqrt(r1x * r1x + r1y * r1y + r1z * r1z)
-        r2x = ((co[s, 8, 0] * u + co[s, 7, 0]) * u + co[s, 6, 0]) * u + co[s, 5, 0]
-        r2y = ((co[s, 8, 1] * u + co[s, 7, 1]) * u + co[s, 6, 1]) * u + co[s, 5, 1]
-        r2z = ((co[s, 8, 2] * u + co[s, 7, 2]) * u + co[s, 6, 2]) * u + co[s, 5, 2]
+        r2x, r2y, r2z = _acceleration(co, s, u)
         der += aq[1, q] * (v + u * (r1x * r2x + r1y * r2y + r1z * r2z) / v)
         f = t * aq[1, q] / v
         for c in range(6):
