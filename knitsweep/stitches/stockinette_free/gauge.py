@@ -17,8 +17,9 @@ segments of different lengths makes the slide cost a little bending, 10⁻⁶–
 at stockinette_free's minimum at 10.5 mm, against 10⁻⁴ and up for the physical modes):
 the weak penalty JOINT_STIFFNESS Σ_s (ℓ_s − ℓ/8)² on the segments' lengths makes those
 slides as stiff as the softest physical mode (summed with the energy by the pattern kernel,
-``kernels.arclength.length_spread``). It enters what a relaxation minimises, never a reported energy (``Energies.gauge_energy``), and at the
-minima it moves the energy by less than 10⁻⁶ mJ (measured, docs/model.md §11).
+``kernels.arclength.length_spread``). It enters what a relaxation minimises, never a
+reported energy (``Energies.gauge_energy``), and at the minima it moves the energy by less
+than 10⁻⁶ mJ (measured, docs/model.md §11).
 
 ``regauge`` brings any state of the free yarn into the gauge without moving its curve
 more than 8 quintics must: the joints are put at equal fractions of the curve's
