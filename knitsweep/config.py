@@ -33,6 +33,7 @@ from pydantic import (
 )
 
 from .errors import InputError as InputError  # the settings' error, re-exported
+from .paths import PATH_NAMES, load_path
 from .stitches import DEFAULT_STITCH, STITCH_CHOICES, unknown_stitch
 from .util.plain_values import plain_value
 
@@ -338,7 +339,11 @@ class SolverSettings(BaseModel):
         return self.model_copy(update={"ftol": max(self.ftol, energy_goal_mJ)})
 
 
-Direction = Literal["x", "y"]
+Direction = Literal["x", "y", "biaxial", "strip_x", "strip_y"]
+"""A sweep's load path by name (``knitsweep.paths.PATHS``: uniaxial x and y, the paper's;
+equibiaxial; strip biaxial)."""
+if get_args(Direction) != PATH_NAMES:
+    raise ImportError(f"Direction {get_args(Direction)} != the path registry's {PATH_NAMES}")
 
 
 Observable = Literal["curve", "secant_modulus", "offset_stress", "energy_gaps"]
@@ -440,7 +445,8 @@ class SweepProtocol(BaseModel):
         return tuple(sorted(set(v)))
 
     def large_step(self, direction: Direction) -> float:
-        return self.large_step_x_mm if direction == "x" else self.large_step_y_mm
+        """The large step of the path's leading period (mm)."""
+        return self.large_step_x_mm if load_path(direction).leading == "x" else self.large_step_y_mm
 
 
 RETRIES = 3  # default [starts] retries; a retry's copies perturb the shape 1e-12 relative:

@@ -16,6 +16,7 @@ from typing import Literal
 
 import numpy as np
 
+from .paths import LoadPath, load_path
 from .stitches import DEFAULT_STITCH, TRANSLATION_CLASSES, get_stitch
 
 
@@ -134,9 +135,12 @@ OBSERVABLE_REGISTRY: tuple[Observable, ...] = (
                "along the sweep", from_steps=lambda a, _direction: np.max(a["max_curvature"]),
                label="largest curvature"),
     Observable("poisson_ratio", "sweep", "1", "Poisson's ratio -e_perp/e at strain 0.02 (secant; "
-               "the transverse period relaxed to zero force)", from_steps=lambda a, d:
-               secant_poisson_ratio(a["strain"], a["a_y" if d == "x" else "a_x"]),
-               label="Poisson's ratio"),
+               "the transverse period relaxed to zero force; uniaxial paths)", from_steps=lambda
+               a, d: secant_poisson_ratio(a["strain"], a["a_" + load_path(d).transverse])
+               if load_path(d).uniaxial else None, label="Poisson's ratio"),
+    Observable("transverse_stress_ratio", "sweep", "1", "sigma_perp/sigma_lead at strain 0.02 "
+               "(secant; paths that hold or pull the transverse period)", from_steps=lambda a, d:
+               secant_stress_ratio(a, load_path(d)), label="transverse stress ratio"),
 )  # fmt: skip
 """The observable registry: every observable computed from a state or a sweep, one entry
 each (adding one is an entry here and, for a new computation, a ``CellModel`` method)."""
@@ -153,6 +157,22 @@ def secant_poisson_ratio(strain: np.ndarray, across: np.ndarray,
     if strain.size < 2 or not strain[-1] >= at:
         return None
     return float(-np.interp(at, strain, across / across[0] - 1.0) / at)
+
+
+def secant_stress_ratio(arrays: Mapping[str, np.ndarray], path: LoadPath,
+                        at: float = SECANT_STRAIN) -> float | None:  # fmt: skip
+    """σ_⊥/σ_∥ at strain ``at`` along a path that controls both periods (strip biaxial:
+    the stress that holds the transverse period; equibiaxial: the anisotropy), both
+    envelope stresses (``stress_xx``, ``stress_yy``) interpolated linearly; None on a
+    uniaxial path, a sweep short of ``at`` or a file written before they were stored."""
+    if path.uniaxial or "stress_xx" not in arrays:
+        return None
+    strain = np.asarray(arrays["strain"], dtype=float)
+    if strain.size < 2 or not strain[-1] >= at:
+        return None
+    lead, across = (np.interp(at, strain, np.asarray(arrays[f"stress_{d}{d}"], dtype=float))
+                    for d in (path.leading, path.transverse))  # fmt: skip
+    return float(across / lead) if lead != 0.0 else None
 
 
 def registered(kind: ObservableKind, stored_only: bool = True) -> tuple[Observable, ...]:
@@ -268,12 +288,14 @@ def _shared(name: str) -> tuple[str, Quantity]:
 
 STEP_QUANTITIES = dict(
     (
-        _q("a_fixed", "mm", "period held fixed at this step (a_x in x pulls, a_y in y pulls)"),
+        _q("a_fixed", "mm", "the path's leading period (a_x in x pulls, a_y in y pulls)"),
         _q("a_x", "mm", "cell period along the course, a_x"),
         _q("a_y", "mm", "cell period along the wale, a_y"),
-        _q("strain", "1", "strain of the pulled period, (a - a0)/a0"),
-        _q("stress", "N/mm", "2D stress, second-order difference of the energy / a_perp0"),
-        _q("stress_envelope", "N/mm", "2D stress from the length constraint's multiplier"),
+        _q("strain", "1", "strain of the leading period, (a - a0)/a0"),
+        _q("stress", "N/mm", "2D stress along the path, energy differences / a_perp0"),
+        _q("stress_envelope", "N/mm", "2D stress along the path from the length multiplier"),
+        _q("stress_xx", "N/mm", "sigma_xx = dE*/da_x / a_y0 (0 where a_x is free)"),
+        _q("stress_yy", "N/mm", "sigma_yy = dE*/da_y / a_x0 (0 where a_y is free)"),
         _shared("bending_energy"),
         _shared("contact_energy"),
         _q("total_energy", "mJ", "total energy E = E_b + E_c"),

@@ -13,9 +13,12 @@ from typing import Any
 
 import numpy as np
 
+from ..paths import PATH_NAMES, load_path
 from ..util.plain_values import plain_value
 
-DIRECTIONS = ("x", "y")
+DIRECTIONS = PATH_NAMES
+"""The load paths a sweep can follow (``knitsweep.paths``): 'x', 'y' (the paper's) and the
+biaxial ones."""
 
 
 def to_plain(value: Any) -> Any:
@@ -94,10 +97,9 @@ def check_scalar(name: str, value: Any, *, positive: bool = False) -> float:
 
 
 def check_direction(direction: Any) -> str:
-    """Return ``direction`` if it is 'x' or 'y'; ValueError otherwise."""
-    if direction not in DIRECTIONS:
-        raise ValueError(f"direction = {direction!r}: must be 'x' or 'y'")
-    return str(direction)
+    """Return ``direction`` if it names a load path ('x', 'y', 'biaxial', …); ValueError
+    listing them otherwise."""
+    return load_path(direction).name
 
 
 def check_int(name: str, value: int, minimum: int) -> int:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..paths import PATHS
 from ._common import (
     PlainDict,
     check_array,
@@ -59,9 +60,10 @@ __all__ = [
     "thickness_strain",
 ]
 
-JAMMING_GAP = {"x": "delta_E_c", "y": "delta_E_b"}
-"""Which energy gap marks jamming in each pulling direction (paper Fig. 3, docs/model.md §9):
-the contact gap ΔE_c for x, the bending gap ΔE_b for y."""
+JAMMING_GAP = {name: path.gap for name, path in PATHS.items()}
+"""Which energy gap marks jamming along each load path (paper Fig. 3, docs/model.md §9):
+the contact gap ΔE_c for x, the bending gap ΔE_b for y, the larger of the two
+(``delta_E_max``) along the biaxial paths (``knitsweep.paths``)."""
 
 
 @dataclass(frozen=True)
@@ -88,8 +90,14 @@ class EnergyGaps(PlainDict):
     index_min_b: int
     index_min_c: int
 
+    @property
+    def delta_E_max(self) -> float:
+        """The larger gap: what marks jamming along a biaxial path."""
+        return max(self.delta_E_b, self.delta_E_c)
+
     def jamming_gap(self, direction: str) -> float:
-        """The gap that marks jamming when pulling in ``direction``: ΔE_c for 'x', ΔE_b for 'y'."""
+        """The gap that marks jamming along load path ``direction``: ΔE_c for 'x', ΔE_b for
+        'y', the larger for the biaxial paths (``JAMMING_GAP``)."""
         return float(getattr(self, JAMMING_GAP[check_direction(direction)]))
 
 

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from ..config import SOLVERS
+from ..paths import PATH_NAMES
 from .common import (
     RELAX_UNITS,
     BOpt,
@@ -156,7 +157,7 @@ def relax(
 
 @app.command()
 def sweep(
-    direction: Annotated[str, typer.Option("--direction", help="pull along x or y")],
+    direction: Annotated[str, typer.Option("--direction", help="load path: x or y (uniaxial), biaxial, strip_x, strip_y")],
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
     r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
     samples: SamplesOpt = None,
@@ -196,8 +197,8 @@ def sweep(
 
     with user_errors():
         check_seed(seed)
-        if direction not in ("x", "y"):
-            raise InputError(f"direction = {direction!r}: must be 'x' or 'y'")
+        if direction not in PATH_NAMES:
+            raise InputError(f"direction = {direction!r}: must be one of {', '.join(PATH_NAMES)}")
         if out is not None and out.suffix not in (".csv", ".h5"):
             raise InputError(f"out = '{out}': must end in .csv or .h5")
         if out is not None:

@@ -27,6 +27,7 @@ from threadpoolctl import ThreadpoolController
 from ..config import SOLVERS as REGISTERED
 from ..config import Direction, SolverInfo, SolverSettings
 from ..model import CellModel, NeighbourList
+from ..paths import load_path
 from ..stitches import Stitch
 from .newton import Curvature, newton_minimise
 from .problem import Minimum, Problem
@@ -58,12 +59,16 @@ def single_threaded():
 
 
 def free_entries(stitch: Stitch, fixed: Direction | None, gauge: Iterable[int] = ()) -> np.ndarray:
-    """Indices of the free entries of a ``stitch`` state: all, or all but the pulled
-    period, and never the ``gauge`` entries (``CellModel.gauge``)."""
-    held = set(int(i) for i in gauge)
-    if fixed is not None:
-        held.add(stitch.period_index(fixed))
+    """Indices of the free entries of a ``stitch`` state: all, or all but the periods the
+    load path ``fixed`` controls (``paths.PATHS``), and never the ``gauge`` entries
+    (``CellModel.gauge``)."""
+    held = set(int(i) for i in gauge) | set(fixed_periods(stitch, fixed))
     return np.array([i for i in range(stitch.n_state) if i not in held])
+
+
+def fixed_periods(stitch: Stitch, fixed: Direction | None) -> list[int]:
+    """The state entries of the periods the load path ``fixed`` holds (none at zero force)."""
+    return [] if fixed is None else [stitch.period_index(d) for d in load_path(fixed).controlled]
 
 
 Minimiser = Callable[[Problem, np.ndarray, SolverSettings, object], Minimum]
@@ -127,8 +132,9 @@ class Relaxer:
               settings: SolverSettings | None = None) -> Relaxation:  # fmt: skip
         """Minimise the energy at fixed yarn length ``model.params.L_mm`` from ``x0``.
 
-        ``fixed=None`` frees both periods (zero-force state); ``'x'``/``'y'`` keeps
-        a_x/a_y at its value in ``x0`` (a strain step, docs/model.md §8).
+        ``fixed=None`` frees both periods (zero-force state); a load path's name
+        (``'x'``, ``'y'``, ``'biaxial'``, …) keeps the periods it controls at their values
+        in ``x0`` (a strain step, docs/model.md §8).
         """
         settings = settings or self.settings
         t0 = time.perf_counter()
@@ -174,10 +180,10 @@ class Relaxer:
         anchor = self.curvature.anchor if self.curvature is not None else None
         if not SOLVERS[settings.method].walks or fixed is None or anchor is None:
             return None
-        i = model.stitch.period_index(fixed)
+        i = fixed_periods(model.stitch, fixed)
         free = free_entries(model.stitch, fixed, model.gauge)
-        change = float(x0[i] - anchor.x[i])
-        n = math.ceil(abs(change) / settings.substep_mm - 1e-9)
+        change = x0[i] - anchor.x[i]
+        n = math.ceil(float(np.max(np.abs(change))) / settings.substep_mm - 1e-9)
         if n <= 1 or not np.array_equal(anchor.x[free], x0[free]):
             return None
         loose = settings.loosened(SUBSTEP_FTOL)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.metrics import JAMMING_GAP
 from ..analysis.paper import TABLE_S4, at_table_1
 from ..analysis.transitions import Transition
 from ..quantities import PARAMETER_NAMES, SERIES_PARAMS
@@ -39,6 +40,7 @@ from .plotting import (
     narrow,
     new_figure,
     parameter_axis,
+    path_order,
     sci,
     series_keys,
     series_legend,
@@ -49,7 +51,13 @@ from .reduce import Reduction
 from .series import series_key
 from .tables import series_label
 
-GAP_LABEL = {"x": r"$\Delta E_c$", "y": r"$\Delta E_b$"}
+_GAP_SYMBOL = {
+    "delta_E_c": r"$\Delta E_c$",
+    "delta_E_b": r"$\Delta E_b$",
+    "delta_E_max": r"max($\Delta E_b$, $\Delta E_c$)",
+}
+GAP_LABEL = {d: _GAP_SYMBOL[gap] for d, gap in JAMMING_GAP.items()}
+"""The jamming gap of each load path, as a label."""
 
 
 def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, d: str,
@@ -136,7 +144,7 @@ def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any
     if not keys:
         raise SkipFigure("needs a series with sweeps at ≥ 2 values of L")
     keys = limit_panels(keys, "fig3", notes)
-    directions = sorted({c.direction for c in red.curves})
+    directions = path_order({c.direction for c in red.curves})
     # x and y side by side are too dense for one column: a page-wide figure
     fig = new_figure(max(8.0, 5.2 * len(directions) + 0.4), 3.2 * len(keys) + 1.5,
                      wide=len(directions) > 1)  # fmt: skip

@@ -14,6 +14,7 @@ from typing import Any
 from ..util.safe_files import make_output_dir, replace_file
 from .fig_energy import fig3_energy_gaps, fig4a_gap_fit, fig4b_deltaL_vs_k, fig4c_phase_diagram
 from .fig_forces import figS11_contact_forces_strain
+from .fig_inplane import figI_inplane
 from .fig_mechanics import (
     SMALL_STRAIN,
     fig1b_stress_strain,
@@ -45,6 +46,7 @@ FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
     "fig6g_thickness_strain_x_small.png": partial(fig6g_thickness_strain_x, upto=SMALL_STRAIN),
     "fig6h_contact_force_ratio.png": fig6h_contact_force_ratio,
     "figP_patterns.png": figP_patterns,
+    "figI_inplane.png": figI_inplane,
     "figS_packing_fraction_L.png": figS_packing_fraction_L,
     "figS_packing_fraction_strain.png": figS_packing_fraction_strain,
     "figS11_contact_forces_strain.png": figS11_contact_forces_strain,
@@ -84,6 +86,11 @@ CAPTIONS: dict[str, str] = {
     "fig6g_thickness_strain_x_small.png": "Thickness strain of pulls in x up to 10 % strain.",
     "fig6h_contact_force_ratio.png": "Ratio of the x and y contact forces at zero strain "
     "against L/r (paper Fig. 6h).",
+    "figI_inplane.png": "The in-plane response along every load path: (a) the unjamming "
+    "transition (L/r)_trans of each stitch pulled uniaxially (x, y), equibiaxially and in "
+    "strip biaxial, the bar its bracket; (b) Poisson's ratios against L/r; (c) the "
+    "equibiaxial secant modulus; (d) in strip biaxial, the stress holding the transverse "
+    "period over the pulled one's.",
     "figP_patterns.png": "Stitch patterns side by side: (a) the unjamming transition "
     "(L/r)_trans of each pattern pulled in x and y, the bar its bracket; (b) the secant "
     "modulus against L/r, one colour per pattern, x solid and y dashed; (c) the zero-force "

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ..paths import PATH_NAMES
 from ..quantities import SERIES_PARAMS
 from .reduce import Reduction
 from .series import series_key
@@ -24,7 +25,13 @@ from .tables import series_label
 
 CONTACT_COLOUR = "#ee6a50"  # coral: contact energy gap ΔE_c
 BENDING_COLOUR = "#2f6db5"  # blue: bending energy gap ΔE_b
-DIRECTION_COLOUR = {"x": "#7b3fa0", "y": "#2f8fd0"}  # paper SI: x purple, y blue
+DIRECTION_COLOUR = {
+    "x": "#7b3fa0",
+    "y": "#2f8fd0",  # paper SI: x purple, y blue
+    "biaxial": "#c0392b",
+    "strip_x": "#b8860b",
+    "strip_y": "#138d75",
+}
 REGIME_FILL = {
     "jammed_xy": "#f6c4d6",  # pink
     "jammed_y_only": "#fbd5a5",  # orange
@@ -37,7 +44,13 @@ REGIME_LABEL = {
     "jammed_x_only": "jammed only in x (rare)",
     "unjammed": "unjammed",
 }
-TRANSITION_LINE = {"x": "#d9730d", "y": "#2e8b46"}  # paper Fig. 4c: x orange, y green
+TRANSITION_LINE = {
+    "x": "#d9730d",
+    "y": "#2e8b46",  # paper Fig. 4c: x orange, y green
+    "biaxial": "#c0392b",
+    "strip_x": "#8e6c0b",
+    "strip_y": "#117864",
+}
 BRACKET_FILL = "#b9e3b0"  # light green: the transition bracket (paper Fig. 3)
 THRESHOLD_COLOUR = "#555555"
 PARTIAL_COLOUR = "#b00020"
@@ -130,7 +143,25 @@ def current_options() -> FigureOptions:
 
 
 L_OVER_R = "$L/r$"
-STRAIN = {"x": r"strain $\varepsilon_x$", "y": r"strain $\varepsilon_y$"}
+STRAIN = {
+    "x": r"strain $\varepsilon_x$",
+    "y": r"strain $\varepsilon_y$",
+    "biaxial": r"strain $\varepsilon_x = \varepsilon_y$",
+    "strip_x": r"strain $\varepsilon_x$ ($\varepsilon_y = 0$)",
+    "strip_y": r"strain $\varepsilon_y$ ($\varepsilon_x = 0$)",
+}
+"""The strain axis of each load path (``knitsweep.paths``)."""
+if set(STRAIN) != set(PATH_NAMES):
+    raise ImportError(f"STRAIN labels {sorted(STRAIN)} != the load paths {PATH_NAMES}")
+
+
+def path_order(directions: Any) -> list[str]:
+    """The load paths among ``directions`` in the registry's order (x, y, then the biaxial
+    ones)."""
+    present = set(directions)
+    return [d for d in PATH_NAMES if d in present]
+
+
 MAX_PANELS = 8
 
 

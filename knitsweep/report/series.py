@@ -13,6 +13,7 @@ from typing import Any
 from ..analysis.metrics import JAMMING_GAP
 from ..analysis.transitions import Transition, series_transitions
 from ..config import FAILED
+from ..paths import PATH_NAMES
 from ..quantities import NUMERIC_SERIES_PARAMS, PARAM_SYMBOLS, SERIES_PARAMS, value_text
 from ..service.adaptive import failure_status
 from ..stitches import DEFAULT_STITCH
@@ -95,7 +96,7 @@ def transition_rows(
             key = (series_key(p), p["direction"])
             missing[key] = missing.get(key, 0) + 1
     found = series_transitions(sweeps, SERIES_PARAMS, threshold)
-    out = {key: found[key] for key in sorted(found)}
+    out = {key: found[key] for key in sorted(found, key=lambda k: (k[0], PATH_NAMES.index(k[1])))}
     rows = [transition_row(key[0], key[1], t, missing.get(key, 0)) for key, t in out.items()]
     close: dict[tuple[tuple[Any, ...], str], list[float]] = {}
     for s in sweeps:  # [starts] spread: gaps within their spread of the threshold
@@ -154,10 +155,11 @@ def mark_failed(transition_of: dict, rows: list[dict[str, Any]],
     'failed' (so that no figure draws it and no regime is read from it); ``failure``
     holds the whole message."""
     failed: dict[tuple, list[tuple[float, str]]] = {}
+    paths = list(dict.fromkeys(row["direction"] for row in rows))  # a failed point: every path
     for p in problems:
         if p["status"] != FAILED:
             continue
-        for d in [p["direction"]] if p["kind"] == "sweep" else ["x", "y"]:
+        for d in [p["direction"]] if p["kind"] == "sweep" else paths:
             failed.setdefault((series_key(p), d), []).append((float(p["L_mm"]), p["message"]))
     for row in rows:
         key = (series_key(row), row["direction"])

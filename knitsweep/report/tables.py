@@ -157,7 +157,13 @@ def transitions_text(red: Reduction) -> str:
     for r in [head, *body]:
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
     lines.append(
-        f"gap: ΔE_c (mJ) for x, ΔE_b (mJ) for y; threshold {red.threshold:g} mJ; "
+        "gap: ΔE_c (mJ) for x, ΔE_b (mJ) for y"
+        + (
+            ""
+            if all(t["direction"] in ("x", "y") for t in red.transitions)
+            else ", the larger of the two along the biaxial paths"
+        )
+        + f"; threshold {red.threshold:g} mJ; "
         "bracket = (last jammed, first unjammed L/r); fit = jamming gap against L over its "
         "linear jammed run (Table S4)"
         + (

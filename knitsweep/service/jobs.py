@@ -32,6 +32,7 @@ from pydantic import (
 
 from ..analysis.transitions import GAP_THRESHOLD
 from ..config import (
+    Direction,
     Fidelity,
     InputError,
     SolverSettings,
@@ -143,7 +144,13 @@ class JobSpec(BaseModel):
     )
     description: str = Field("", max_length=10_000)
     seed: int = Field(0, ge=0, lt=MAX_SEED)
-    directions: list[Literal["x", "y"]] = Field(default_factory=lambda: ["x", "y"], min_length=1)
+    directions: list[Direction] = Field(
+        default_factory=lambda: ["x", "y"],
+        min_length=1,
+        description="the load paths each point is swept along (knitsweep.paths): 'x', 'y' "
+        "(uniaxial, the paper's), 'biaxial' (equibiaxial), 'strip_x', 'strip_y' (one period "
+        "pulled, the other held)",
+    )
     preset: str = DEFAULT_PRESET
     stitch: StitchName = Field(
         DEFAULT_STITCH,

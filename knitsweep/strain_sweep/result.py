@@ -8,7 +8,14 @@ transverse width at zero force:
   midpoint as the authors' analysis does; second-order on uneven steps), divided by
   a_perp0; backward at the last step, 0 at zero force;
 * ``stress_envelope``: dE*/da/a_perp0 at each step from the Lagrange multiplier of the
-  length constraint (envelope theorem), free of differencing error.
+  length constraint (envelope theorem), free of differencing error;
+* ``stress_xx``, ``stress_yy``: the stress tensor's normal components from the period
+  forces, F_x/a_y0 and F_y/a_x0 (zero in a free period's direction, to the solver's
+  tolerance).
+
+Along a path that controls both periods (``paths``: equibiaxial, strip biaxial), ``stress``
+and ``stress_envelope`` are dE/dε per unit area of the zero-force cell, the sum of the
+components weighted by the path's strain rates.
 
 Per start (S of them, the zero-force point's starts): ``carried`` (the start reached a
 converged zero-force state and was pulled as a chain), ``merged_into`` (the start whose
@@ -59,6 +66,8 @@ class SweepResult:
     strain: np.ndarray = field(default_factory=lambda: np.empty(0))
     stress: np.ndarray = field(default_factory=lambda: np.empty(0))
     stress_envelope: np.ndarray = field(default_factory=lambda: np.empty(0))
+    stress_xx: np.ndarray = field(default_factory=lambda: np.empty(0))
+    stress_yy: np.ndarray = field(default_factory=lambda: np.empty(0))
     bending_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
     contact_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
     observed: dict[str, np.ndarray] = field(default_factory=dict)
@@ -156,8 +165,8 @@ class SweepResult:
                    rest_found=str(rec.get("rest_found", "")))  # fmt: skip
 
 
-_STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "bending_energy",
-                "contact_energy", "winner", "converged", "iterations", "evaluations",
+_STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "stress_xx",
+                "stress_yy", "bending_energy", "contact_energy", "winner", "converged", "iterations", "evaluations",
                 "min_zeta", "length_residual", "kkt_residual", "relax_seconds", "states")  # fmt: skip
 _START_ARRAYS = ("carried", "merged_into", "merged_at")
 

@@ -1,7 +1,9 @@
-"""Strain sweeps: the stitch pulled step by step in x or y (docs/model.md §8).
+"""Strain sweeps: the stitch deformed step by step along a load path (docs/model.md §8).
 
-From the zero-force state (a_x0, a_y0) one period is fixed step by step (``schedule``),
-the other period and the shape relax, and each step warm-starts from the last. Every
+From the zero-force state (a_x0, a_y0) the path's leading period is fixed step by step
+(``schedule``), its other controlled period (``paths``: equibiaxial, strip biaxial)
+follows by its strain rate, a free period and the shape relax, and each step
+warm-starts from the last. Pulled in x or y (the paper's), the other period is free. Every
 start of the point is carried along as its own chain (``chains``: each with its own
 solver state, merged when two reach the same minimum); at each step the
 lowest-energy chain wins. The sweep stops by the reference's rule (after step i >= 2,
@@ -36,6 +38,7 @@ from ..config import (
     SweepProtocol,
 )
 from ..model import CellModel
+from ..paths import load_path
 from ..quantities import registered
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
 from ..relax.zero_force import ZeroForce, pick_lowest, relax_at_rest, zero_force
@@ -98,11 +101,11 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
     zero-force energy and relaxing that step at zero force finds a minimum lower by as
     much, (None, the zero-force state with that minimum, a note saying so). If it finds
     none, the pull goes on unchecked and its note says so."""
-    idx = model.stitch.period_index(direction)
-    other = model.stitch.period_index("y" if direction == "x" else "x")
-    along = 0 if direction == "x" else 1  # the period force along the pull
+    path = load_path(direction)
+    idx = {d: model.stitch.period_index(d) for d in ("x", "y")}
     best = zero.best
-    a0, a_perp0 = float(best.x[idx]), float(best.x[other])
+    rest = {d: float(best.x[i]) for d, i in idx.items()}  # a_x0, a_y0
+    a0, a_perp0 = rest[path.leading], rest[path.transverse]
     sign = 1.0 if protocol.mode == "tension" else -1.0
     n_starts = len(zero.relaxations)
     # starts that merged on their way to the zero-force state count as merged there
@@ -130,9 +133,12 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         # overshoots (far from it nothing is kept: those sweeps are as they always were)
         saved = (copy.deepcopy(chains), merged_into.copy(), merged_at.copy()
                  ) if sigma_last > STOP_WATCH * stop else None  # fmt: skip
+        targets = path.targets(rest, (a_next - a0) / a0)
+        targets[path.leading] = a_next  # (exactly: the schedule's value)
         for c in chains:
             x = c.x.copy()
-            x[idx] = a_next
+            for d, a in targets.items():
+                x[idx[d]] = a
             r = c.relaxer.relax(model, x, direction)
             n_relax += 1
             n_eval += r.evaluations
@@ -149,7 +155,7 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         winners.append(chains[w].start)
         a_values.append(a_next)
         strains.append((a_next - a0) / a0)
-        envelope.append(win.period_forces[along] / a_perp0)
+        envelope.append(path.conjugate_stress(*win.period_forces, rest["x"], rest["y"]))
         eb.append(win.bending_energy)
         ec.append(win.contact_energy)
         i = len(steps) - 1
@@ -199,7 +205,7 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         if stopped_by:
             break
         a_next = control.next(a_values, envelope, eb, ec)
-    result = _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
+    result = _assemble(model, path, steps, winners, a_values, rest, status, reason,
                        stopped_by, n_relax, n_eval, (carried, merged_into, merged_at),
                        time.perf_counter() - t_start)  # fmt: skip
     return result, None, unfound
@@ -243,22 +249,24 @@ def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettin
     return chains
 
 
-def _assemble(model, direction, steps, winners, a_values, a0, a_perp0, status, reason,
+def _assemble(model, path, steps, winners, a_values, rest, status, reason,
               stopped_by, n_relax, n_eval, starts, wall) -> SweepResult:  # fmt: skip
-    along = 0 if direction == "x" else 1
+    a0, a_perp0 = rest[path.leading], rest[path.transverse]
     a = np.array(a_values)
     eb = np.array([s.bending_energy for s in steps])
     ec = np.array([s.contact_energy for s in steps])
-    forces = np.array([s.period_forces[along] for s in steps])
+    fx, fy = np.array([s.period_forces for s in steps]).T
     carried, merged_into, merged_at = starts
     return SweepResult(
-        direction=direction,
+        direction=path.name,
         a_fixed=a,
         a_x=np.array([s.a_x for s in steps]),
         a_y=np.array([s.a_y for s in steps]),
         strain=(a - a0) / a0,
         stress=centred_stress(eb + ec, a, a_perp0),
-        stress_envelope=forces / a_perp0,
+        stress_envelope=path.conjugate_stress(fx, fy, rest["x"], rest["y"]),
+        stress_xx=fx / rest["y"],
+        stress_yy=fy / rest["x"],
         bending_energy=eb,
         contact_energy=ec,
         observed=_step_observables(model, steps),

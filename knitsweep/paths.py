@@ -1,0 +1,101 @@
+"""Load paths: how a sweep deforms the cell in its plane (docs/model.md §8).
+
+A path names, for each of the two periods, how its strain follows the sweep's strain
+ε (the strain of the path's *leading* period): ``rate`` ε for a controlled period,
+``None`` for a free one (relaxed to zero force with the shape). So a step of a sweep
+fixes a_i = a_i0 (1 + rate_i ε) for every controlled period i, and relaxes the rest.
+
+* ``x``, ``y``: uniaxial, the paper's pulls (the other period free);
+* ``biaxial``: equibiaxial, both periods pulled by the same strain;
+* ``strip_x``, ``strip_y``: strip biaxial (pure shear in the fabric-testing sense),
+  one period pulled, the other held at its zero-force value.
+
+The stress a path reports (``stress``, ``stress_envelope``, N/mm) is the work
+conjugate of ε per unit width: dE/dε / (a_lead0 a_perp0) = Σ_i rate_i σ_ii with
+σ_xx = F_x / a_y0, σ_yy = F_y / a_x0 and F_i = dE*/da_i the period forces; for the
+uniaxial paths that is the paper's stress. Each sweep stores both components as well
+(``stress_xx``, ``stress_yy``).
+
+The gap that marks jamming (docs/model.md §9): ΔE_c pulled in x, ΔE_b in y (the paper's);
+on a path that pulls both ways at once (or holds one), a jammed fabric may give up
+either component, so the larger of the two gaps (``delta_E_max``) marks it; on the
+uniaxial paths the other gap is ~0, so the larger is the paper's there too.
+
+This module is the registry: a new path is one entry of ``PATHS``; the job file's
+``directions``, the CLI's ``--direction`` and the analysis read the names from here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class LoadPath:
+    """A named load path: the strain rate of each period (x, y) per unit of the sweep's
+    strain, ``None`` for a free period; the gap that marks jamming along it."""
+
+    name: str
+    rate_x: float | None
+    rate_y: float | None
+    gap: str
+    description: str
+
+    @property
+    def rates(self) -> dict[str, float | None]:
+        return {"x": self.rate_x, "y": self.rate_y}
+
+    @property
+    def controlled(self) -> tuple[str, ...]:
+        """The periods a step fixes ('x', 'y' or both), leading one first."""
+        return tuple(d for d in self._order if self.rates[d] is not None)
+
+    @property
+    def leading(self) -> str:
+        """The period whose strain is the sweep's strain (its rate is 1)."""
+        return self._order[0]
+
+    @property
+    def transverse(self) -> str:
+        return self._order[1]
+
+    @property
+    def uniaxial(self) -> bool:
+        """One period pulled, the other free (its Poisson contraction measured)."""
+        return len(self.controlled) == 1
+
+    @property
+    def _order(self) -> tuple[str, str]:
+        return ("x", "y") if self.rate_x == 1.0 else ("y", "x")
+
+    def targets(self, a0: dict[str, float], strain: float) -> dict[str, float]:
+        """The controlled periods (mm) at the sweep's ``strain`` from the zero-force ones."""
+        return {d: a0[d] * (1.0 + self.rates[d] * strain) for d in self.controlled}  # type: ignore[operator]
+
+    def conjugate_stress(self, force_x, force_y, a_x0: float, a_y0: float):
+        """dE/dε per unit width (N/mm) from the period forces (N, numbers or arrays over
+        steps): Σ rate_i σ_ii."""
+        return sum((self.rates[d] or 0.0) * s for d, s in
+                   (("x", force_x / a_y0), ("y", force_y / a_x0)))  # fmt: skip
+
+
+PATHS: dict[str, LoadPath] = {
+    p.name: p
+    for p in (
+        LoadPath("x", 1.0, None, "delta_E_c", "uniaxial along the course (x), a_y free"),
+        LoadPath("y", None, 1.0, "delta_E_b", "uniaxial along the wale (y), a_x free"),
+        LoadPath("biaxial", 1.0, 1.0, "delta_E_max", "equibiaxial: both periods by ε"),
+        LoadPath("strip_x", 1.0, 0.0, "delta_E_max", "strip biaxial: x by ε, a_y held at a_y0"),
+        LoadPath("strip_y", 0.0, 1.0, "delta_E_max", "strip biaxial: y by ε, a_x held at a_x0"),
+    )
+}
+"""The registered load paths by name (the values of ``Direction``)."""
+PATH_NAMES: tuple[str, ...] = tuple(PATHS)
+
+
+def load_path(name: str) -> LoadPath:
+    """The registered path ``name``; ValueError listing the known ones otherwise."""
+    try:
+        return PATHS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"direction = {name!r}: must be one of {', '.join(PATH_NAMES)}") from None
