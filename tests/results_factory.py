@@ -73,6 +73,10 @@ def _sweep_arrays(
     stretch = 1.0 + strain
     a_x = a0[0] * (stretch if direction == "x" else 1.0 - 0.2 * strain)
     a_y = a0[1] * (stretch if direction == "y" else 1.0 - 0.3 * strain)
+    if direction == "biaxial":
+        a_x, a_y = a0[0] * stretch, a0[1] * stretch
+    elif direction == "strip_x":
+        a_x, a_y = a0[0] * stretch, np.full(n, a0[1])
     if direction == "y" and g == 0.0:  # unjammed in y: the area first shrinks (paper Fig. 5b)
         a_x = a0[0] * (1.0 - 1.3 * strain + 2.0 * strain**2)
     out = {
@@ -89,6 +93,9 @@ def _sweep_arrays(
     }
     out["total_energy"] = out["bending_energy"] + out["contact_energy"]
     out["stress_envelope"] = out["stress"].copy()
+    across = {"x": 0.0, "y": 0.0, "biaxial": 0.8, "strip_x": 0.4}[direction]
+    main, other = out["stress"], across * out["stress"]
+    out["stress_xx"], out["stress_yy"] = (other, main) if direction == "y" else (main, other)
     out["packing_fraction"] = 0.9 - 0.004 * (x - 20.0) - 0.1 * strain  # [store] packing_fraction
     out["packing_fraction_error"] = np.full(n, 1e-3)
     states = np.tile(shipped_state(1, stitch), (n, 1))  # [store] states: a real stitch's
@@ -117,8 +124,10 @@ def write_results(
     not_knittable_L: float | None = 9.5,
     stitches: tuple[str, ...] = ("stockinette",),
     failed_L: float | None = None,
+    directions: tuple[str, ...] = ("x", "y"),
 ) -> Path:
-    """A results file with series at every k of ``ks``, both directions, plus (if
+    """A results file with series at every k of ``ks``, every load path of ``directions``
+    (the biaxial ones with x's gaps), plus (if
     ``not_knittable_L``) one not-knittable point whose sweeps carry no arrays and (if
     ``failed_L``) one failed point whose sweeps failed with it; each series once per
     stitch of ``stitches`` (the same data, another pattern's name)."""
@@ -149,20 +158,21 @@ def write_results(
                 if contact_forces:
                     pg["contact_forces"] = _forces(x)
                 n_points += 1
-                for d in ("x", "y"):
+                for d in directions:
                     sg = sweeps.create_group(f"{tag}s{k:g}_{x:g}_{d}")
                     _attrs(sg, _params(L, k, stitch), "done", "stress 0.3 N/mm > 0.2")
                     sg.attrs["point_id"] = pid
                     sg.attrs["direction"] = d
                     sg.attrs["sweep_status"] = "done"
-                    arrays = _sweep_arrays(d, x, gap(k, d, x), contact_forces, stitch)
+                    g = gap(k, "y" if d == "y" else "x", x)
+                    arrays = _sweep_arrays(d, x, g, contact_forces, stitch)
                     for name, value in arrays.items():
                         sg[name] = value
             if not_knittable_L is not None:
                 pg = points.create_group(f"{tag}p{k:g}_nk")
                 _attrs(pg, _params(not_knittable_L, k, stitch), "not_knittable", "cores overlap")
                 n_points += 1
-                for d in ("x", "y"):
+                for d in directions:
                     sg = sweeps.create_group(f"{tag}s{k:g}_nk_{d}")
                     _attrs(sg, _params(not_knittable_L, k, stitch), "not_knittable",
                            "zero-force state: cores overlap")  # fmt: skip
@@ -173,11 +183,11 @@ def write_results(
                 pg = points.create_group(f"{tag}p{k:g}_failed")
                 _attrs(pg, _params(failed_L, k, stitch), "failed", why)
                 n_points += 1
-                for d in ("x", "y"):
+                for d in directions:
                     sg = sweeps.create_group(f"{tag}s{k:g}_failed_{d}")
                     _attrs(sg, _params(failed_L, k, stitch), "failed", f"zero-force state: {why}")
                     sg.attrs["point_id"] = f"{tag}p{k:g}_failed"
                     sg.attrs["direction"] = d
         f.attrs["n_points"] = n_points
-        f.attrs["n_sweeps"] = 2 * n_points
+        f.attrs["n_sweeps"] = len(directions) * n_points
     return path

@@ -25,10 +25,11 @@ OVERLAP_PX2 = 4.0  # two boxes may share a sliver of two by two pixels
 @pytest.fixture(scope="module")
 def reduction(tmp_path_factory):
     """The synthetic series written for two stitches, so that every series label carries
-    the stitch and the patterns figure has something to compare."""
-    path = write_results(
-        tmp_path_factory.mktemp("lay") / "synthetic.h5", stitches=("stockinette", "garter")
-    )
+    the stitch and the patterns figure has something to compare, and along biaxial load
+    paths too (the in-plane figure)."""
+    path = write_results(tmp_path_factory.mktemp("lay") / "synthetic.h5",
+                         stitches=("stockinette", "garter"),
+                         directions=("x", "y", "biaxial", "strip_x"))  # fmt: skip
     return load(path).reduction
 
 

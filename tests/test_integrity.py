@@ -111,9 +111,12 @@ def test_a_file_of_schema_2_reads_as_the_same_results(schema2, tiny_reference):
     compared = 0
     with h5py.File(schema2, "r") as f:
         for key, e in old.items():
-            added = fresh[key].record.keys() - e.record.keys()  # observables registered since
+            # observables registered since, and the stress components stored since the load
+            # paths (knitsweep.paths)
+            added = fresh[key].record.keys() - e.record.keys()
             assert e.record.keys() <= fresh[key].record.keys(), key
-            assert added <= {o.name for o in OBSERVABLE_REGISTRY}, (key, added)
+            assert added <= {o.name for o in OBSERVABLE_REGISTRY} | {"stress_xx", "stress_yy"}, (
+                key, added)  # fmt: skip
             group = f[key[0]][key[1]]
             for name, value in e.record.items():  # as stored, bit for bit
                 raw = group[name][()]

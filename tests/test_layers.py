@@ -22,6 +22,7 @@ LAYERS = [
     ["util"],  # small helpers: plain values, forked helpers, safe file I/O
     ["kernels"],  # generic numba: knows no stitch, no settings
     ["stitches"],  # geometries behind one interface; their kernels call down into kernels
+    ["paths"],  # the load paths' registry: plain data
     ["config"],
     ["presets"],  # the presets: settings of every layer in one word
     ["quantities"],
@@ -65,7 +66,7 @@ MODULE_ORDER = {
                 "adaptive", "executors", "slurm", "master", "runs", "recovery"],
     "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "declutter", "plotting",
                "fig_energy", "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns",
-               "figures", "html", "tile", "sources", "tube_mesh", "raster", "export3d", "render",
+               "fig_inplane", "figures", "html", "tile", "sources", "tube_mesh", "raster", "export3d", "render",
                "contact_volumes"],
     "service.executors": ["protocol", "local", "mpi"],
     "cli": ["common", "model_commands", "run_commands", "analysis_commands", "application"],

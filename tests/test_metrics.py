@@ -347,7 +347,8 @@ def test_energy_gaps_known_arrays():
     assert (g.index_min_b, g.index_min_c) == (1, 0)
     assert (g.E_b_rest, g.E_b_min, g.E_c_rest, g.E_c_min) == (1.0, 0.8, 0.30, 0.30)
     assert g.jamming_gap("x") == g.delta_E_c and g.jamming_gap("y") == g.delta_E_b
-    assert JAMMING_GAP == {"x": "delta_E_c", "y": "delta_E_b"}
+    assert JAMMING_GAP == {"x": "delta_E_c", "y": "delta_E_b", "biaxial": "delta_E_c",
+                           "strip_x": "delta_E_c", "strip_y": "delta_E_b"}  # fmt: skip
     d = g.as_dict()
     assert d["index_min_b"] == 1 and isinstance(d["delta_E_b"], float)
     assert_plain(d)
@@ -370,7 +371,7 @@ def test_energy_gaps_errors_name_the_argument():
         energy_gaps([1.0, 2.0], [1.0])
     with pytest.raises(ValueError, match="1-D"):
         energy_gaps([[1.0, 2.0]], [[1.0, 2.0]])
-    with pytest.raises(ValueError, match="'x' or 'y'"):
+    with pytest.raises(ValueError, match="must be one of x, y, biaxial, strip_x, strip_y"):
         EnergyGaps(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0).jamming_gap("z")
 
 

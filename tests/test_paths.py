@@ -86,9 +86,9 @@ def test_path_observables(sweeps):
         assert obs[d]["poisson_ratio"] is None
         assert np.isfinite(obs[d]["transverse_stress_ratio"]), d
     assert obs["strip_x"]["transverse_stress_ratio"] > 0  # holding a_y takes tension
-    gaps = sweeps["biaxial"].energy_gaps
-    rec = sweeps["biaxial"].to_record()
-    assert rec["jamming_gap"] == max(gaps.delta_E_b, gaps.delta_E_c)
+    for d, gap in (("biaxial", "delta_E_c"), ("strip_x", "delta_E_c"), ("strip_y", "delta_E_b")):
+        rec = sweeps[d].to_record()
+        assert JAMMING_GAP[d] == gap and rec["jamming_gap"] == getattr(sweeps[d].energy_gaps, gap)
 
 
 def test_bad_direction_is_one_line(tmp_path):

@@ -62,8 +62,8 @@ __all__ = [
 
 JAMMING_GAP = {name: path.gap for name, path in PATHS.items()}
 """Which energy gap marks jamming along each load path (paper Fig. 3, docs/model.md §9):
-the contact gap ΔE_c for x, the bending gap ΔE_b for y, the larger of the two
-(``delta_E_max``) along the biaxial paths (``knitsweep.paths``)."""
+the contact gap ΔE_c for x, the bending gap ΔE_b for y, and along the biaxial paths that
+of their leading period (``knitsweep.paths``)."""
 
 
 @dataclass(frozen=True)
@@ -90,14 +90,9 @@ class EnergyGaps(PlainDict):
     index_min_b: int
     index_min_c: int
 
-    @property
-    def delta_E_max(self) -> float:
-        """The larger gap: what marks jamming along a biaxial path."""
-        return max(self.delta_E_b, self.delta_E_c)
-
     def jamming_gap(self, direction: str) -> float:
         """The gap that marks jamming along load path ``direction``: ΔE_c for 'x', ΔE_b for
-        'y', the larger for the biaxial paths (``JAMMING_GAP``)."""
+        'y', the leading period's along the biaxial paths (``JAMMING_GAP``)."""
         return float(getattr(self, JAMMING_GAP[check_direction(direction)]))
 
 
@@ -106,7 +101,7 @@ class SweepMetrics(PlainDict):
     """All jamming metrics of one strain sweep (docs/model.md §9).
 
     Attributes:
-        direction: 'x' or 'y'.
+        direction: the load path ('x', 'y', 'biaxial', 'strip_x', 'strip_y').
         n_steps: number of steps, including the zero-force step 0.
         max_strain: last strain reached.
         max_stress: N/mm, largest stress reached.
@@ -234,7 +229,7 @@ def sweep_metrics(
     """Every jamming metric of one sweep (docs/model.md §9), as one :class:`SweepMetrics`.
 
     Args:
-        direction: 'x' or 'y', the pulling direction.
+        direction: the load path ('x', 'y' or a biaxial one, knitsweep.paths).
         strain, stress, bending_energy, contact_energy, a_x, a_y, thickness: per-step
             arrays, all shape (n,), step 0 the zero-force state (units in the module
             docstring).

@@ -111,7 +111,7 @@ class GapSeries(PlainDict):
 
     Attributes:
         params: the fixed parameters as ((name, value), ...) in the order of ``keys``.
-        direction: 'x' or 'y'.
+        direction: the load path ('x', 'y' or a biaxial one).
         L_over_r: shape (n,), strictly increasing (read-only).
         jamming_gap: shape (n,), N·mm, the jamming gap at each L/r (read-only).
     """
@@ -393,7 +393,7 @@ def group_series(
 ) -> dict[tuple[tuple[Any, ...], str], GapSeries]:
     """Group per-sweep records into series for :func:`transition`.
 
-    Each record is a flat mapping with 'direction' ('x' or 'y'), every name in
+    Each record is a flat mapping with 'direction' (a load path: 'x', 'y', …), every name in
     ``keys``, 'L_over_r' (or 'L' and 'r', mm, giving L/r = L/r), and the gap: 'jamming_gap'
     if present, else the direction's jamming gap, 'delta_E_c' for x and 'delta_E_b'
     for y (the names of :class:`~knitsweep.analysis.metrics.EnergyGaps`). Other fields

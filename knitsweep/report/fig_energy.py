@@ -54,7 +54,6 @@ from .tables import series_label
 _GAP_SYMBOL = {
     "delta_E_c": r"$\Delta E_c$",
     "delta_E_b": r"$\Delta E_b$",
-    "delta_E_max": r"max($\Delta E_b$, $\Delta E_c$)",
 }
 GAP_LABEL = {d: _GAP_SYMBOL[gap] for d, gap in JAMMING_GAP.items()}
 """The jamming gap of each load path, as a label."""
@@ -144,7 +143,9 @@ def fig3_energy_gaps(red: Reduction, notes: list[str], log: bool = False) -> Any
     if not keys:
         raise SkipFigure("needs a series with sweeps at ≥ 2 values of L")
     keys = limit_panels(keys, "fig3", notes)
-    directions = path_order({c.direction for c in red.curves})
+    # the paper's figure: the uniaxial paths (the in-plane figure has the others' transitions)
+    present = path_order({c.direction for c in red.curves})
+    directions = [d for d in present if d in ("x", "y")] or present
     # x and y side by side are too dense for one column: a page-wide figure
     fig = new_figure(max(8.0, 5.2 * len(directions) + 0.4), 3.2 * len(keys) + 1.5,
                      wide=len(directions) > 1)  # fmt: skip

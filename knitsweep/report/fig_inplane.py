@@ -35,7 +35,8 @@ LINESTYLE = {"x": "-", "y": "--", "strip_x": "-", "strip_y": "--", "biaxial": "-
 
 def figI_inplane(red: Reduction, notes: list[str]) -> Any:
     """(a) (L/r)_trans of each stitch along each load path, the bar its bracket (▼: unjammed
-    from the first L, ▲: jammed throughout); (b) Poisson's ratios ν_xy (pulled in x, solid)
+    from the first L, ▲: jammed throughout; hollow: jammed again at a larger L, the first
+    crossing shown, as the paper defines it); (b) Poisson's ratios ν_xy (pulled in x, solid)
     and ν_yx (in y, dashed) against L/r, one colour per stitch; (c) the equibiaxial secant
     modulus (σ_xx + σ_yy at ε = 0.02, over 0.02); (d) in strip biaxial, the stress that holds
     the transverse period over the pulled one's, σ_⊥/σ_∥ at 2 % strain (strip_x solid,
@@ -51,6 +52,7 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
     (ax_t, ax_p), (ax_b, ax_s) = fig.subplots(2, 2)
     trans = {(series_key(t), t["direction"]): t for t in red.transitions}
     width = 0.8 / len(paths)
+    reentrant = False
     for i, stitch in enumerate(stitches):
         key, colour = chosen[stitch], _colour(stitch, i)
         for j, d in enumerate(paths):
@@ -60,6 +62,10 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
             t, rows = trans.get((key, d)), series_rows(red, key, d)
             if t is not None and t["status"] == "transition":
                 value = t["L_over_r_trans"]
+                if t.get("n_jammed_after"):  # re-entrant: jammed again beyond the first crossing
+                    style["mfc"], reentrant = "white", True
+                    notes.append(f"in-plane: {stitch} along {d}: jammed again at "
+                                 f"{t['n_jammed_after']} point(s) beyond (L/r)_trans")  # fmt: skip
                 ax_t.errorbar([pos], [value], yerr=[[value - t["bracket_lower"]], [0.0]],
                               capsize=3, **style)  # fmt: skip
             elif t is not None and rows and t["status"] in ("jammed_throughout",
@@ -84,10 +90,10 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
     ax_t.set_xlim(-0.6, len(stitches) - 0.4)
     ax_t.set_ylabel(r"$(L/r)_{\rm trans}$")
     panel_title(ax_t, "(a) unjamming transition by load path\nbar: bracket; ▲▼: beyond the L "
-                "range")  # fmt: skip
+                "range" + ("; hollow: jammed again beyond" if reentrant else ""))  # fmt: skip
     ax_t.legend(handles=[Line2D([], [], color=DIRECTION_COLOUR[d], marker=PATH_MARKER[d],
                                 ls="none", label=d) for d in paths],
-                loc="best", frameon=False, fontsize="small")  # fmt: skip
+                loc="best", frameon=False)  # fmt: skip
     ax_p.set_ylabel(r"Poisson's ratio at 2 % strain")
     ax_p.axhline(0.0, color="0.55", lw=0.8, zorder=0)
     panel_title(ax_p, r"(b) $\nu_{xy}$ (pulled in x, ─), $\nu_{yx}$ (in y, ‑‑)")

@@ -111,6 +111,7 @@ TRANSITION_SUMMARY = (
     SummaryColumn("fit L (mm)", ("fit_L_lo_mm", "fit_L_hi_mm"), ".2f"),
     SummaryColumn("n_jam", ("n_jammed",)),
     SummaryColumn("missing", ("n_missing",)),
+    SummaryColumn("jammed after", ("n_jammed_after",), optional=True),
     SummaryColumn("within round-off at L (mm)", ("round_off_at_L_mm",), optional=True),
 )
 """The transitions summary after the direction and the series parameters that vary:
@@ -148,7 +149,7 @@ def transitions_text(red: Reduction) -> str:
     if red.constants:
         lines.append("fixed: " + series_label(red.constants, red.constants))
     shown = [c for c in TRANSITION_SUMMARY if not c.optional
-             or any(t.get(f) is not None for t in red.transitions for f in c.fields)]  # fmt: skip
+             or any(t.get(f) not in (None, 0) for t in red.transitions for f in c.fields)]  # fmt: skip
     head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying), *(c.header for c in shown)]
     body = [[t["direction"], *(value_text(t[k]) for k in red.varying),
              *(summary_cell(c, t) for c in shown)]
@@ -161,11 +162,17 @@ def transitions_text(red: Reduction) -> str:
         + (
             ""
             if all(t["direction"] in ("x", "y") for t in red.transitions)
-            else ", the larger of the two along the biaxial paths"
+            else ", the leading period's along the biaxial paths (ΔE_c for biaxial, strip_x)"
         )
         + f"; threshold {red.threshold:g} mJ; "
         "bracket = (last jammed, first unjammed L/r); fit = jamming gap against L over its "
         "linear jammed run (Table S4)"
+        + (
+            "; jammed after: points beyond (L/r)_trans whose gap is above the threshold "
+            "again (the transition is the first crossing, the paper's definition)"
+            if any(t.get("n_jammed_after") for t in red.transitions)
+            else ""
+        )
         + (
             "; vs free, vs ansatz: (L/r)_trans minus that of the free stockinette yarn and of "
             "the paper's ansatz in the same direction"
