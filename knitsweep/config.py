@@ -33,7 +33,7 @@ from pydantic import (
 )
 
 from .errors import InputError as InputError  # the settings' error, re-exported
-from .paths import PATH_NAMES, load_path
+from .paths import check_path, load_path
 from .stitches import DEFAULT_STITCH, STITCH_CHOICES, unknown_stitch
 from .util.plain_values import plain_value
 
@@ -339,11 +339,9 @@ class SolverSettings(BaseModel):
         return self.model_copy(update={"ftol": max(self.ftol, energy_goal_mJ)})
 
 
-Direction = Literal["x", "y", "biaxial", "strip_x", "strip_y"]
-"""A sweep's load path by name (``knitsweep.paths.PATHS``: uniaxial x and y, the paper's;
-equibiaxial; strip biaxial)."""
-if get_args(Direction) != PATH_NAMES:
-    raise ImportError(f"Direction {get_args(Direction)} != the path registry's {PATH_NAMES}")
+Direction = Annotated[str, AfterValidator(check_path)]
+"""A sweep's load path by name (``knitsweep.paths``: uniaxial x and y, the paper's;
+equibiaxial; strip biaxial; ``ray:<rate_x>,<rate_y>``)."""
 
 
 Observable = Literal["curve", "secant_modulus", "offset_stress", "energy_gaps"]

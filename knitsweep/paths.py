@@ -8,7 +8,10 @@ fixes a_i = a_i0 (1 + rate_i ε) for every controlled period i, and relaxes the 
 * ``x``, ``y``: uniaxial, the paper's pulls (the other period free);
 * ``biaxial``: equibiaxial, both periods pulled by the same strain;
 * ``strip_x``, ``strip_y``: strip biaxial (pure shear in the fabric-testing sense),
-  one period pulled, the other held at its zero-force value.
+  one period pulled, the other held at its zero-force value;
+* ``ray:<rate_x>,<rate_y>``: any ray in (ε_x, ε_y), e.g. ``ray:1,-0.3`` (x pulled, y
+  pushed in at 0.3 of its rate); the larger |rate| leads and is scaled to 1, and must be
+  positive (a pull; the protocol's ``mode = "compression"`` reverses a whole sweep).
 
 The stress a path reports (``stress``, ``stress_envelope``, N/mm) is the work
 conjugate of ε per unit width: dE/dε / (a_lead0 a_perp0) = Σ_i rate_i σ_ii with
@@ -18,7 +21,7 @@ uniaxial paths that is the paper's stress. Each sweep stores both components as 
 
 The gap that marks jamming (docs/model.md §9) is that of the path's leading period: ΔE_c
 pulled in x, ΔE_b in y (the paper's), ΔE_c along ``strip_x`` and ``biaxial``, ΔE_b along
-``strip_y``. The other gap is no marker where a period is held or pulled too: holding or
+``strip_y`` (and along a ray, that of its leading period). The other gap is no marker where a period is held or pulled too: holding or
 pulling the transverse period makes a loose fabric straighten its yarn (fixed length,
 larger cell) and give up the other energy without any contact being relieved (measured,
 ``jobs/inplane_k0.1.toml``: garter's ΔE_b along ``strip_x`` and ``biaxial`` is 3–7·10⁻⁵ mJ
@@ -30,7 +33,9 @@ This module is the registry: a new path is one entry of ``PATHS``; the job file'
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 
 @dataclass(frozen=True)
@@ -69,7 +74,7 @@ class LoadPath:
 
     @property
     def _order(self) -> tuple[str, str]:
-        return ("x", "y") if self.rate_x == 1.0 else ("y", "x")
+        return ("x", "y") if self.rate_x == 1.0 else ("y", "x")  # (a ray: |rate_y| < 1 then)
 
     def targets(self, a0: dict[str, float], strain: float) -> dict[str, float]:
         """The controlled periods (mm) at the sweep's ``strain`` from the zero-force ones."""
@@ -94,11 +99,58 @@ PATHS: dict[str, LoadPath] = {
 }
 """The registered load paths by name (the values of ``Direction``)."""
 PATH_NAMES: tuple[str, ...] = tuple(PATHS)
+RAY = "ray:"
+"""The prefix of a ray's name: ``ray:<rate_x>,<rate_y>``."""
+CHOICES = f"{', '.join(PATH_NAMES)} or {RAY}<rate_x>,<rate_y>"
 
 
 def load_path(name: str) -> LoadPath:
-    """The registered path ``name``; ValueError listing the known ones otherwise."""
-    try:
+    """The registered path ``name`` or the ray it names; ValueError naming the choices
+    otherwise."""
+    if isinstance(name, str) and name in PATHS:
         return PATHS[name]
-    except (KeyError, TypeError):
-        raise ValueError(f"direction = {name!r}: must be one of {', '.join(PATH_NAMES)}") from None
+    if isinstance(name, str) and name.startswith(RAY):
+        return _ray(name)
+    raise PathError(name, f"must be one of {CHOICES}")
+
+
+@lru_cache(maxsize=256)
+def _ray(name: str) -> LoadPath:
+    """The ray ``ray:<rate_x>,<rate_y>``, its larger |rate| scaled to 1."""
+    try:
+        rx, ry = (float(v) for v in name[len(RAY) :].split(","))
+    except ValueError:
+        raise PathError(name, f"a ray is {RAY}<rate_x>,<rate_y> (two numbers, e.g. ray:1,-0.3)"
+                        ) from None  # fmt: skip
+    if not (math.isfinite(rx) and math.isfinite(ry)) or rx == ry == 0.0:
+        raise PathError(name, "a ray's rates must be finite and not both 0")
+    lead, other = (rx, ry) if abs(rx) >= abs(ry) else (ry, rx)
+    if lead < 0.0:
+        raise PathError(name, 'the larger rate must be positive (a pull); mode = "compression" '
+                        "in [protocol] reverses a whole sweep")  # fmt: skip
+    rates = (1.0, other / lead) if abs(rx) >= abs(ry) else (other / lead, 1.0)
+    gap = "delta_E_c" if abs(rx) >= abs(ry) else "delta_E_b"
+    return LoadPath(name, *rates, gap, f"ray: ε_x : ε_y = {rates[0]:g} : {rates[1]:g}")
+
+
+def check_path(name: str) -> str:
+    """``name`` if it names a load path (``load_path``); ValueError saying why otherwise
+    (for a validator that names the field and the value itself)."""
+    try:
+        load_path(name)
+    except PathError as e:
+        raise ValueError(e.why) from None
+    return name
+
+
+class PathError(ValueError):
+    """Not a load path: ``direction = '<name>': <why>``."""
+
+    def __init__(self, name: object, why: str) -> None:
+        super().__init__(f"direction = {name!r}: {why}")
+        self.why = why
+
+
+def path_rank(name: str) -> tuple[int, str]:
+    """A sort key: the registered paths in their order, then the rays by name."""
+    return (PATH_NAMES.index(name), "") if name in PATHS else (len(PATH_NAMES), name)

@@ -77,6 +77,8 @@ def _sweep_arrays(
         a_x, a_y = a0[0] * stretch, a0[1] * stretch
     elif direction == "strip_x":
         a_x, a_y = a0[0] * stretch, np.full(n, a0[1])
+    elif direction == "ray:1,-0.2":
+        a_x, a_y = a0[0] * stretch, a0[1] * (1.0 - 0.2 * strain)
     if direction == "y" and g == 0.0:  # unjammed in y: the area first shrinks (paper Fig. 5b)
         a_x = a0[0] * (1.0 - 1.3 * strain + 2.0 * strain**2)
     out = {
@@ -93,7 +95,7 @@ def _sweep_arrays(
     }
     out["total_energy"] = out["bending_energy"] + out["contact_energy"]
     out["stress_envelope"] = out["stress"].copy()
-    across = {"x": 0.0, "y": 0.0, "biaxial": 0.8, "strip_x": 0.4}[direction]
+    across = {"x": 0.0, "y": 0.0, "biaxial": 0.8, "strip_x": 0.4, "ray:1,-0.2": 0.1}[direction]
     main, other = out["stress"], across * out["stress"]
     out["stress_xx"], out["stress_yy"] = (other, main) if direction == "y" else (main, other)
     out["packing_fraction"] = 0.9 - 0.004 * (x - 20.0) - 0.1 * strain  # [store] packing_fraction

@@ -29,7 +29,7 @@ def reduction(tmp_path_factory):
     paths too (the in-plane figure)."""
     path = write_results(tmp_path_factory.mktemp("lay") / "synthetic.h5",
                          stitches=("stockinette", "garter"),
-                         directions=("x", "y", "biaxial", "strip_x"))  # fmt: skip
+                         directions=("x", "y", "biaxial", "strip_x", "ray:1,-0.2"))  # fmt: skip
     return load(path).reduction
 
 

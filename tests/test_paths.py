@@ -22,10 +22,13 @@ def zero():
     return zero_force(PAPER, starts=StartSettings(count=1))
 
 
+RAY = "ray:1,-0.2"  # x pulled, y pushed in at a fifth of its rate
+
+
 @pytest.fixture(scope="module")
 def sweeps(zero):
     return {d: strain_sweep(PAPER, zero, d, PROTOCOL) for d in ("x", "y", "biaxial", "strip_x",
-                                                                 "strip_y")}  # fmt: skip
+                                                                 "strip_y", RAY)}  # fmt: skip
 
 
 def test_registry():
@@ -38,8 +41,19 @@ def test_registry():
     # dE/dε per unit area: F_x a_x0 / (a_x0 a_y0) + F_y a_y0 / (a_x0 a_y0)
     assert PATHS["biaxial"].conjugate_stress(3.0, 5.0, 2.0, 4.0) == pytest.approx(3 / 4 + 5 / 2)
     assert PATHS["y"].conjugate_stress(3.0, 5.0, 2.0, 4.0) == 5 / 2
-    with pytest.raises(ValueError, match="must be one of x, y, biaxial, strip_x, strip_y"):
+    with pytest.raises(ValueError, match="must be one of x, y, biaxial, strip_x, strip_y or "
+                       "ray:<rate_x>,<rate_y>"):  # fmt: skip
         load_path("shear")
+    # a ray: its larger rate leads, scaled to 1; the other period follows
+    ray = load_path("ray:-0.5,2")
+    assert (ray.leading, ray.rate_x, ray.rate_y, ray.gap) == ("y", -0.25, 1.0, "delta_E_b")
+    assert ray.targets({"x": 2.0, "y": 4.0}, 0.1) == {"y": 4.4, "x": 2.0 * (1 - 0.025)}
+    assert load_path("ray:2,2").rates == PATHS["biaxial"].rates
+    for bad, why in (("ray:-1,0.5", "the larger rate must be positive"),
+                     ("ray:0,0", "not both 0"), ("ray:1", "two numbers"),
+                     ("ray:1,nan", "finite")):  # fmt: skip
+        with pytest.raises(ValueError, match=why):
+            load_path(bad)
 
 
 def test_controlled_periods_follow_the_path(sweeps, zero):
@@ -52,6 +66,8 @@ def test_controlled_periods_follow_the_path(sweeps, zero):
     assert np.array_equal(b.a_x, b.a_fixed)
     assert np.all(sx.a_y == ay0) and np.array_equal(sx.a_x, sx.a_fixed)
     assert np.all(sy.a_x == ax0) and np.array_equal(sy.a_y, sy.a_fixed)
+    r = sweeps[RAY]
+    assert np.allclose(r.a_y, ay0 * (1 - 0.2 * r.strain), rtol=1e-14)
     # a free period stays force-free; a held one carries a stress
     assert np.max(np.abs(sweeps["x"].stress_yy)) < 1e-5
     assert np.max(np.abs(sweeps["y"].stress_xx)) < 1e-5
@@ -64,10 +80,12 @@ def test_stress_components_are_the_energy_derivatives(sweeps):
     equibiaxial path their sum; along x the paper's stress, σ_xx. (As in the uniaxial
     sweeps' test, a step where the chain hops to a slightly lower basin breaks the
     differences: at 11.6 mm up to 7e-4 N/mm at one or two steps of 38.)"""
-    b = sweeps["biaxial"]
+    b, r = sweeps["biaxial"], sweeps[RAY]
     assert np.allclose(b.stress_envelope, b.stress_xx + b.stress_yy, rtol=1e-12, atol=1e-15)
+    assert np.allclose(r.stress_envelope, r.stress_xx - 0.2 * r.stress_yy, rtol=1e-12,
+                       atol=1e-15)  # fmt: skip
     for d, component in (("strip_x", "stress_xx"), ("strip_y", "stress_yy"), ("x", "stress_xx"),
-                         ("biaxial", "stress_envelope")):  # fmt: skip
+                         ("biaxial", "stress_envelope"), (RAY, "stress_envelope")):  # fmt: skip
         s = sweeps[d]
         inner = slice(2, -1)
         agree = np.isclose(s.stress[inner], getattr(s, component)[inner], rtol=0.02, atol=1e-5)
@@ -82,7 +100,7 @@ def test_path_observables(sweeps):
     obs = {d: sweep_observables(s.arrays(), d) for d, s in sweeps.items()}
     assert obs["x"]["poisson_ratio"] is not None and obs["y"]["poisson_ratio"] is not None
     assert obs["x"]["transverse_stress_ratio"] is None
-    for d in ("biaxial", "strip_x", "strip_y"):
+    for d in ("biaxial", "strip_x", "strip_y", RAY):
         assert obs[d]["poisson_ratio"] is None
         assert np.isfinite(obs[d]["transverse_stress_ratio"]), d
     assert obs["strip_x"]["transverse_stress_ratio"] > 0  # holding a_y takes tension
@@ -94,10 +112,12 @@ def test_path_observables(sweeps):
 def test_bad_direction_is_one_line(tmp_path):
     proc = run_knitsweep("sweep", "--direction", "shear", "--L", "11.6")
     one_error_line(proc, "direction = 'shear': must be one of x, y, biaxial, strip_x, strip_y")
+    proc = run_knitsweep("sweep", "--direction", "ray:0,0", "--L", "11.6")
+    one_error_line(proc, "direction = 'ray:0,0': a ray's rates must be finite and not both 0")
     job = tmp_path / "job.toml"
     job.write_text('schema_version = 1\nname = "j"\ndirections = ["x", "shear"]\n'
                    "[grid]\nL_mm = [11.6]\n")  # fmt: skip
     proc = run_knitsweep("run", job, "--out", tmp_path / "j.h5")
-    one_error_line(proc, "directions.1 = 'shear': Input should be 'x', 'y', 'biaxial', "
-                   "'strip_x' or 'strip_y'")  # fmt: skip
+    one_error_line(proc, "directions.1 = 'shear': must be one of x, y, biaxial, strip_x, "
+                   "strip_y or ray:<rate_x>,<rate_y>")  # fmt: skip
     assert not (tmp_path / "j.h5").exists()

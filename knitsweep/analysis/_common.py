@@ -17,8 +17,8 @@ from ..paths import PATH_NAMES, load_path
 from ..util.plain_values import plain_value
 
 DIRECTIONS = PATH_NAMES
-"""The load paths a sweep can follow (``knitsweep.paths``): 'x', 'y' (the paper's) and the
-biaxial ones."""
+"""The registered load paths a sweep can follow (``knitsweep.paths``): 'x', 'y' (the
+paper's) and the biaxial ones; any ``ray:<rate_x>,<rate_y>`` too."""
 
 
 def to_plain(value: Any) -> Any:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..paths import PATHS
+from ..paths import PATHS, load_path
 from ._common import (
     PlainDict,
     check_array,
@@ -93,7 +93,7 @@ class EnergyGaps(PlainDict):
     def jamming_gap(self, direction: str) -> float:
         """The gap that marks jamming along load path ``direction``: ΔE_c for 'x', ΔE_b for
         'y', the leading period's along the biaxial paths (``JAMMING_GAP``)."""
-        return float(getattr(self, JAMMING_GAP[check_direction(direction)]))
+        return float(getattr(self, load_path(check_direction(direction)).gap))
 
 
 @dataclass(frozen=True)

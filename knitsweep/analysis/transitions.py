@@ -30,9 +30,9 @@ from typing import Any, Literal
 
 import numpy as np
 
+from ..paths import load_path
 from ._common import PlainDict, check_array, check_direction, check_same_length, check_scalar
 from .fitting import LinearFit, fit_line
-from .metrics import JAMMING_GAP
 
 GAP_THRESHOLD = 5e-5
 """The paper's energy-gap error (N·mm, its "J"): below it a fabric counts as unjammed.
@@ -380,7 +380,7 @@ def _record_L_over_r(i: int, rec: Mapping[str, Any]) -> float:
 
 
 def _record_gap(i: int, rec: Mapping[str, Any], direction: str) -> float:
-    name = "jamming_gap" if "jamming_gap" in rec else JAMMING_GAP[direction]
+    name = "jamming_gap" if "jamming_gap" in rec else load_path(direction).gap
     if name not in rec:
         raise ValueError(
             f"records[{i}]: needs 'jamming_gap' or '{name}' for direction {direction!r}"

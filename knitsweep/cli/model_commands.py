@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..config import SOLVERS
-from ..paths import PATH_NAMES
+from ..paths import load_path
 from .common import (
     RELAX_UNITS,
     BOpt,
@@ -157,7 +157,7 @@ def relax(
 
 @app.command()
 def sweep(
-    direction: Annotated[str, typer.Option("--direction", help="load path: x or y (uniaxial), biaxial, strip_x, strip_y")],
+    direction: Annotated[str, typer.Option("--direction", help="load path: x or y (uniaxial), biaxial, strip_x, strip_y, or ray:<rate_x>,<rate_y>")],
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
     r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
     samples: SamplesOpt = None,
@@ -197,8 +197,10 @@ def sweep(
 
     with user_errors():
         check_seed(seed)
-        if direction not in PATH_NAMES:
-            raise InputError(f"direction = {direction!r}: must be one of {', '.join(PATH_NAMES)}")
+        try:
+            load_path(direction)
+        except ValueError as e:
+            raise InputError(str(e)) from None
         if out is not None and out.suffix not in (".csv", ".h5"):
             raise InputError(f"out = '{out}': must end in .csv or .h5")
         if out is not None:

@@ -16,6 +16,7 @@ import numpy as np
 from ..analysis.metrics import JAMMING_GAP
 from ..analysis.paper import TABLE_S4, at_table_1
 from ..analysis.transitions import Transition
+from ..paths import load_path
 from ..quantities import PARAMETER_NAMES, SERIES_PARAMS
 from .declutter import movable
 from .plotting import (
@@ -30,6 +31,7 @@ from .plotting import (
     REGIME_LABEL,
     THRESHOLD_COLOUR,
     TRANSITION_LINE,
+    PerPath,
     SkipFigure,
     caption,
     current_options,
@@ -55,8 +57,9 @@ _GAP_SYMBOL = {
     "delta_E_c": r"$\Delta E_c$",
     "delta_E_b": r"$\Delta E_b$",
 }
-GAP_LABEL = {d: _GAP_SYMBOL[gap] for d, gap in JAMMING_GAP.items()}
-"""The jamming gap of each load path, as a label."""
+GAP_LABEL = PerPath({d: _GAP_SYMBOL[gap] for d, gap in JAMMING_GAP.items()},
+                    lambda path: _GAP_SYMBOL[load_path(path).gap])  # fmt: skip
+"""The jamming gap of each load path (a ray's: its leading period's), as a label."""
 
 
 def _gap_panel(ax: Any, red: Reduction, rows: list[dict], t: Transition | None, d: str,

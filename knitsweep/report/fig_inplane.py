@@ -13,11 +13,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..paths import PATHS
+from ..paths import load_path
 from .fig_patterns import _colour, _one_series_per_stitch
 from .plotting import (
     DIRECTION_COLOUR,
     L_OVER_R,
+    PerPath,
     SkipFigure,
     new_figure,
     panel_title,
@@ -28,8 +29,9 @@ from .plotting import (
 from .reduce import Reduction
 from .series import series_key
 
-PATH_MARKER = {"x": "o", "y": "s", "biaxial": "D", "strip_x": ">", "strip_y": "^"}
-"""The marker of each load path in panel (a)."""
+PATH_MARKER = PerPath({"x": "o", "y": "s", "biaxial": "D", "strip_x": ">", "strip_y": "^"},
+                      lambda _path: "*")  # fmt: skip
+"""The marker of each load path in panel (a) (a ray's: a star)."""
 LINESTYLE = {"x": "-", "y": "--", "strip_x": "-", "strip_y": "--", "biaxial": "-"}
 
 
@@ -42,7 +44,7 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
     the transverse period over the pulled one's, σ_⊥/σ_∥ at 2 % strain (strip_x solid,
     strip_y dashed)."""
     paths = path_order({row["direction"] for row in red.sweeps})
-    if not any(not PATHS[d].uniaxial for d in paths):
+    if all(load_path(d).uniaxial for d in paths):
         raise SkipFigure("needs sweeps along a biaxial path (directions biaxial, strip_x, strip_y)")
     from matplotlib.lines import Line2D
 

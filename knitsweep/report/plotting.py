@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..paths import PATH_NAMES
+from ..paths import PATH_NAMES, load_path, path_rank
 from ..quantities import SERIES_PARAMS
 from .reduce import Reduction
 from .series import series_key
@@ -25,13 +25,32 @@ from .tables import series_label
 
 CONTACT_COLOUR = "#ee6a50"  # coral: contact energy gap ΔE_c
 BENDING_COLOUR = "#2f6db5"  # blue: bending energy gap ΔE_b
-DIRECTION_COLOUR = {
-    "x": "#7b3fa0",
-    "y": "#2f8fd0",  # paper SI: x purple, y blue
-    "biaxial": "#c0392b",
-    "strip_x": "#b8860b",
-    "strip_y": "#138d75",
-}
+
+
+class PerPath(dict):
+    """A dict by load path whose missing entries (rays, ``knitsweep.paths``) come from
+    ``default(path)``."""
+
+    def __init__(self, entries: dict[str, Any], default: Any) -> None:
+        super().__init__(entries)
+        self._default = default
+
+    def __missing__(self, path: str) -> Any:
+        return self._default(path)
+
+
+RAY_COLOUR = "#555555"
+"""The colour of a ray (``ray:<rate_x>,<rate_y>``) in the figures."""
+DIRECTION_COLOUR = PerPath(
+    {
+        "x": "#7b3fa0",
+        "y": "#2f8fd0",  # paper SI: x purple, y blue
+        "biaxial": "#c0392b",
+        "strip_x": "#b8860b",
+        "strip_y": "#138d75",
+    },
+    lambda _path: RAY_COLOUR,
+)
 REGIME_FILL = {
     "jammed_xy": "#f6c4d6",  # pink
     "jammed_y_only": "#fbd5a5",  # orange
@@ -44,13 +63,16 @@ REGIME_LABEL = {
     "jammed_x_only": "jammed only in x (rare)",
     "unjammed": "unjammed",
 }
-TRANSITION_LINE = {
-    "x": "#d9730d",
-    "y": "#2e8b46",  # paper Fig. 4c: x orange, y green
-    "biaxial": "#c0392b",
-    "strip_x": "#8e6c0b",
-    "strip_y": "#117864",
-}
+TRANSITION_LINE = PerPath(
+    {
+        "x": "#d9730d",
+        "y": "#2e8b46",  # paper Fig. 4c: x orange, y green
+        "biaxial": "#c0392b",
+        "strip_x": "#8e6c0b",
+        "strip_y": "#117864",
+    },
+    lambda _path: RAY_COLOUR,
+)
 BRACKET_FILL = "#b9e3b0"  # light green: the transition bracket (paper Fig. 3)
 THRESHOLD_COLOUR = "#555555"
 PARTIAL_COLOUR = "#b00020"
@@ -143,23 +165,34 @@ def current_options() -> FigureOptions:
 
 
 L_OVER_R = "$L/r$"
-STRAIN = {
-    "x": r"strain $\varepsilon_x$",
-    "y": r"strain $\varepsilon_y$",
-    "biaxial": r"strain $\varepsilon_x = \varepsilon_y$",
-    "strip_x": r"strain $\varepsilon_x$ ($\varepsilon_y = 0$)",
-    "strip_y": r"strain $\varepsilon_y$ ($\varepsilon_x = 0$)",
-}
-"""The strain axis of each load path (``knitsweep.paths``)."""
+
+
+def _ray_strain(path: str) -> str:
+    p = load_path(path)
+    lead, across = p.leading, p.transverse
+    return (rf"strain $\varepsilon_{lead}$ ($\varepsilon_{across}$ = "
+            rf"{p.rates[across]:g} $\varepsilon_{lead}$)")  # fmt: skip
+
+
+STRAIN = PerPath(
+    {
+        "x": r"strain $\varepsilon_x$",
+        "y": r"strain $\varepsilon_y$",
+        "biaxial": r"strain $\varepsilon_x = \varepsilon_y$",
+        "strip_x": r"strain $\varepsilon_x$ ($\varepsilon_y = 0$)",
+        "strip_y": r"strain $\varepsilon_y$ ($\varepsilon_x = 0$)",
+    },
+    _ray_strain,
+)
+"""The strain axis of each load path (``knitsweep.paths``; a ray's from its rates)."""
 if set(STRAIN) != set(PATH_NAMES):
     raise ImportError(f"STRAIN labels {sorted(STRAIN)} != the load paths {PATH_NAMES}")
 
 
 def path_order(directions: Any) -> list[str]:
-    """The load paths among ``directions`` in the registry's order (x, y, then the biaxial
-    ones)."""
-    present = set(directions)
-    return [d for d in PATH_NAMES if d in present]
+    """The load paths among ``directions`` in the registry's order (x, y, the biaxial
+    ones), then the rays by name."""
+    return sorted(set(directions), key=path_rank)
 
 
 MAX_PANELS = 8

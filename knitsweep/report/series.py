@@ -10,10 +10,9 @@ from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
-from ..analysis.metrics import JAMMING_GAP
 from ..analysis.transitions import Transition, series_transitions
 from ..config import FAILED
-from ..paths import PATH_NAMES
+from ..paths import load_path, path_rank
 from ..quantities import NUMERIC_SERIES_PARAMS, PARAM_SYMBOLS, SERIES_PARAMS, value_text
 from ..service.adaptive import failure_status
 from ..stitches import DEFAULT_STITCH
@@ -50,7 +49,7 @@ def transition_row(
     return {
         "direction": direction,
         **params,
-        "gap": JAMMING_GAP[direction],
+        "gap": load_path(direction).gap,
         "status": t.status,
         "L_over_r_trans": trans,
         "bracket_lower": t.bracket_lower,
@@ -96,7 +95,7 @@ def transition_rows(
             key = (series_key(p), p["direction"])
             missing[key] = missing.get(key, 0) + 1
     found = series_transitions(sweeps, SERIES_PARAMS, threshold)
-    out = {key: found[key] for key in sorted(found, key=lambda k: (k[0], PATH_NAMES.index(k[1])))}
+    out = {key: found[key] for key in sorted(found, key=lambda k: (k[0], path_rank(k[1])))}
     rows = [transition_row(key[0], key[1], t, missing.get(key, 0)) for key, t in out.items()]
     close: dict[tuple[tuple[Any, ...], str], list[float]] = {}
     for s in sweeps:  # [starts] spread: gaps within their spread of the threshold

@@ -148,8 +148,10 @@ def transitions_text(red: Reduction) -> str:
     lines = []
     if red.constants:
         lines.append("fixed: " + series_label(red.constants, red.constants))
+    # an optional column shows where a row has a value (and "jammed after" a count above 0)
     shown = [c for c in TRANSITION_SUMMARY if not c.optional
-             or any(t.get(f) not in (None, 0) for t in red.transitions for f in c.fields)]  # fmt: skip
+             or any(t.get(f) is not None and (f != "n_jammed_after" or t[f] > 0)
+                    for t in red.transitions for f in c.fields)]  # fmt: skip
     head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying), *(c.header for c in shown)]
     body = [[t["direction"], *(value_text(t[k]) for k in red.varying),
              *(summary_cell(c, t) for c in shown)]
