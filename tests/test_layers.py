@@ -64,7 +64,7 @@ MODULE_ORDER = {
     "studies": ["accuracy"],
     "service": ["signals", "grid", "id_forms", "jobs", "run_plan", "progress", "retry", "spread", "worker",
                 "adaptive", "executors", "slurm", "master", "runs", "recovery"],
-    "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "declutter", "plotting",
+    "report": ["force_columns", "series", "reduce", "tidy", "results", "tables", "declutter", "path_style", "plotting",
                "fig_energy", "fig_mechanics", "fig_volumes", "fig_forces", "fig_patterns",
                "fig_inplane", "figures", "html", "tile", "sources", "tube_mesh", "raster", "export3d", "render",
                "contact_volumes"],

@@ -13,12 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from ..paths import PATH_NAMES, load_path
+from ..paths import load_path
 from ..util.plain_values import plain_value
-
-DIRECTIONS = PATH_NAMES
-"""The registered load paths a sweep can follow (``knitsweep.paths``): 'x', 'y' (the
-paper's) and the biaxial ones; any ``ray:<rate_x>,<rate_y>`` too."""
 
 
 def to_plain(value: Any) -> Any:

@@ -93,7 +93,7 @@ class EnergyGaps(PlainDict):
     def jamming_gap(self, direction: str) -> float:
         """The gap that marks jamming along load path ``direction``: ΔE_c for 'x', ΔE_b for
         'y', the leading period's along the biaxial paths (``JAMMING_GAP``)."""
-        return float(getattr(self, load_path(check_direction(direction)).gap))
+        return float(getattr(self, load_path(direction).gap))
 
 
 @dataclass(frozen=True)

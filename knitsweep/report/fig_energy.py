@@ -13,12 +13,12 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.metrics import JAMMING_GAP
 from ..analysis.paper import TABLE_S4, at_table_1
 from ..analysis.transitions import Transition
 from ..paths import load_path
 from ..quantities import PARAMETER_NAMES, SERIES_PARAMS
 from .declutter import movable
+from .path_style import PerPath, path_order
 from .plotting import (
     BENDING_COLOUR,
     BRACKET_FILL,
@@ -31,7 +31,6 @@ from .plotting import (
     REGIME_LABEL,
     THRESHOLD_COLOUR,
     TRANSITION_LINE,
-    PerPath,
     SkipFigure,
     caption,
     current_options,
@@ -42,7 +41,6 @@ from .plotting import (
     narrow,
     new_figure,
     parameter_axis,
-    path_order,
     sci,
     series_keys,
     series_legend,
@@ -57,8 +55,7 @@ _GAP_SYMBOL = {
     "delta_E_c": r"$\Delta E_c$",
     "delta_E_b": r"$\Delta E_b$",
 }
-GAP_LABEL = PerPath({d: _GAP_SYMBOL[gap] for d, gap in JAMMING_GAP.items()},
-                    lambda path: _GAP_SYMBOL[load_path(path).gap])  # fmt: skip
+GAP_LABEL = PerPath({}, lambda path: _GAP_SYMBOL[load_path(path).gap])
 """The jamming gap of each load path (a ray's: its leading period's), as a label."""
 
 

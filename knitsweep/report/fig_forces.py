@@ -27,7 +27,8 @@ from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
 from ..store.format import SWEEPS
 from .fig_mechanics import CLASS_COLOUR, CLASS_LABEL
 from .force_columns import contact_classes, job_fidelity
-from .plotting import STRAIN, SkipFigure, label_of, new_figure, title
+from .path_style import STRAIN
+from .plotting import SkipFigure, label_of, new_figure, title
 from .reduce import Reduction
 from .series import series_key
 

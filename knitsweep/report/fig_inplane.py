@@ -15,14 +15,13 @@ from typing import Any
 
 from ..paths import load_path
 from .fig_patterns import _colour, _one_series_per_stitch
+from .path_style import PerPath, path_order
 from .plotting import (
     DIRECTION_COLOUR,
     L_OVER_R,
-    PerPath,
     SkipFigure,
     new_figure,
     panel_title,
-    path_order,
     series_rows,
     title,
 )

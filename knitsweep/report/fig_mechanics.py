@@ -19,6 +19,7 @@ from ..analysis.paper import TABLE_S3, at_table_1
 from ..analysis.stress_strain import SECANT_STRAIN
 from ..quantities import SERIES_PARAMS
 from ..stitches import TRANSLATION_CLASSES as CONTACT_CLASSES
+from .path_style import STRAIN
 from .plotting import (
     DIRECTION_COLOUR,
     L_OVER_R,
@@ -26,7 +27,6 @@ from .plotting import (
     MARKERS,
     REGIME_FILL,
     REGIME_LABEL,
-    STRAIN,
     TRANSITION_LINE,
     L_colourbar,
     L_colours,

@@ -96,6 +96,12 @@ class SummaryColumn:
     fields: tuple[str, ...]
     spec: str = ""
     optional: bool = False  # shown only where some row has a value (the text table)
+    hide_zero: bool = False  # (optional) a value of 0 counts as none
+
+    def has_value(self, row: Mapping[str, Any]) -> bool:
+        """Whether ``row`` has a value to show in this column."""
+        return any(row.get(f) is not None and not (self.hide_zero and row[f] == 0)
+                   for f in self.fields)  # fmt: skip
 
 
 TRANSITION_SUMMARY = (
@@ -111,7 +117,7 @@ TRANSITION_SUMMARY = (
     SummaryColumn("fit L (mm)", ("fit_L_lo_mm", "fit_L_hi_mm"), ".2f"),
     SummaryColumn("n_jam", ("n_jammed",)),
     SummaryColumn("missing", ("n_missing",)),
-    SummaryColumn("jammed after", ("n_jammed_after",), optional=True),
+    SummaryColumn("jammed after", ("n_jammed_after",), optional=True, hide_zero=True),
     SummaryColumn("within round-off at L (mm)", ("round_off_at_L_mm",), optional=True),
 )
 """The transitions summary after the direction and the series parameters that vary:
@@ -148,10 +154,8 @@ def transitions_text(red: Reduction) -> str:
     lines = []
     if red.constants:
         lines.append("fixed: " + series_label(red.constants, red.constants))
-    # an optional column shows where a row has a value (and "jammed after" a count above 0)
-    shown = [c for c in TRANSITION_SUMMARY if not c.optional
-             or any(t.get(f) is not None and (f != "n_jammed_after" or t[f] > 0)
-                    for t in red.transitions for f in c.fields)]  # fmt: skip
+    shown = [c for c in TRANSITION_SUMMARY
+             if not c.optional or any(c.has_value(t) for t in red.transitions)]  # fmt: skip
     head = ["dir", *(PARAM_SYMBOLS[k][0] for k in red.varying), *(c.header for c in shown)]
     body = [[t["direction"], *(value_text(t[k]) for k in red.varying),
              *(summary_cell(c, t) for c in shown)]
@@ -164,7 +168,7 @@ def transitions_text(red: Reduction) -> str:
         + (
             ""
             if all(t["direction"] in ("x", "y") for t in red.transitions)
-            else ", the leading period's along the biaxial paths (ΔE_c for biaxial, strip_x)"
+            else ", the leading period's along the other paths (ΔE_c for biaxial, strip_x)"
         )
         + f"; threshold {red.threshold:g} mJ; "
         "bracket = (last jammed, first unjammed L/r); fit = jamming gap against L over its "

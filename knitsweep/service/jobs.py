@@ -149,7 +149,7 @@ class JobSpec(BaseModel):
         min_length=1,
         description="the load paths each point is swept along (knitsweep.paths): 'x', 'y' "
         "(uniaxial, the paper's), 'biaxial' (equibiaxial), 'strip_x', 'strip_y' (one period "
-        "pulled, the other held)",
+        "pulled, the other held), 'ray:<rate_x>,<rate_y>'",
     )
     preset: str = DEFAULT_PRESET
     stitch: StitchName = Field(

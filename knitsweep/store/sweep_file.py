@@ -16,8 +16,8 @@ if TYPE_CHECKING:
     from ..config import StitchParams
 
 COLUMNS = ("strain", "a_x", "a_y", "stress", "stress_envelope", "stress_xx", "stress_yy",
-           "bending_energy", "contact_energy", "total_energy", *(o.name for o in registered("step")), "winner",
-           "converged")  # fmt: skip
+           "bending_energy", "contact_energy", "total_energy",
+           *(o.name for o in registered("step")), "winner", "converged")  # fmt: skip
 """The per-step quantities of the CSV table, in order (the registered step observables,
 ``quantities.registered("step")``, after the energies)."""
 

@@ -166,8 +166,8 @@ class SweepResult:
 
 
 _STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "stress_xx",
-                "stress_yy", "bending_energy", "contact_energy", "winner", "converged", "iterations", "evaluations",
-                "min_zeta", "length_residual", "kkt_residual", "relax_seconds", "states")  # fmt: skip
+                "stress_yy", "bending_energy", "contact_energy", "winner", "converged",
+                "iterations", "evaluations", "min_zeta", "length_residual", "kkt_residual", "relax_seconds", "states")  # fmt: skip
 _START_ARRAYS = ("carried", "merged_into", "merged_at")
 
 
