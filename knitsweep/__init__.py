@@ -2,7 +2,8 @@
 
 Importing the package does no work: no MPI, no numba compilation, no file access.
 ``knitsweep.load(*paths)`` reads results files into pandas DataFrames and an
-xarray Dataset (``knitsweep.report.results``).
+xarray Dataset (``knitsweep.report.results``); ``knitsweep.load_energy_density(path)``
+reads a fabric's fitted energy density (``knitsweep.analysis.energy_density``).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ if TYPE_CHECKING:
 
 from ._version import __version__
 
-__all__ = ["__version__", "load"]
+__all__ = ["__version__", "load", "load_energy_density"]
 
 
 def load(*paths: str | Path, threshold: float | None = None, all_columns: bool = False) -> Results:
@@ -43,3 +44,12 @@ def load(*paths: str | Path, threshold: float | None = None, all_columns: bool =
     )
     warn_damaged(res.reduction.roots)  # (stacklevel: the caller's line)
     return res
+
+
+def load_energy_density(path: str | Path):
+    """Read an energy density written by ``knitsweep energy-density``: an
+    :class:`knitsweep.analysis.energy_density.EnergyDensity` with ``W``, ``stress`` and
+    ``tangent`` at any strain (ε_xx, ε_yy) and ``in_domain``."""
+    from .analysis.energy_density import load_energy_density as _load_density
+
+    return _load_density(path)

@@ -10,8 +10,8 @@ fixes a_i = a_i0 (1 + rate_i ε) for every controlled period i, and relaxes the 
 * ``strip_x``, ``strip_y``: strip biaxial (pure shear in the fabric-testing sense),
   one period pulled, the other held at its zero-force value;
 * ``ray:<rate_x>,<rate_y>``: any ray in (ε_x, ε_y), e.g. ``ray:1,-0.3`` (x pulled, y
-  pushed in at 0.3 of its rate); the larger |rate| leads and is scaled to 1, and must be
-  positive (a pull; the protocol's ``mode = "compression"`` reverses a whole sweep).
+  pushed in at 0.3 of its rate); the larger |rate| leads (on a tie the positive one) and
+  is scaled to 1, and must be positive (a pull; the protocol's ``mode = "compression"`` reverses a whole sweep).
 
 The stress a path reports (``stress``, ``stress_envelope``, N/mm) is the work
 conjugate of ε per unit width: dE/dε / (a_lead0 a_perp0) = Σ_i rate_i σ_ii with
@@ -124,12 +124,13 @@ def _ray(name: str) -> LoadPath:
                         ) from None  # fmt: skip
     if not (math.isfinite(rx) and math.isfinite(ry)) or rx == ry == 0.0:
         raise PathError(name, "a ray's rates must be finite and not both 0")
-    lead, other = (rx, ry) if abs(rx) >= abs(ry) else (ry, rx)
+    x_leads = abs(rx) > abs(ry) or (abs(rx) == abs(ry) and rx > 0.0)  # a tie: the pull leads
+    lead, other = (rx, ry) if x_leads else (ry, rx)
     if lead < 0.0:
         raise PathError(name, 'the larger rate must be positive (a pull); mode = "compression" '
                         "in [protocol] reverses a whole sweep")  # fmt: skip
-    rates = (1.0, other / lead) if abs(rx) >= abs(ry) else (other / lead, 1.0)
-    gap = "delta_E_c" if abs(rx) >= abs(ry) else "delta_E_b"
+    rates = (1.0, other / lead) if x_leads else (other / lead, 1.0)
+    gap = "delta_E_c" if x_leads else "delta_E_b"
     return LoadPath(name, *rates, gap, f"ray: ε_x : ε_y = {rates[0]:g} : {rates[1]:g}")
 
 

@@ -49,7 +49,10 @@ def test_registry():
     assert (ray.leading, ray.rate_x, ray.rate_y, ray.gap) == ("y", -0.25, 1.0, "delta_E_b")
     assert ray.targets({"x": 2.0, "y": 4.0}, 0.1) == {"y": 4.4, "x": 2.0 * (1 - 0.025)}
     assert load_path("ray:2,2").rates == PATHS["biaxial"].rates
-    for bad, why in (("ray:-1,0.5", "the larger rate must be positive"),
+    tie = load_path("ray:-1,1")  # a tie: the pull leads
+    assert (tie.leading, tie.rate_x, tie.rate_y) == ("y", -1.0, 1.0)
+    assert load_path("ray:1,-1").leading == "x"
+    for bad, why in (("ray:-1,0.5", "the larger rate must be positive"), ("ray:-1,-1", "positive"),
                      ("ray:0,0", "not both 0"), ("ray:1", "two numbers"),
                      ("ray:1,nan", "finite")):  # fmt: skip
         with pytest.raises(ValueError, match=why):

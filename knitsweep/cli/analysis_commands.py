@@ -284,3 +284,87 @@ def accuracy(
     typer.echo(table(results))
     for path in write_report(results, out):
         typer.echo(f"wrote {path}", err=True)
+
+
+@app.command("energy-density")
+def energy_density(
+    results: Annotated[list[Path], typer.Argument(help="results file(s) of a job that swept "
+                       "one point along rays (e.g. jobs/energy_density_k0.1.toml)")],
+    out: Annotated[Path, typer.Option("--out", help="the energy density file to write (.json)")
+                   ] = Path("energy_density.json"),
+    stitch: Annotated[str | None, option("--point-stitch", help="the stitch of the point to "
+                                         "fit", default="the files' only one")] = None,
+    L: Annotated[float | None, option("--point-L", help="the yarn length of the point to "
+                                      "fit (mm)", default="the files' only one")] = None,
+    knots: Annotated[str, typer.Option("--knots", help="knot intervals along eps_xx,eps_yy")
+                     ] = "64,48",
+    smoothing: Annotated[float, typer.Option("--smoothing", help="weight of the spline's "
+                         "curvature penalty, relative to the data's")] = 1e-2,
+    held_out: Annotated[bool, flag("--held-out", help="measure the error between rays: "
+                        "each ray left out of the fit in turn and predicted")] = True,
+    figure: Annotated[bool, flag("--figure", help="draw <out>.png as well")] = True,
+) -> None:  # fmt: skip
+    """Fit the fabric's in-plane energy density W(eps_xx, eps_yy) (N/mm, per undeformed
+    area) to one point's swept states and stresses, write it for `knitsweep.load_energy_density`
+    and print the fit's errors and where it is not convex."""
+    import knitsweep
+
+    from ..analysis.energy_density import fit_energy_density, held_out_errors
+    from ..errors import InputError
+
+    with user_errors():
+        try:
+            kx, ky = (int(v) for v in knots.split(","))
+        except ValueError:
+            raise InputError(f"knots = {knots!r}: two integers, e.g. 64,48") from None
+        check_range("knots", min(kx, ky), 2, 400)
+        check_range("knots", max(kx, ky), 2, 400)
+        check_range("smoothing", smoothing, 0.0, 1e6)
+        if out.suffix != ".json":
+            raise InputError(f"out = {str(out)!r}: the energy density is written as .json")
+        res = knitsweep.load(*results)
+        try:
+            samples = res.energy_density_samples(stitch, L)
+        except ValueError as e:
+            raise InputError(str(e)) from None
+    fit = fit_energy_density(samples, (kx, ky), smoothing)
+    if held_out:
+        fit.fit["held_out_error"] = held_out_errors(samples, (kx, ky), smoothing)
+    fit.save(out)
+    typer.echo(_density_summary(fit))
+    typer.echo(f"wrote {out}")
+    if figure:
+        from ..report.fig_energy_density import energy_density_figure
+
+        typer.echo(f"wrote {energy_density_figure(fit, samples, out.with_suffix('.png'))}")
+
+
+def _density_summary(fit) -> str:
+    """The fit's measured errors in a few lines."""
+    import numpy as np
+
+    f, pt = fit.fit, fit.point
+    err = f["stress_error"]
+    worst = max(err, key=err.get)
+    lines = [
+        f"{pt['stitch']} L = {pt['L_mm']:g} mm: {f['samples']} states from "
+        f"{len(f['sweeps'])} sweeps, knots {f['knots'][0]}x{f['knots'][1]}",
+        "stress error (% of each sweep's peak): "
+        + ", ".join(f"{d} {100 * err[d]:.2f}" for d in ("x", "y") if d in err)
+        + f"; largest {100 * err[worst]:.2f} ({worst}); energy {100 * f['energy_error']:.2f}",
+    ]
+    if f.get("held_out_error"):
+        h = np.array(list(f["held_out_error"].values()))
+        lines.append(
+            f"between rays (each left out): median {100 * np.median(h):.1f} %, "
+            f"largest {100 * h.max():.1f} % of the ray's peak stress"
+        )
+    c = f["convexity"]
+    lines.append(
+        f"not convex on {100 * c['fraction']:.0f} % of the sampled region "
+        f"(smallest eigenvalue {c['min_eigenvalue_N_per_mm']:.3g} N/mm, largest "
+        f"{c['max_eigenvalue_N_per_mm']:.3g})"
+    )
+    if f["left_out"]:
+        lines.append("left out: " + "; ".join(f"{d}: {w}" for d, w in f["left_out"].items()))
+    return "\n".join(lines)

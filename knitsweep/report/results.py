@@ -253,6 +253,15 @@ class Results:
 
         return to_dataset(self)
 
+    def energy_density_samples(self, stitch: str | None = None, L_mm: float | None = None):
+        """The one point's (``stitch``, ``L_mm``: needed where the files hold several) swept
+        states as samples of the in-plane energy density W(ε_xx, ε_yy), for
+        ``knitsweep.analysis.energy_density.fit_energy_density`` (docs/energy-density.md)."""
+        from ..analysis.energy_density import density_samples
+
+        sweeps = [(e.meta, e.record) for e in self.reduction.entries if e.kind == SWEEPS]
+        return density_samples(sweeps, stitch, L_mm)
+
     def select(self, **where: Any) -> Results:
         """The same tables with only the rows whose columns match: a value (floats
         compared to 1e-9 relative), or a list of values. Columns a table lacks do not

@@ -1,0 +1,176 @@
+"""The in-plane energy density (knitsweep.analysis.energy_density, docs/energy-density.md):
+the fit against a known W, its stress and tangent as its exact derivatives, the file
+round trip, the sampled region, and a real job's fit from the command line."""
+
+import json
+
+import numpy as np
+import pytest
+from conftest import one_error_line, run_knitsweep
+
+import knitsweep
+from knitsweep.analysis.energy_density import (
+    DensitySamples,
+    fit_energy_density,
+    held_out_errors,
+    load_energy_density,
+    sampled_domain,
+)
+
+
+def _known(e):
+    """A smooth convex W (N/mm) that stiffens like a jamming fabric, its gradient."""
+    x, y = e[..., 0], e[..., 1]
+    w = 0.05 * x**2 + 0.3 * y**2 + 0.04 * x * y + 2.0 * x**4 + 3.0 * y**4
+    g = np.stack([0.1 * x + 0.04 * y + 8.0 * x**3, 0.6 * y + 0.04 * x + 12.0 * y**3], -1)
+    return w, g
+
+
+def _fan(angles_deg=range(-45, 136, 15), n=40, reach=0.3):
+    """Samples of ``_known`` along rays from the origin (as a sweep's steps), and the two
+    'uniaxial' curves (here rays too)."""
+    eps, names, ends = [], [], {}
+    for a in angles_deg:
+        d = np.array([np.cos(np.radians(a)), np.sin(np.radians(a))])
+        t = np.linspace(0.0, reach, n)[:, None] * d
+        eps.append(t)
+        name = f"ray:{d[0] / np.abs(d).max():.6g},{d[1] / np.abs(d).max():.6g}"
+        names += [name] * n
+        ends[name] = tuple(t[-1])
+    eps = np.concatenate(eps)
+    w, g = _known(eps)
+    point = {"stitch": "test", "L_mm": 1.0, "k_mN_per_mm2": 0.1, "a_x0_mm": 1.0, "a_y0_mm": 1.0}
+    return DensitySamples(eps, w, g, np.array(names, dtype=object), ends, point)
+
+
+@pytest.fixture(scope="module")
+def known_fit():
+    s = _fan()
+    return s, fit_energy_density(s, (16, 16), 1e-4)
+
+
+def test_fit_reproduces_a_known_density(known_fit):
+    s, f = known_fit
+    assert max(f.fit["stress_error"].values()) < 5e-3
+    assert f.fit["energy_error"] < 5e-3
+    # between the rays too: inside the sampled region, off every ray
+    rng = np.random.default_rng(1)
+    a, r = np.radians(rng.uniform(-40, 130, 400)), rng.uniform(0.0, 0.27, 400)
+    p = np.stack([r * np.cos(a), r * np.sin(a)], -1)
+    assert f.in_domain(p[:, 0], p[:, 1]).all()
+    _w, g = _known(p)
+    peak = np.abs(s.stress).max()
+    assert np.abs(f.stress(p[:, 0], p[:, 1]) - g).max() < 0.02 * peak
+    c = f.fit["convexity"]  # the known W is convex; its fit nearly everywhere
+    assert (
+        c["fraction"] < 5e-3 and c["min_eigenvalue_N_per_mm"] > -0.02 * c["max_eigenvalue_N_per_mm"]
+    )
+
+
+def test_stress_and_tangent_are_exact_derivatives(known_fit):
+    _, f = known_fit
+    rng = np.random.default_rng(2)
+    p = rng.uniform(-0.1, 0.2, (50, 2))
+    h = 1e-6
+    ex, ey = np.array([h, 0.0]), np.array([0.0, h])
+    fd_stress = np.stack([(f.W(*(p + ex).T) - f.W(*(p - ex).T)) / (2 * h),
+                          (f.W(*(p + ey).T) - f.W(*(p - ey).T)) / (2 * h)], -1)  # fmt: skip
+    scale = np.abs(f.stress(*p.T)).max()
+    assert np.abs(fd_stress - f.stress(*p.T)).max() < 1e-7 * scale
+    fd_tangent = np.stack([(f.stress(*(p + ex).T) - f.stress(*(p - ex).T)) / (2 * h),
+                           (f.stress(*(p + ey).T) - f.stress(*(p - ey).T)) / (2 * h)], -1)  # fmt: skip
+    K = f.tangent(*p.T)
+    assert np.abs(fd_tangent - K).max() < 1e-6 * np.abs(K).max()
+    assert np.array_equal(K, np.swapaxes(K, -1, -2))
+    assert K.shape == (50, 2, 2) and f.stress(0.1, 0.0).shape == (2,)
+    # convexified: positive semi-definite, equal where the fit is convex
+    C = f.tangent(*p.T, convexified=True)
+    assert np.linalg.eigvalsh(C).min() > -1e-12
+    convex = np.linalg.eigvalsh(K)[:, 0] >= 0
+    assert np.allclose(C[convex], K[convex], rtol=0, atol=1e-12 * np.abs(K).max())
+
+
+def test_file_round_trip(known_fit, tmp_path):
+    _, f = known_fit
+    path = f.save(tmp_path / "w.json")
+    g = knitsweep.load_energy_density(path)
+    p = np.random.default_rng(3).uniform(-0.1, 0.2, (20, 2))
+    assert np.array_equal(g.W(*p.T), f.W(*p.T))
+    assert np.array_equal(g.tangent(*p.T), f.tangent(*p.T))
+    assert g.point == f.point and g.fit == json.loads(json.dumps(f.fit))
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"format": "other", "version": 1}))
+    with pytest.raises(ValueError, match="not a knitsweep-energy-density file"):
+        load_energy_density(bad)
+
+
+def test_sampled_region():
+    # a fan of at most a half-turn: closed through the origin
+    s = _fan(range(-45, 136, 45), n=5)
+    poly = sampled_domain(s)
+    assert poly.shape == (6, 2) and np.array_equal(poly[-1], [0.0, 0.0])
+    f = fit_energy_density(s, (4, 4))
+    assert f.in_domain(0.05, 0.0) and f.in_domain(0.0, 0.0)
+    assert not f.in_domain(-0.1, -0.1) and not f.in_domain(0.5, 0.0)
+    # rays all round: the ends alone
+    assert sampled_domain(_fan(range(0, 360, 45), n=5)).shape == (8, 2)
+
+
+def test_held_out_rays_and_bad_settings(known_fit):
+    s, _ = known_fit
+    h = held_out_errors(s, (16, 16), 1e-4)
+    assert set(h) == set(s.ends) - {"ray:1,-1", "ray:-1,1"}  # the outermost are kept
+    assert max(h.values()) < 0.05
+    with pytest.raises(ValueError, match="knots"):
+        fit_energy_density(s, (1, 24))
+    with pytest.raises(ValueError, match="smoothing"):
+        fit_energy_density(s, (8, 8), -1.0)
+
+
+JOB = """schema_version = 1
+name = "w_small"
+description = "a few rays"
+seed = 1
+preset = "draft"
+mode = "grid"
+directions = ["x", "y", "ray:1,-0.5", "ray:1,0", "ray:1,1", "ray:0,1", "ray:-0.5,1"]
+
+[grid]
+L_mm = 11.6
+k_mN_per_mm2 = 0.1
+
+[protocol]
+observables = ["curve"]
+step_mm = 0.003
+max_strain = 0.04
+
+[starts]
+count = 1
+"""
+
+
+def test_a_job_fitted_from_the_command_line(tmp_path):
+    job = tmp_path / "w.toml"
+    job.write_text(JOB)
+    h5 = tmp_path / "w.h5"
+    got = run_knitsweep("run", job, "--out", h5, "--quiet")
+    assert got.returncode == 0, got.stderr
+    out = tmp_path / "w.json"
+    got = run_knitsweep("energy-density", h5, "--out", out, "--knots", "16,16")
+    assert got.returncode == 0, got.stderr
+    assert "states from 7 sweeps" in got.stdout and "between rays" in got.stdout
+    f = knitsweep.load_energy_density(out)
+    assert (tmp_path / "w.png").stat().st_size > 10_000
+    assert f.fit["stress_error"]["x"] < 0.02 and f.fit["stress_error"]["y"] < 0.02
+    # the samples are the sweeps' own steps: W and stresses at the x sweep's states
+    res = knitsweep.load(h5)
+    c = res.curves[res.curves.direction == "x"]
+    a_x0, a_y0 = f.point["a_x0_mm"], f.point["a_y0_mm"]
+    e = np.stack([c.a_x_mm / a_x0 - 1, c.a_y_mm / a_y0 - 1], -1)
+    w = (c.total_energy_mJ - c.total_energy_mJ.iloc[0]) / (a_x0 * a_y0)
+    assert np.abs(f.W(*e.T) - w).max() < 0.02 * w.max()
+    assert np.abs(f.stress(*e.T)[:, 1]).max() < 0.02 * c.stress_xx_N_per_mm.max()  # σ_yy = 0
+    # bad input: one line naming the option, before any work
+    one_error_line(run_knitsweep("energy-density", h5, "--knots", "1,8"), "knots")
+    one_error_line(run_knitsweep("energy-density", h5, "--out", tmp_path / "w.txt"), ".json")
+    one_error_line(run_knitsweep("energy-density", h5, "--point-L", "9.0"), "select one point")
