@@ -26,17 +26,17 @@ def energy_density_figure(f: EnergyDensity, s: DensitySamples, out: Path, n: int
     W = np.where(inside, f.W(gx, gy), np.nan)
     eig = np.full(gx.shape, np.nan)
     eig[inside] = np.linalg.eigvalsh(f.tangent(gx[inside], gy[inside]))[:, 0]
-    fig, ax = plt.subplots(1, 3, figsize=(12.0, 3.9), layout="constrained")
+    fig, ax = plt.subplots(1, 3, figsize=(12.0, 4.2), layout="constrained")
     pt = f.point
     fig.suptitle(f"{pt['stitch']}, L = {pt['L_mm']:g} mm, k = {pt['k_mN_per_mm2']:g} mN/mm²: "
                  f"energy density from {len(s.W)} relaxed states", fontsize=10)  # fmt: skip
-    c = ax[0].contourf(gx, gy, W, levels=24, cmap="viridis")
+    c = ax[0].contourf(gx, gy, W, levels=24, cmap="viridis", extend="both")
     fig.colorbar(c, ax=ax[0], label="W (N/mm)")
     for d in s.ends:
         m = s.direction == d
         ax[0].plot(*s.eps[m].T, ".", ms=1.2, color="white" if d not in ("x", "y") else "red")
     ax[0].plot(*np.vstack([f.domain, f.domain[:1]]).T, "k-", lw=0.6)
-    ax[0].set(xlabel="ε_xx", ylabel="ε_yy", title="(a) W; sampled states (uniaxial: red)")
+    ax[0].set(xlabel="ε_xx", ylabel="ε_yy", title="(a) W; states (rays white, x and y red)")
     for d, i, colour in (("x", 0, "C0"), ("y", 1, "C3")):
         m = s.direction == d
         if not m.any():
@@ -58,9 +58,7 @@ def energy_density_figure(f: EnergyDensity, s: DensitySamples, out: Path, n: int
     bad = inside & (eig < -CONVEX_TOLERANCE * np.nanmax(eig))
     ax[2].contour(gx, gy, bad.astype(float), levels=[0.5], colors="k", linewidths=0.6)
     ax[2].set(xlabel="ε_xx", ylabel="ε_yy",
-              title=f"(c) not convex: {100 * bad[inside].mean():.0f} % (outlined)")  # fmt: skip
-    for a in (ax[0], ax[2]):
-        a.set_aspect("equal")
+              title=f"(c) not convex: {100 * f.fit['convexity']['fraction']:.0f} % (outlined)")  # fmt: skip
     fig.savefig(out, dpi=130)
     plt.close(fig)
     return out
