@@ -50,15 +50,15 @@ PARAMS = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)
 
 
 @njit(cache=True)
-def _pattern_cell_energy_exhaustive(cp, jac, ax, ay, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc,
-                                    k, p, pm, pn, gauge_rule, gauge_stiffness, with_grad, grad_e,
-                                    grad_l):  # fmt: skip
+def _pattern_cell_energy_exhaustive(cp, jac, ax, ay, sx, qtab, qw, ctab, aq, seg_w, bend, reg, r,
+                                    rc, k, p, pm, pn, gauge_rule, gauge_stiffness, with_grad,
+                                    grad_e, grad_l):  # fmt: skip
     """``pattern_cell.pattern_cell_energy`` with the exhaustive contact kernel."""
     ge, gl, gc = np.empty_like(cp), np.empty_like(cp), np.empty_like(cp)
     gcell = np.zeros(2)
     eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
     ce = np.zeros(N_MIRROR_CLASSES)
-    ec = mirrored_contact_energy_exhaustive(cp, ctab, aq, ax, ay, r, rc, k, p, pm, pn, -1,
+    ec = mirrored_contact_energy_exhaustive(cp, ctab, aq, ax, ay, sx, r, rc, k, p, pm, pn, -1,
                                             with_grad, gc, gcell, ce)  # fmt: skip
     penalty = 0.0
     if gauge_stiffness > 0.0:

@@ -132,6 +132,11 @@ class CellModel:
         self._grad_e = np.empty(self.stitch.n_state)
         self._grad_l = np.empty(self.stitch.n_state)
         self._finer: CellModel | None = None  # twice the samples (resolution_change)
+        self.skew = 0.0
+        """The wale vector's x component s_x (mm): the cell's lattice is t_c = (a_x, 0),
+        t_w = (s_x, a_y), so s_x = γ a_y0 is a prescribed simple shear γ (a sweep along a
+        shear path sets it, ``paths``; 0 otherwise). Not a state entry: the yarn's shape
+        relaxes at each skew. Only an image group that ``shears`` takes one."""
 
     def _geometry_of(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The stitch's control points and Jacobian of state ``x``, in this model's
@@ -260,6 +265,7 @@ class CellModel:
             twice = 2 * self.fidelity.samples_per_segment
             fine = self._finer = CellModel(self.params, self.fidelity.model_copy(
                 update={"samples_per_segment": twice}))  # fmt: skip
+        fine.skew = self.skew
         x = self._as_state(x)
         if contact_energy is None:
             contact_energy = self.energies(x).contact_energy
@@ -275,6 +281,15 @@ class CellModel:
                     f"apart only between the {n // 2} of the model")  # fmt: skip
         return (f"contact under-resolved: E_c = {contact_energy:.4g} mJ, with {n} samples "
                 f"per segment {ec:.4g} mJ")  # fmt: skip
+
+    def skew_force(self, x: np.ndarray) -> float:
+        """dE/ds_x at state ``x`` (N): the energy's derivative with respect to the wale
+        vector's skew at fixed shape, exact (the contact sum's image offsets; the bending
+        energy does not depend on it). At a relaxed state it is the derivative of the
+        relaxed energy (the shape is stationary, the length constraint does not involve
+        s_x), so the shear stress σ_xy = F_s / a_x0 (N/mm)."""
+        x = self._as_state(x)
+        return self.image_group.skew_force(self, self.control_points(x), x)
 
     def topology_change(self, x: np.ndarray) -> str:
         """For a stitch with mirrored images: "" if state ``x`` shows the crossings of

@@ -9,6 +9,9 @@ fixes a_i = a_i0 (1 + rate_i ε) for every controlled period i, and relaxes the 
 * ``biaxial``: equibiaxial, both periods pulled by the same strain;
 * ``strip_x``, ``strip_y``: strip biaxial (pure shear in the fabric-testing sense),
   one period pulled, the other held at its zero-force value;
+* ``shear``, ``shear_free``: simple shear γ of the cell, its wale vector tilted to
+  t_w = (γ a_y0, a_y) (``CellModel.skew``), the periods held at their zero-force values
+  (``shear``) or relaxed with the shape (``shear_free``); the sweep's strain is γ;
 * ``ray:<rate_x>,<rate_y>``: any ray in (ε_x, ε_y), e.g. ``ray:1,-0.3`` (x pulled, y
   pushed in at 0.3 of its rate); the larger |rate| leads (on a tie the positive one) and
   is scaled to 1, and must be positive (a pull; the protocol's ``mode = "compression"`` reverses a whole sweep).
@@ -16,12 +19,13 @@ fixes a_i = a_i0 (1 + rate_i ε) for every controlled period i, and relaxes the 
 The stress a path reports (``stress``, ``stress_envelope``, N/mm) is the work
 conjugate of ε per unit width: dE/dε / (a_lead0 a_perp0) = Σ_i rate_i σ_ii with
 σ_xx = F_x / a_y0, σ_yy = F_y / a_x0 and F_i = dE*/da_i the period forces; for the
-uniaxial paths that is the paper's stress. Each sweep stores both components as well
-(``stress_xx``, ``stress_yy``).
+uniaxial paths that is the paper's stress; for the shear paths it is σ_xy = F_s / a_x0,
+F_s = dE*/ds_x the force on the skew. Each sweep stores all three components as well
+(``stress_xx``, ``stress_yy``, ``stress_xy``).
 
 The gap that marks jamming (docs/model.md §9) is that of the path's leading period: ΔE_c
 pulled in x, ΔE_b in y (the paper's), ΔE_c along ``strip_x`` and ``biaxial``, ΔE_b along
-``strip_y`` (and along a ray, that of its leading period). The other gap is no marker where a period is held or pulled too: holding or
+``strip_y`` (and along a ray, that of its leading period); ΔE_c in shear. The other gap is no marker where a period is held or pulled too: holding or
 pulling the transverse period makes a loose fabric straighten its yarn (fixed length,
 larger cell) and give up the other energy without any contact being relieved (measured,
 ``jobs/inplane_k0.1.toml``: garter's ΔE_b along ``strip_x`` and ``biaxial`` is 3–7·10⁻⁵ mJ
@@ -48,19 +52,30 @@ class LoadPath:
     rate_y: float | None
     gap: str
     description: str
+    rate_xy: float = 0.0
+    """The rate of the shear γ = s_x / a_y0 (the wale vector's skew over its zero-force
+    length); 0: the skew held at 0, as along every path but the shear ones."""
 
     @property
     def rates(self) -> dict[str, float | None]:
         return {"x": self.rate_x, "y": self.rate_y}
 
     @property
+    def shears(self) -> bool:
+        """The cell is sheared along the path (its skew moves)."""
+        return self.rate_xy != 0.0
+
+    @property
     def controlled(self) -> tuple[str, ...]:
-        """The periods a step fixes ('x', 'y' or both), leading one first."""
-        return tuple(d for d in self._order if self.rates[d] is not None)
+        """The periods a step fixes ('x', 'y', both or none), the leading one first."""
+        order = ("x", "y") if self.shears else self._order
+        return tuple(d for d in order if self.rates[d] is not None)
 
     @property
     def leading(self) -> str:
-        """The period whose strain is the sweep's strain (its rate is 1)."""
+        """The period whose strain is the sweep's strain (its rate is 1); "xy" for the
+        shear paths, whose strain is γ and whose coordinate is a_y0 (1 + γ) (the sweep's
+        step in mm is a step of the skew)."""
         return self._order[0]
 
     @property
@@ -74,17 +89,24 @@ class LoadPath:
 
     @property
     def _order(self) -> tuple[str, str]:
+        if self.rate_xy == 1.0:  # shear leads: its coordinate a_y0 (1 + γ), per unit a_x0
+            return ("xy", "x")
         return ("x", "y") if self.rate_x == 1.0 else ("y", "x")  # (a ray: |rate_y| < 1 then)
 
     def targets(self, a0: dict[str, float], strain: float) -> dict[str, float]:
         """The controlled periods (mm) at the sweep's ``strain`` from the zero-force ones."""
         return {d: a0[d] * (1.0 + self.rates[d] * strain) for d in self.controlled}  # type: ignore[operator]
 
-    def conjugate_stress(self, force_x, force_y, a_x0: float, a_y0: float):
-        """dE/dε per unit width (N/mm) from the period forces (N, numbers or arrays over
-        steps): Σ rate_i σ_ii."""
+    def skew(self, a_y0: float, strain: float) -> float:
+        """The wale vector's skew s_x (mm) at the sweep's ``strain``."""
+        return self.rate_xy * strain * a_y0
+
+    def conjugate_stress(self, force_x, force_y, a_x0: float, a_y0: float, force_s=0.0):
+        """dE/dε per unit width (N/mm) from the period forces and the force on the skew
+        (N, numbers or arrays over steps): Σ rate_i σ_ii + rate_xy σ_xy."""
         return sum((self.rates[d] or 0.0) * s for d, s in
-                   (("x", force_x / a_y0), ("y", force_y / a_x0)))  # fmt: skip
+                   (("x", force_x / a_y0), ("y", force_y / a_x0))) + self.rate_xy * (
+            force_s / a_x0)  # fmt: skip
 
 
 PATHS: dict[str, LoadPath] = {
@@ -95,6 +117,10 @@ PATHS: dict[str, LoadPath] = {
         LoadPath("biaxial", 1.0, 1.0, "delta_E_c", "equibiaxial: both periods by ε"),
         LoadPath("strip_x", 1.0, 0.0, "delta_E_c", "strip biaxial: x by ε, a_y held at a_y0"),
         LoadPath("strip_y", 0.0, 1.0, "delta_E_b", "strip biaxial: y by ε, a_x held at a_x0"),
+        LoadPath("shear", 0.0, 0.0, "delta_E_c", "simple shear γ = ε, both periods held", 1.0),
+        LoadPath(
+            "shear_free", None, None, "delta_E_c", "simple shear γ = ε, both periods relaxed", 1.0
+        ),
     )
 }
 """The registered load paths by name (the values of ``Direction``)."""

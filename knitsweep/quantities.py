@@ -288,14 +288,19 @@ def _shared(name: str) -> tuple[str, Quantity]:
 
 STEP_QUANTITIES = dict(
     (
-        _q("a_fixed", "mm", "the path's leading period (a_x in x pulls, a_y in y pulls)"),
+        _q(
+            "a_fixed",
+            "mm",
+            "the path's leading period (a_x in x pulls, a_y in y pulls; a_y0 + the skew in shear)",
+        ),
         _q("a_x", "mm", "cell period along the course, a_x"),
         _q("a_y", "mm", "cell period along the wale, a_y"),
-        _q("strain", "1", "strain of the leading period, (a - a0)/a0"),
+        _q("strain", "1", "strain of the leading period, (a - a0)/a0 (the shear γ in shear)"),
         _q("stress", "N/mm", "2D stress along the path, energy differences / a_perp0"),
         _q("stress_envelope", "N/mm", "2D stress along the path from the length multiplier"),
         _q("stress_xx", "N/mm", "sigma_xx = dE*/da_x / a_y0 (0 where a_x is free)"),
         _q("stress_yy", "N/mm", "sigma_yy = dE*/da_y / a_x0 (0 where a_y is free)"),
+        _q("stress_xy", "N/mm", "sigma_xy = dE*/ds_x / a_x0, s_x the wale vector's skew"),
         _shared("bending_energy"),
         _shared("contact_energy"),
         _q("total_energy", "mJ", "total energy E = E_b + E_c"),

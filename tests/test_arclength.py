@@ -128,7 +128,7 @@ def test_culled_sum_is_the_exhaustive_one(name, fid):
     out = []
     for kernel in (mirrored_contact_energy, mirrored_contact_energy_exhaustive):
         g, gc, ce = np.zeros_like(cp), np.zeros(2), np.zeros(N_MIRROR_CLASSES)
-        e = kernel(cp, m._ctab, m._aq, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p,
+        e = kernel(cp, m._ctab, m._aq, x[-2], x[-1], 0.0, ip.r, ip.rc, ip.k, ip.p,
                    *m.stitch.mirror_parity, -1, True, g, gc, ce)  # fmt: skip
         out.append((e, g, gc, ce))
     for a, b in zip(*out, strict=True):

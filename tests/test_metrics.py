@@ -348,7 +348,8 @@ def test_energy_gaps_known_arrays():
     assert (g.E_b_rest, g.E_b_min, g.E_c_rest, g.E_c_min) == (1.0, 0.8, 0.30, 0.30)
     assert g.jamming_gap("x") == g.delta_E_c and g.jamming_gap("y") == g.delta_E_b
     assert JAMMING_GAP == {"x": "delta_E_c", "y": "delta_E_b", "biaxial": "delta_E_c",
-                           "strip_x": "delta_E_c", "strip_y": "delta_E_b"}  # fmt: skip
+                           "strip_x": "delta_E_c", "strip_y": "delta_E_b", "shear": "delta_E_c",
+                           "shear_free": "delta_E_c"}  # fmt: skip
     d = g.as_dict()
     assert d["index_min_b"] == 1 and isinstance(d["delta_E_b"], float)
     assert_plain(d)

@@ -32,7 +32,7 @@ def sweeps(zero):
 
 
 def test_registry():
-    assert PATH_NAMES == ("x", "y", "biaxial", "strip_x", "strip_y")
+    assert PATH_NAMES == ("x", "y", "biaxial", "strip_x", "strip_y", "shear", "shear_free")
     assert JAMMING_GAP["x"] == "delta_E_c" and JAMMING_GAP["y"] == "delta_E_b"
     assert PATHS["strip_y"].leading == "y" and PATHS["strip_y"].controlled == ("y", "x")
     assert PATHS["x"].uniaxial and not PATHS["biaxial"].uniaxial
@@ -41,9 +41,9 @@ def test_registry():
     # dE/dε per unit area: F_x a_x0 / (a_x0 a_y0) + F_y a_y0 / (a_x0 a_y0)
     assert PATHS["biaxial"].conjugate_stress(3.0, 5.0, 2.0, 4.0) == pytest.approx(3 / 4 + 5 / 2)
     assert PATHS["y"].conjugate_stress(3.0, 5.0, 2.0, 4.0) == 5 / 2
-    with pytest.raises(ValueError, match="must be one of x, y, biaxial, strip_x, strip_y or "
-                       "ray:<rate_x>,<rate_y>"):  # fmt: skip
-        load_path("shear")
+    with pytest.raises(ValueError, match="must be one of x, y, biaxial, strip_x, strip_y, shear, "
+                       "shear_free or ray:<rate_x>,<rate_y>"):  # fmt: skip
+        load_path("twist")
     # a ray: its larger rate leads, scaled to 1; the other period follows
     ray = load_path("ray:-0.5,2")
     assert (ray.leading, ray.rate_x, ray.rate_y, ray.gap) == ("y", -0.25, 1.0, "delta_E_b")
@@ -113,14 +113,14 @@ def test_path_observables(sweeps):
 
 
 def test_bad_direction_is_one_line(tmp_path):
-    proc = run_knitsweep("sweep", "--direction", "shear", "--L", "11.6")
-    one_error_line(proc, "direction = 'shear': must be one of x, y, biaxial, strip_x, strip_y")
+    proc = run_knitsweep("sweep", "--direction", "twist", "--L", "11.6")
+    one_error_line(proc, "direction = 'twist': must be one of x, y, biaxial, strip_x, strip_y")
     proc = run_knitsweep("sweep", "--direction", "ray:0,0", "--L", "11.6")
     one_error_line(proc, "direction = 'ray:0,0': a ray's rates must be finite and not both 0")
     job = tmp_path / "job.toml"
-    job.write_text('schema_version = 1\nname = "j"\ndirections = ["x", "shear"]\n'
+    job.write_text('schema_version = 1\nname = "j"\ndirections = ["x", "twist"]\n'
                    "[grid]\nL_mm = [11.6]\n")  # fmt: skip
     proc = run_knitsweep("run", job, "--out", tmp_path / "j.h5")
-    one_error_line(proc, "directions.1 = 'shear': must be one of x, y, biaxial, strip_x, "
-                   "strip_y or ray:<rate_x>,<rate_y>")  # fmt: skip
+    one_error_line(proc, "directions.1 = 'twist': must be one of x, y, biaxial, strip_x, "
+                   "strip_y, shear, shear_free or ray:<rate_x>,<rate_y>")  # fmt: skip
     assert not (tmp_path / "j.h5").exists()

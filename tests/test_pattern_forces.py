@@ -110,7 +110,7 @@ def test_weighted_pattern_pair_forces_are_the_image_shift_derivative(pattern):
 
     def energies(ax, ay):
         ce = np.zeros(N_MIRROR_CLASSES)
-        e = mirrored_contact_energy(cp, tab, model._aq, ax, ay, ip.r, ip.rc, ip.k, ip.p, pm, pn, -1, False,
+        e = mirrored_contact_energy(cp, tab, model._aq, ax, ay, 0.0, ip.r, ip.rc, ip.k, ip.p, pm, pn, -1, False,
                                     np.zeros_like(cp), np.zeros(2), ce)  # fmt: skip
         return np.append(ce, e)  # the five classes and E_c
 

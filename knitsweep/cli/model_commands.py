@@ -157,7 +157,7 @@ def relax(
 
 @app.command()
 def sweep(
-    direction: Annotated[str, typer.Option("--direction", help="load path: x or y (uniaxial), biaxial, strip_x, strip_y, or ray:<rate_x>,<rate_y>")],
+    direction: Annotated[str, typer.Option("--direction", help="load path: x or y (uniaxial), biaxial, strip_x, strip_y, shear, shear_free (free yarns), or ray:<rate_x>,<rate_y>")],
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
     r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
     samples: SamplesOpt = None,
@@ -187,7 +187,7 @@ def sweep(
     import time
 
     from ..compilation import compile_clock
-    from ..config import StartSettings
+    from ..config import StartSettings, check_path_for_stitch
     from ..errors import InputError, check_seed
     from ..presets import Numerics
     from ..service.progress import SweepProgress
@@ -207,6 +207,10 @@ def sweep(
             check_writable(out, "--out")  # before the sweep, not after
         params, _ = stitch_inputs(config, L=L, B=B, k=k, p=p, r=r, r_core=r_core,
                                   regularization=regularization, stitch=stitch)  # fmt: skip
+        try:
+            check_path_for_stitch(direction, params.stitch)
+        except ValueError as e:
+            raise InputError(str(e)) from None
         n = Numerics.from_preset(
             preset, ftol=ftol, samples_per_segment=samples, quadrature_nodes=quadrature_nodes,
             images=images, step_mm=step, stop_stress_N_per_mm=stop_stress, max_strain=max_strain,

@@ -44,13 +44,14 @@ def _block_boxes(p0, p1):
 
 
 @njit(cache=True)
-def polyline_crossings(pts, a_x, a_y, pm, pn, adjacent_only):
+def polyline_crossings(pts, a_x, a_y, s_x, pm, pn, adjacent_only):
     """Every crossing in projection of the polyline ``pts`` (P + 1, 3) with itself and
     its images (m, n), |m| <= 1, |n| <= 2 (|n| = 1 only with ``adjacent_only``), the
     image (m, n) mirrored (z -> -z) when pm m + pn n is odd: rows (m, n, i, j, s, u,
     z of the cell's strand, z of the image's), piece i of the polyline meeting piece j
     of the image at parameters s, u in [0, 1), in the order of
-    ``topology.crossings_reference``: images m, then n, ascending, then (i, j)."""
+    ``topology.crossings_reference``: images m, then n, ascending, then (i, j). The image
+    (m, n) sits at (m a_x + n s_x, n a_y) (``s_x`` the wale vector's skew)."""
     n_p = pts.shape[0] - 1
     p0, p1 = pts[:-1], pts[1:]
     d = p1 - p0
@@ -60,11 +61,12 @@ def polyline_crossings(pts, a_x, a_y, pm, pn, adjacent_only):
     e = np.empty_like(d)
     out = np.empty((64, 8))
     k = 0
-    for m in range(-1, 2):
+    wide = int(np.ceil(2.0 * abs(s_x) / a_x))
+    for m in range(-1 - wide, 2 + wide):
         for n in range(-2, 3):
             if adjacent_only and abs(n) != 1:
                 continue
-            sx, sy = m * a_x, n * a_y
+            sx, sy = m * a_x + n * s_x, n * a_y
             fz = -1.0 if (pm * m + pn * n) % 2 != 0 else 1.0
             for j in range(n_p):  # as numpy's p * (1, 1, ±1) + (sx, sy, 0), then q1 - q0
                 q0[j, 0], q0[j, 1], q0[j, 2] = p0[j, 0] + sx, p0[j, 1] + sy, p0[j, 2] * fz + 0.0
@@ -108,13 +110,15 @@ def polyline_crossings(pts, a_x, a_y, pm, pn, adjacent_only):
 
 
 @njit(cache=True)
-def pattern_min_zeta(pts, s_mid, s_tot, a_x, a_y, r, r_core, pm, pn, s_excl):
+def pattern_min_zeta(pts, s_mid, s_tot, a_x, a_y, s_x, r, r_core, pm, pn, s_excl):
     """Smallest ζ over the counted contacts of the samples ``pts`` (N, 3) (midpoint
     arclengths ``s_mid``, total ``s_tot``) with the images (m, n), |m| <= 2, |n| <= 3,
     mirrored when pm m + pn n is odd, same-row pairs within ``s_excl`` along the yarn
     left out; and where: (ζ, m, n, i, j) with the samples i of the cell and j of the
     image (ζ = 1, i = -1 if nothing touches), as ``patterns.min_zeta_where`` finds it
-    (each image's first nearest pair, images in order, the first of equal ζ kept)."""
+    (each image's first nearest pair, images in order, the first of equal ζ kept). The
+    image (m, n) sits at (m a_x + n s_x, n a_y); a skew widens the range of m to reach
+    as far."""
     ns = pts.shape[0]
     d = 2 * r - 2 * r_core
     lo = np.empty(3)
@@ -123,11 +127,12 @@ def pattern_min_zeta(pts, s_mid, s_tot, a_x, a_y, r, r_core, pm, pn, s_excl):
         lo[c], hi[c] = pts[:, c].min(), pts[:, c].max()
     q = np.empty_like(pts)
     best, bm, bn, bi, bj = 1.0, 0, 0, -1, -1
-    for m in range(-2, 3):
+    wide = int(np.ceil(3.0 * abs(s_x) / a_x))
+    for m in range(-2 - wide, 3 + wide):
         for n in range(-3, 4):
             fz = -1.0 if (pm * m + pn * n) % 2 != 0 else 1.0
             for j in range(ns):  # as numpy's copy, z *= -1, += (m a_x, n a_y, 0.0)
-                q[j, 0] = pts[j, 0] + m * a_x
+                q[j, 0] = pts[j, 0] + (m * a_x + n * s_x)
                 q[j, 1] = pts[j, 1] + n * a_y
                 q[j, 2] = pts[j, 2] * fz + 0.0
             far = False
@@ -164,5 +169,5 @@ def compile_checks() -> None:
     callers pass, without running them (``compilation.compile_group``)."""
     f, i = numba.float64, numba.int64
     pts = numba.float64[:, ::1]
-    polyline_crossings.compile((pts, f, f, i, i, numba.boolean))
-    pattern_min_zeta.compile((pts, numba.float64[::1], f, f, f, f, f, i, i, f))
+    polyline_crossings.compile((pts, f, f, f, i, i, numba.boolean))
+    pattern_min_zeta.compile((pts, numba.float64[::1], f, f, f, f, f, f, i, i, f))

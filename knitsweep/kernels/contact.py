@@ -204,18 +204,19 @@ def collect_pairs(pts, pos, s_mid, s_tot, n, ax, ay, reach, s_excl, mode):
     nseg = pts.shape[0] // n
     box = segment_boxes_soa(pos, nseg, n)
     blocks, images = candidate_blocks(pts, box, ax, ay, reach, mode)
-    return search_blocks(pos, s_mid, box, n, blocks, images, ax, ay, s_tot, reach * reach,
+    return search_blocks(pos, s_mid, box, n, blocks, images, ax, ay, 0.0, s_tot, reach * reach,
                          s_excl)  # fmt: skip
 
 
 @njit(cache=True)
-def search_blocks(pos, s_mid, box, n, blocks, images, ax, ay, s_tot, reach2, s_excl):
+def search_blocks(pos, s_mid, box, n, blocks, images, ax, ay, sx, s_tot, reach2, s_excl):
     """The sample pairs closer than sqrt(``reach2``) of the candidate ``blocks`` (k, 3) =
     (image, segment a, segment b), image indexing ``images`` (q, 2) = (m, n) (-1: (0, 0)),
     in block order (``partition.search_pairs`` on each; the segment b of a block may be a
     column of ``box`` past the samples of one cell: ``kernels.mirrored``'s mirrored copy).
     Returns ``ib`` (4, cap) int64 = (i, j, m, n), ``fb`` (4, cap) = (dx, dy, dz, R^2) and
-    the count c of filled columns, as ``collect_pairs``."""
+    the count c of filled columns, as ``collect_pairs``. The image (m, n) sits at
+    (m a_x + n s_x, n a_y) (``sx`` the wale vector's skew; 0 for translations)."""
     cap = 4 * box.shape[1] * n * n
     ib = np.empty((4, cap), dtype=np.int64)
     fb = np.empty((4, cap))
@@ -227,8 +228,8 @@ def search_blocks(pos, s_mid, box, n, blocks, images, ax, ay, s_tot, reach2, s_e
             cap *= 2
             ib = _grow(ib, cap)
             fb = _grow(fb, cap)
-        c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, m * ax, nn * ay, m * s_tot,
-                         reach2, s_excl, ib, fb, c)  # fmt: skip
+        c = search_pairs(pos, s_mid, box, n, sa, sb, im < 0, m, nn, m * ax + nn * sx, nn * ay,
+                         m * s_tot, reach2, s_excl, ib, fb, c)  # fmt: skip
     return ib, fb, c
 
 

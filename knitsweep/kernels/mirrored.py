@@ -91,27 +91,33 @@ def mirror_class(m, n, mirrored):
 
 
 @njit(cache=True)
-def half_images(pts, ax, ay, r):
+def half_images(pts, ax, ay, sx, r):
     """(m, n) rows, shape (k, 2), of half the images that can touch: n > 0, or n = 0
-    and m > 0."""
+    and m > 0. The image (m, n) sits at (m a_x + n s_x, n a_y): row n's range of m is
+    shifted by -n s_x / a_x (widened to whole images; unshifted when s_x = 0)."""
     ext_x = pts[:, 0].max() - pts[:, 0].min() + 2.0 * r
     ext_y = pts[:, 1].max() - pts[:, 1].min() + 2.0 * r
     mmax = max(int(np.ceil(ext_x / ax)) - 1, 0)
     nmax = max(int(np.ceil(ext_y / ay)) - 1, 0)
-    out = np.empty(((2 * mmax + 1) * nmax + mmax, 2), dtype=np.int64)
+    count = mmax
+    for n in range(1, nmax + 1):
+        shift = -n * sx / ax
+        count += 2 * mmax + 1 + int(np.ceil(shift)) - int(np.floor(shift))
+    out = np.empty((count, 2), dtype=np.int64)
     k = 0
     for m in range(1, mmax + 1):
         out[k, 0], out[k, 1] = m, 0
         k += 1
     for n in range(1, nmax + 1):
-        for m in range(-mmax, mmax + 1):
+        shift = -n * sx / ax
+        for m in range(-mmax + int(np.floor(shift)), mmax + int(np.ceil(shift)) + 1):
             out[k, 0], out[k, 1] = m, n
             k += 1
     return out
 
 
 @njit(cache=True)
-def mirrored_contact_energy_exhaustive(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class,
+def mirrored_contact_energy_exhaustive(cp, tab, aq, ax, ay, sx, r, rc, k, p, pm, pn, only_class,
                                        with_grad, grad_cp, grad_cell, class_energy):  # fmt: skip
     """Contact energy E_c (N mm) of the cell ``cp`` (S, 6, 3) over its images for
     mirror parities (pm, pn) (module docstring), of every class (``only_class`` = -1)
@@ -127,12 +133,12 @@ def mirrored_contact_energy_exhaustive(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn,
     dt2 = 1.0 / (n * n)
     pts, _, r1, speed, s_mid, s_tot, t = _samples(cp, tab, aq)
     ns = pts.shape[0]
-    images = half_images(pts, ax, ay, r)
+    images = half_images(pts, ax, ay, sx, r)
     cut2 = 4.0 * r * r
     s_excl = EXCLUSION_FACTOR * r
     g = np.zeros((ns, 4))
     class_energy[:] = 0.0
-    energy, gax, gay = 0.0, 0.0, 0.0
+    energy, gax, gay, gsx = 0.0, 0.0, 0.0, 0.0
     for im in range(-1, images.shape[0]):
         m, nn = (0, 0) if im < 0 else (images[im, 0], images[im, 1])
         mir = is_mirrored(m, nn, pm, pn)
@@ -140,7 +146,7 @@ def mirrored_contact_energy_exhaustive(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn,
         if only_class >= 0 and cls != only_class:
             continue
         sz = -1.0 if mir else 1.0
-        ox, oy = m * ax, nn * ay
+        ox, oy = m * ax + nn * sx, nn * ay
         for i in range(ns):
             for j in range(i + 1 if im < 0 else 0, ns):
                 dx = pts[i, 0] - pts[j, 0] - ox
@@ -168,15 +174,25 @@ def mirrored_contact_energy_exhaustive(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn,
                     g[j, 3] += 2.0 * v * speed[i] * dt2
                     gax -= m * f * dx
                     gay -= nn * f * dy
+                    gsx -= nn * f * dx
     if with_grad:
         _project(g, speed, r1, tab, cp, t, aq, grad_cp)
-        grad_cell[0] = gax
-        grad_cell[1] = gay
+        _store_cell_gradient(grad_cell, gax, gay, gsx)
     return energy
 
 
+@njit(cache=True, inline="always")
+def _store_cell_gradient(grad_cell, gax, gay, gsx):
+    """The explicit dE/d(a_x, a_y) into ``grad_cell``, and dE/ds_x (the skew of the wale
+    vector t_w = (s_x, a_y)) as its third entry if it has one."""
+    grad_cell[0] = gax
+    grad_cell[1] = gay
+    if grad_cell.shape[0] > 2:
+        grad_cell[2] = gsx
+
+
 @njit(cache=True)
-def mirrored_blocks(box2, images, ax, ay, reach, pm, pn, only_class):
+def mirrored_blocks(box2, images, ax, ay, sx, reach, pm, pn, only_class):
     """Every (image, segment a, segment b) whose boxes come within ``reach``, each
     unordered pair of segments once in the image (0, 0), in image order, of every class
     (``only_class`` = -1) or of one. ``box2`` (6, 2S): the boxes of the S segments' samples
@@ -193,7 +209,7 @@ def mirrored_blocks(box2, images, ax, ay, reach, pm, pn, only_class):
         mir = is_mirrored(m, nn, pm, pn)
         if only_class >= 0 and mirror_class(m, nn, mir) != only_class:
             continue
-        ox, oy = m * ax, nn * ay
+        ox, oy = m * ax + nn * sx, nn * ay
         # both copies' boxes together: the same extent in x and y (mirroring keeps them)
         if im >= 0 and not image_reaches(box2, ox, oy, reach):
             continue
@@ -208,7 +224,7 @@ def mirrored_blocks(box2, images, ax, ay, reach, pm, pn, only_class):
 
 
 @njit(cache=True)
-def mirrored_contact_energy(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
+def mirrored_contact_energy(cp, tab, aq, ax, ay, sx, r, rc, k, p, pm, pn, only_class, with_grad,
                             grad_cp, grad_cell, class_energy):  # fmt: skip
     """Contact energy E_c (N mm) of the cell ``cp`` (S, 6, 3) over its images for
     mirror parities (pm, pn) (module docstring), of every class (``only_class`` = -1)
@@ -219,15 +235,17 @@ def mirrored_contact_energy(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class
     arclength (``arclength``; only N = tab.shape[1] is then read from tab); periods ax, ay and radii in mm, k in N/mm²,
     p the exponent. Writes ``class_energy`` (5,), N mm, E_c by class (of the classes
     summed), and with ``with_grad`` dE/dcp (S, 6, 3) into ``grad_cp`` and the explicit
-    dE/d(a_x, a_y) (2,) through the image offsets into ``grad_cell``. Returns E_c.
+    dE/d(a_x, a_y) (2,) through the image offsets into ``grad_cell``, and dE/ds_x as well
+    if ``grad_cell`` has 3 entries (``sx`` the wale vector's skew, t_w = (s_x, a_y)).
+    Returns E_c.
     """
-    energy, gax, gay, g2, _, speed, r1, t = _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p, pm,
-                                                           pn, only_class, with_grad,
-                                                           class_energy)  # fmt: skip
+    skew = with_grad and grad_cell.shape[0] > 2
+    energy, gax, gay, gsx, g2, _, speed, r1, t = _mirrored_sums(
+        cp, tab, aq, ax, ay, sx, r, rc, k, p, pm, pn, only_class, with_grad, skew, class_energy
+    )
     if with_grad:
         _fold_gradient(g2, speed, r1, tab, cp, t, aq, grad_cp)
-        grad_cell[0] = gax
-        grad_cell[1] = gay
+        _store_cell_gradient(grad_cell, gax, gay, gsx)
     return energy
 
 
@@ -299,9 +317,10 @@ def _doubled_samples(cp, tab, aq):
 
 
 @njit(cache=True)
-def _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class, with_grad,
+def _mirrored_sums(cp, tab, aq, ax, ay, sx, r, rc, k, p, pm, pn, only_class, with_grad, skew,
                    class_energy):  # fmt: skip
-    """The sums of ``mirrored_contact_energy``: (E_c, explicit dE/da_x, dE/da_y, the
+    """The sums of ``mirrored_contact_energy``: (E_c, explicit dE/da_x, dE/da_y, dE/ds_x
+    (with ``skew``, else 0), the
     gradient (2 ns, 4) at the samples and at their mirrored copy (columns 0-2
     dE/dposition, 3 dE/dspeed), the positions (3, 2 ns) of both, the samples' speeds
     and first derivatives, their parameters if placed by arclength).
@@ -314,10 +333,10 @@ def _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class, with_gr
     pts, pos2, s_mid2, speed2, box2, speed, r1, s_tot, t = _doubled_samples(cp, tab, aq)
     ns = pts.shape[0]
     dt2, cut, s_excl, ib, fb, work, g2 = pair_sum_start(n, 2 * ns, r)
-    images = half_images(pts, ax, ay, r)
-    blocks = mirrored_blocks(box2, images, ax, ay, cut, pm, pn, only_class)
+    images = half_images(pts, ax, ay, sx, r)
+    blocks = mirrored_blocks(box2, images, ax, ay, sx, cut, pm, pn, only_class)
     class_energy[:] = 0.0
-    energy, gax, gay = 0.0, 0.0, 0.0
+    energy, gax, gay, gsx = 0.0, 0.0, 0.0, 0.0
     c = np.int64(0)  # not the literal 0: no extra specialisation of the callees
     cls_now = 0
     for q in range(blocks.shape[0]):
@@ -326,23 +345,46 @@ def _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, only_class, with_gr
         cls = mirror_class(m, nn, is_mirrored(m, nn, pm, pn))
         # a batch holds one class: its sum is that class's share
         if c > 0 and (cls != cls_now or c + n * n > ib.shape[1]):
+            if skew:
+                gsx += _skew_derivative(ib, fb, c, speed2, dt2, r, rc, k, p)
             e, gax, gay = accumulate_pairs(ib, fb, c, speed2, dt2, r, rc, k, p, with_grad, work,
                                            g2, 0.0, gax, gay)  # fmt: skip
             class_energy[cls_now] += e
             energy += e
             c = np.int64(0)
         cls_now = cls
-        c = search_pairs(pos2, s_mid2, box2, n, sa, sb, im < 0, m, nn, m * ax, nn * ay,
+        c = search_pairs(pos2, s_mid2, box2, n, sa, sb, im < 0, m, nn, m * ax + nn * sx, nn * ay,
                          m * s_tot, cut * cut, s_excl, ib, fb, c)  # fmt: skip
+    if skew:
+        gsx += _skew_derivative(ib, fb, c, speed2, dt2, r, rc, k, p)
     e, gax, gay = accumulate_pairs(ib, fb, c, speed2, dt2, r, rc, k, p, with_grad, work, g2, 0.0,
                                    gax, gay)  # fmt: skip
     class_energy[cls_now] += e
     energy += e
-    return energy, gax, gay, g2, pos2, speed, r1, t
+    return energy, gax, gay, gsx, g2, pos2, speed, r1, t
 
 
 @njit(cache=True)
-def mirrored_forces_by_class(cp, dcp, tab, aq, ax, ay, r, rc, k, p, pm, pn, forces, energies):
+def _skew_derivative(ib, fb, c, speed, dt2, r, rc, k, p):
+    """The explicit dE/ds_x of the first ``c`` buffered pairs: the image (m, n) sits at
+    m t_c + n t_w with t_w = (s_x, a_y), so each pair adds -n f d_x (f = w V'(R)/R, as
+    ``contact.accumulate_pairs`` adds -m f d_x to dE/da_x), its potential by the scalar
+    formulas."""
+    out = 0.0
+    for q in range(c):
+        nn = ib[3, q]
+        if nn == 0:
+            continue
+        dist = np.sqrt(fb[3, q])
+        _, dv = pair_potential(dist, r, rc, k, p)
+        w = 2.0 * speed[ib[0, q]] * speed[ib[1, q]] * dt2
+        out -= nn * w * dv / dist * fb[0, q]
+    return out
+
+
+@njit(cache=True)
+def mirrored_forces_by_class(cp, dcp, tab, aq, ax, ay, sx, r, rc, k, p, pm, pn, forces,
+                             energies):  # fmt: skip
     """Each class's generalised forces on the cell periods and its contact energy, for
     a pattern with mirrored images (as ``forces.contact_forces_by_class`` for
     translations; rows ``MIRROR_CLASSES``).
@@ -359,8 +401,9 @@ def mirrored_forces_by_class(cp, dcp, tab, aq, ax, ay, r, rc, k, p, pm, pn, forc
     grad_cp = np.empty(cp.shape)
     ce = np.empty(N_MIRROR_CLASSES)
     for cls in range(N_MIRROR_CLASSES):
-        e, gax, gay, g2, pos2, speed, r1, t = _mirrored_sums(cp, tab, aq, ax, ay, r, rc, k, p,
-                                                             pm, pn, cls, True, ce)  # fmt: skip
+        e, gax, gay, _, g2, pos2, speed, r1, t = _mirrored_sums(
+            cp, tab, aq, ax, ay, sx, r, rc, k, p, pm, pn, cls, True, False, ce
+        )
         energies[cls] = e
         _fold_gradient(g2, speed, r1, tab, cp, t, aq, grad_cp)
         fx, fy = gax, gay
@@ -378,7 +421,7 @@ def mirrored_forces_by_class(cp, dcp, tab, aq, ax, ay, r, rc, k, p, pm, pn, forc
 
 
 @njit(cache=True)
-def mirrored_contacts(cp, tab, aq, ax, ay, r, pm, pn):
+def mirrored_contacts(cp, tab, aq, ax, ay, sx, r, pm, pn):
     """Every counted contact of the cell over its images for mirror parities (pm, pn),
     each unordered pair once: the pairs of ``mirrored_contact_energy``, found by the same
     search (as ``contact.find_contacts`` for translations).
@@ -391,10 +434,10 @@ def mirrored_contacts(cp, tab, aq, ax, ay, r, pm, pn):
     """
     n = tab.shape[1]
     pts, pos2, s_mid2, speed2, box2, _, _, s_tot, _ = _doubled_samples(cp, tab, aq)
-    images = half_images(pts, ax, ay, r)
+    images = half_images(pts, ax, ay, sx, r)
     cut = 2.0 * r
-    blocks = mirrored_blocks(box2, images, ax, ay, cut, pm, pn, -1)
-    ib, fb, c = search_blocks(pos2, s_mid2, box2, n, blocks, images, ax, ay, s_tot, cut * cut,
+    blocks = mirrored_blocks(box2, images, ax, ay, sx, cut, pm, pn, -1)
+    ib, fb, c = search_blocks(pos2, s_mid2, box2, n, blocks, images, ax, ay, sx, s_tot, cut * cut,
                               EXCLUSION_FACTOR * r)  # fmt: skip
     idx, sep = contact_list(ib, fb, c)
     classes = np.empty(c, dtype=np.int64)
@@ -405,7 +448,8 @@ def mirrored_contacts(cp, tab, aq, ax, ay, r, pm, pn):
 
 
 @njit(cache=True)
-def mirrored_pair_forces_by_class(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, weighted, forces):
+def mirrored_pair_forces_by_class(cp, tab, aq, ax, ay, sx, r, rc, k, p, pm, pn, weighted,
+                                  forces):  # fmt: skip
     """Each class's pair forces between sampled yarn points over the images mirrored by
     (pm, pn), projected on x, y, z (rows ``MIRROR_CLASSES``): the rule of
     ``forces.contact_pair_forces_by_class`` on ``mirrored_contacts``.
@@ -417,6 +461,6 @@ def mirrored_pair_forces_by_class(cp, tab, aq, ax, ay, r, rc, k, p, pm, pn, weig
     own cell: in a mirrored image its z is -z_j (the mirror plane z = 0 is every
     stitch's mid-plane in z). ``weighted`` and units as there; writes ``forces`` (5, 3).
     """
-    pts2, speed2, idx, sep, classes = mirrored_contacts(cp, tab, aq, ax, ay, r, pm, pn)
+    pts2, speed2, idx, sep, classes = mirrored_contacts(cp, tab, aq, ax, ay, sx, r, pm, pn)
     n = tab.shape[1]
     pair_forces(pts2, speed2, idx, sep, classes, 1.0 / (n * n), r, rc, k, p, weighted, forces)

@@ -14,10 +14,11 @@ from .mirrored import N_MIRROR_CLASSES, mirrored_contact_energy
 
 
 @njit(cache=True)
-def pattern_cell_energy(cp, jac, ax, ay, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc, k, p, pm, pn,
-                        gauge_rule, gauge_stiffness, with_grad, grad_e, grad_l):  # fmt: skip
+def pattern_cell_energy(cp, jac, ax, ay, sx, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc, k, p, pm,
+                        pn, gauge_rule, gauge_stiffness, with_grad, grad_e, grad_l):  # fmt: skip
     """(E_b, E_c, length, gauge penalty) of the cell ``cp`` (S, 6, 3) with Jacobian ``jac``
-    (S, 6, 3, n) over images mirrored by parities (pm, pn); with ``with_grad`` the
+    (S, 6, 3, n) over images mirrored by parities (pm, pn), the wale vector skewed by
+    ``sx`` (t_w = (s_x, a_y), mm; a prescribed shear, not a state entry); with ``with_grad`` the
     gradients of E_b + E_c + the penalty and of the length with respect to the state into
     ``grad_e``, ``grad_l`` (n,). Arguments as ``cell.cell_energy``'s; ``aq`` the
     arclength rule of samples placed by arclength, empty for samples at ``ctab``'s
@@ -28,7 +29,7 @@ def pattern_cell_energy(cp, jac, ax, ay, qtab, qw, ctab, aq, seg_w, bend, reg, r
     gcell = np.zeros(2)
     eb, length = bending_and_length(cp, seg_w, qtab, qw, bend, reg, ge, gl)
     ce = np.zeros(N_MIRROR_CLASSES)
-    ec = mirrored_contact_energy(cp, ctab, aq, ax, ay, r, rc, k, p, pm, pn, -1, with_grad, gc,
+    ec = mirrored_contact_energy(cp, ctab, aq, ax, ay, sx, r, rc, k, p, pm, pn, -1, with_grad, gc,
                                  gcell, ce)  # fmt: skip
     penalty = 0.0
     if gauge_stiffness > 0.0:

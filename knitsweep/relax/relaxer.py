@@ -181,6 +181,8 @@ class Relaxer:
         if not SOLVERS[settings.method].walks or fixed is None or anchor is None:
             return None
         i = fixed_periods(model.stitch, fixed)
+        if not i:  # no period moves (a shear with the periods relaxed): nothing to walk
+            return None
         free = free_entries(model.stitch, fixed, model.gauge)
         change = x0[i] - anchor.x[i]
         n = math.ceil(float(np.max(np.abs(change))) / settings.substep_mm - 1e-9)

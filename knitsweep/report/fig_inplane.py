@@ -28,8 +28,8 @@ from .plotting import (
 from .reduce import Reduction
 from .series import series_key
 
-PATH_MARKER = PerPath({"x": "o", "y": "s", "biaxial": "D", "strip_x": ">", "strip_y": "^"},
-                      lambda _path: "*")  # fmt: skip
+PATH_MARKER = PerPath({"x": "o", "y": "s", "biaxial": "D", "strip_x": ">", "strip_y": "^",
+                       "shear": "X", "shear_free": "P"}, lambda _path: "*")  # fmt: skip
 """The marker of each load path in panel (a) (a ray's: a star)."""
 LINESTYLE = {"x": "-", "y": "--", "strip_x": "-", "strip_y": "--", "biaxial": "-"}
 

@@ -38,6 +38,8 @@ STRAIN = PerPath(
         "biaxial": r"strain $\varepsilon_x = \varepsilon_y$",
         "strip_x": r"strain $\varepsilon_x$ ($\varepsilon_y = 0$)",
         "strip_y": r"strain $\varepsilon_y$ ($\varepsilon_x = 0$)",
+        "shear": r"shear $\gamma$ (periods held)",
+        "shear_free": r"shear $\gamma$ (periods free)",
     },
     _ray_strain,
 )

@@ -34,6 +34,8 @@ DIRECTION_COLOUR = PerPath(
         "biaxial": "#c0392b",
         "strip_x": "#b8860b",
         "strip_y": "#138d75",
+        "shear": "#d35400",
+        "shear_free": "#7f8c8d",
     },
     lambda _path: RAY_COLOUR,
 )
@@ -56,6 +58,8 @@ TRANSITION_LINE = PerPath(
         "biaxial": "#c0392b",
         "strip_x": "#8e6c0b",
         "strip_y": "#117864",
+        "shear": "#a04000",
+        "shear_free": "#616a6b",
     },
     lambda _path: RAY_COLOUR,
 )

@@ -40,6 +40,7 @@ from ..config import (
     StitchName,
     StitchParams,
     SweepProtocol,
+    check_path_for_stitch,
     zero_force_solvers,
 )
 from ..errors import MAX_SEED, describe_validation_error
@@ -149,7 +150,8 @@ class JobSpec(BaseModel):
         min_length=1,
         description="the load paths each point is swept along (knitsweep.paths): 'x', 'y' "
         "(uniaxial, the paper's), 'biaxial' (equibiaxial), 'strip_x', 'strip_y' (one period "
-        "pulled, the other held), 'ray:<rate_x>,<rate_y>'",
+        "pulled, the other held), 'shear', 'shear_free' (simple shear, the periods held or "
+        "relaxed; free yarns only), 'ray:<rate_x>,<rate_y>'",
     )
     preset: str = DEFAULT_PRESET
     stitch: StitchName = Field(
@@ -248,6 +250,12 @@ class JobSpec(BaseModel):
                     if name not in ("r_core_mm", "r_mm"):
                         raise ValueError(f"grid.{describe_validation_error(e)}") from None
         self.points()  # every combination (r_core < r) is a valid stitch
+        for stitch in self.stitches:
+            for d in self.directions:
+                try:
+                    check_path_for_stitch(d, stitch)
+                except ValueError as e:
+                    raise ValueError(f"directions: {e}") from None
         if self.mode == "adaptive":
             zipped = any("L_mm" in g for g in self.grid.zip)
             if "L_mm" not in axes or zipped:

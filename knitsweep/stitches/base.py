@@ -74,14 +74,15 @@ MIRROR = np.array([1.0, 1.0, -1.0])
 
 
 def image_points(points: np.ndarray, m: int, n: int, a_x: float, a_y: float,
-                 parity: tuple[int, int] = (0, 0)) -> np.ndarray:  # fmt: skip
+                 parity: tuple[int, int] = (0, 0), skew: float = 0.0) -> np.ndarray:  # fmt: skip
     """The cell's ``points`` (..., 3), mm, in its image at lattice offset (m, n):
-    g p = M^mu p + m t_c + n t_w, mirrored (M) when ``is_mirrored(parity, m, n)``
+    g p = M^mu p + m t_c + n t_w, t_c = (a_x, 0), t_w = (skew, a_y) (``skew`` 0 but in a
+    sheared cell), mirrored (M) when ``is_mirrored(parity, m, n)``
     (docs/model.md §11; the compiled kernels' twin is the sign sz = -1 of a mirrored
     partner's z in ``kernels.mirrored``). A new array."""
     if is_mirrored(parity, m, n):
         points = points * MIRROR
-    return points + np.array([m * a_x, n * a_y, 0.0])
+    return points + np.array([m * a_x + n * skew, n * a_y, 0.0])
 
 
 @dataclass(frozen=True, eq=False)

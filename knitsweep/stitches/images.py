@@ -40,7 +40,12 @@ from ..kernels.cell import cell_energy, cell_energy_listed
 from ..kernels.checks import compile_checks
 from ..kernels.contact import find_contacts, min_zeta
 from ..kernels.forces import N_CLASSES, contact_forces_by_class, contact_pair_forces_by_class
-from ..kernels.mirrored import mirrored_forces_by_class, mirrored_pair_forces_by_class
+from ..kernels.mirrored import (
+    N_MIRROR_CLASSES,
+    mirrored_contact_energy,
+    mirrored_forces_by_class,
+    mirrored_pair_forces_by_class,
+)
 from ..kernels.neighbours import NO_LIST, build_neighbour_list
 from ..kernels.pattern_cell import pattern_cell_energy
 from .patterns import min_zeta_where
@@ -75,8 +80,14 @@ class Translations:
     idle machine, s (``compilation.COMPILE_SECONDS``, where the measurement is told)."""
     parity = (0, 0)
 
+    shears = False
+    """Whether its kernels take a skewed wale vector (``CellModel.skew``, a sheared cell)."""
+
     def energy_args(self, m, cp, jac, x, with_grad) -> tuple:
         """The arguments of ``cell_energy`` (the first ones of ``cell_energy_listed``)."""
+        if m.skew != 0.0:
+            raise ValueError(f"stitch {m.stitch.name}: its images are translations of a "
+                             "mirror-symmetric ansatz, which cannot shear")  # fmt: skip
         ip = m.ip
         return (cp, jac, x[-2], x[-1], m._qtab, m._qw, m._ctab, m._seg_w, ip.bend, ip.reg,
                 ip.r, ip.rc, ip.k, ip.p, m._mode, with_grad, m._grad_e, m._grad_l)  # fmt: skip
@@ -115,6 +126,11 @@ class Translations:
     def topology_change(self, m, x) -> str:
         return ""
 
+    def skew_force(self, m, cp, x) -> float:
+        """dE/ds_x: translations of a mirror-symmetric ansatz do not shear (0 at s_x = 0)."""
+        self.energy_args(m, cp, m._jac, x, False)  # refuses a skew
+        return 0.0
+
     def compile(self, m, what: str, tick: Callable[[], None] = _nothing) -> None:
         """Compile (or load) this group's kernels for ``m``'s argument types: with or
         without a neighbour list (``cell_energy`` is that kernel with ``NO_LIST``); the
@@ -146,6 +162,7 @@ class Glides(Translations):
     its free yarn is checked for its crossings and its contact sampling (§11)."""
 
     name = "glides"
+    shears = True
     lists_neighbours = False
     checks_resolution = True
     entry_points = ("knitsweep.kernels.pattern_cell.pattern_cell_energy",)
@@ -157,7 +174,7 @@ class Glides(Translations):
 
     def energy_args(self, m, cp, jac, x, with_grad) -> tuple:
         ip = m.ip
-        return (cp, jac, x[-2], x[-1], m._qtab, m._qw, m._ctab, m._aq, m._seg_w, ip.bend,
+        return (cp, jac, x[-2], x[-1], m.skew, m._qtab, m._qw, m._ctab, m._aq, m._seg_w, ip.bend,
                 ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.parity, *m.gauge_penalty_args(),
                 with_grad, m._grad_e, m._grad_l)  # fmt: skip
 
@@ -170,11 +187,11 @@ class Glides(Translations):
     def min_zeta(self, m, cp, x) -> float:
         ip = m.ip
         return min_zeta_where(cp, x[-2], x[-1], ip.r, ip.rc, self.parity,
-                              m.fidelity.samples_per_segment, m._aq)[0]  # fmt: skip
+                              m.fidelity.samples_per_segment, m._aq, m.skew)[0]  # fmt: skip
 
     def forces_args(self, m, cp, dcp, x, forces, energies) -> tuple:
         ip = m.ip
-        return (cp, dcp, m._ctab, m._aq, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, *self.parity,
+        return (cp, dcp, m._ctab, m._aq, x[-2], x[-1], m.skew, ip.r, ip.rc, ip.k, ip.p, *self.parity,
                 forces, energies)  # fmt: skip
 
     def forces_by_class(self, m, cp, dcp, x, forces, energies) -> None:
@@ -182,11 +199,19 @@ class Glides(Translations):
 
     def pair_forces_args(self, m, cp, x, weighted, forces) -> tuple:
         ip = m.ip
-        return (cp, m._ctab, m._aq, x[-2], x[-1], ip.r, ip.rc, ip.k, ip.p, *self.parity,
+        return (cp, m._ctab, m._aq, x[-2], x[-1], m.skew, ip.r, ip.rc, ip.k, ip.p, *self.parity,
                 weighted, forces)  # fmt: skip
 
     def pair_forces_by_class(self, m, cp, x, weighted, forces) -> None:
         mirrored_pair_forces_by_class(*self.pair_forces_args(m, cp, x, weighted, forces))
+
+    def skew_force(self, m, cp, x) -> float:
+        """dE/ds_x (N) at the model's skew: the contact sum's explicit derivative."""
+        ip = m.ip
+        gcell, ce = np.zeros(3), np.zeros(N_MIRROR_CLASSES)
+        mirrored_contact_energy(cp, m._ctab, m._aq, x[-2], x[-1], m.skew, ip.r, ip.rc, ip.k, ip.p,
+                                *self.parity, -1, True, np.empty(cp.shape), gcell, ce)  # fmt: skip
+        return float(gcell[2])
 
     def topology_change(self, m, x) -> str:
         """ "" if state ``x`` shows the crossings of the stitch's first shipped start
@@ -198,7 +223,7 @@ class Glides(Translations):
             x1 = stitch.start(1)
             ref = topology_word(m.control_points(x1), x1[-2], x1[-1], self.parity)
             stitch._loaded["topology_word"] = ref
-        got = topology_word(m.control_points(x), x[-2], x[-1], self.parity)
+        got = topology_word(m.control_points(x), x[-2], x[-1], self.parity, skew=m.skew)
         if got == ref:
             return ""
         count = sum(len(signs) for _, signs in ref)

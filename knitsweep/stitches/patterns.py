@@ -87,7 +87,7 @@ def _samples(cp: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, float]:
     return pts, total - 0.5 * speed / n, float(total[-1])
 
 
-def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10, arc_rule=None):
+def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10, arc_rule=None, skew=0.0):
     """Smallest ζ over the counted contacts of the pattern (images mirrored by
     ``parity``; same-row neighbours along the yarn excluded as in §6) and where:
     (ζ, (m, n), segment of the cell, segment of the image); ζ = 1 if nothing touches.
@@ -95,7 +95,7 @@ def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10, arc_rule=
     ``min_zeta_where_reference`` finds (which samples that are not finite are left to).
     With a non-empty ``arc_rule`` (2, K) the samples sit at arclength fractions of each
     segment, or with a third row evenly along the whole yarn (``kernels.arclength``), as
-    the contact sum's then do."""
+    the contact sum's then do. ``skew``: the wale vector's x component (a sheared cell)."""
     if arc_rule is not None and arc_rule.shape[1] > 0:
         place = yarn_sample_cell if arc_rule.shape[0] == 3 else arclength_sample_cell
         pts, _, _, _, s_mid, s_tot, _ = place(np.asarray(cp, dtype=float), samples, arc_rule)
@@ -104,24 +104,25 @@ def min_zeta_where(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10, arc_rule=
     else:
         pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
     if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(s_mid))):
-        return min_zeta_where_reference(cp, a_x, a_y, r, r_core, parity, samples)
-    z, m, n, i, j = pattern_min_zeta(pts, s_mid, s_tot, float(a_x), float(a_y), float(r),
-                                     float(r_core), int(parity[0]), int(parity[1]),
+        return min_zeta_where_reference(cp, a_x, a_y, r, r_core, parity, samples, skew)
+    z, m, n, i, j = pattern_min_zeta(pts, s_mid, s_tot, float(a_x), float(a_y), float(skew),
+                                     float(r), float(r_core), int(parity[0]), int(parity[1]),
                                      EXCLUSION_FACTOR * r)  # fmt: skip
     if i < 0:
         return (1.0, None, None, None)
     return (float(z), (int(m), int(n)), int(i // samples), int(j // samples))
 
 
-def min_zeta_where_reference(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10):
+def min_zeta_where_reference(cp, a_x, a_y, r, r_core, parity=(0, 0), samples=10, skew=0.0):
     """``min_zeta_where`` in numpy: the reference the compiled one is tested against."""
     pts, s_mid, s_tot = _samples(np.asarray(cp, dtype=float), samples)
     d = 2 * r - 2 * r_core
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     images, copies = [], []
-    for m in range(-2, 3):
+    wide = int(np.ceil(3.0 * abs(skew) / a_x))
+    for m in range(-2 - wide, 3 + wide):
         for n in range(-3, 4):
-            q = image_points(pts, m, n, a_x, a_y, parity)
+            q = image_points(pts, m, n, a_x, a_y, parity, skew)
             if np.any(q.min(axis=0) - hi >= 2 * r) or np.any(lo - q.max(axis=0) >= 2 * r):
                 continue  # every sample of the image 2r away or more: no contact counted
             images.append((m, n))

@@ -18,6 +18,7 @@ the same way: the check errs on the side of reporting. The search is compiled
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from math import comb
 
@@ -44,7 +45,8 @@ def _polyline(cp: np.ndarray, samples: int) -> np.ndarray:
 
 def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
               parity: tuple[int, int] = (0, 0), heights: list | None = None,
-              along: list | None = None, adjacent_only: bool = False) -> Counter:  # fmt: skip
+              along: list | None = None, adjacent_only: bool = False,
+              skew: float = 0.0) -> Counter:  # fmt: skip
     """Crossings in projection of the cell's yarn with itself and its images, as a
     Counter of (m, n, sign) (see the module docstring).
 
@@ -55,13 +57,15 @@ def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
     (``gauss_word``). ``adjacent_only``: the images in the rows just above and below
     (|n| = 1) alone. Compiled (``kernels.checks.polyline_crossings``): the same
     crossings, positions and heights, in the same order, as ``crossings_reference``
-    (which a polyline with non-finite points is left to)."""
+    (which a polyline with non-finite points is left to). ``skew``: the wale vector's
+    x component (t_w = (skew, a_y), mm; a sheared cell)."""
     pts = _polyline(np.asarray(cp, dtype=float), samples)
     if not np.all(np.isfinite(pts)):
-        return crossings_reference(cp, a_x, a_y, samples, parity, heights, along, adjacent_only)
+        return crossings_reference(cp, a_x, a_y, samples, parity, heights, along, adjacent_only,
+                                   skew)  # fmt: skip
     out: Counter = Counter()
-    rows = polyline_crossings(pts, float(a_x), float(a_y), int(parity[0]), int(parity[1]),
-                              adjacent_only)  # fmt: skip
+    rows = polyline_crossings(pts, float(a_x), float(a_y), float(skew), int(parity[0]),
+                              int(parity[1]), adjacent_only)  # fmt: skip
     for m_, n_, i_, _, s, _, za, zb in rows:
         m, n, sign = int(m_), int(n_), 1 if za > zb else -1
         out[(m, n, sign)] += 1
@@ -74,17 +78,19 @@ def crossings(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
 
 def crossings_reference(cp: np.ndarray, a_x: float, a_y: float, samples: int = SAMPLES,
                         parity: tuple[int, int] = (0, 0), heights: list | None = None,
-                        along: list | None = None, adjacent_only: bool = False) -> Counter:  # fmt: skip
+                        along: list | None = None, adjacent_only: bool = False,
+                        skew: float = 0.0) -> Counter:  # fmt: skip
     """``crossings`` in numpy: the reference the compiled search is tested against."""
     pts = _polyline(np.asarray(cp, dtype=float), samples)
     p0, p1 = pts[:-1], pts[1:]
     out: Counter = Counter()
     n_p = len(p0)
     d = p1 - p0
-    for m in (-1, 0, 1):
+    wide = math.ceil(2.0 * abs(skew) / a_x)
+    for m in range(-1 - wide, 2 + wide):
         for n in (-1, 1) if adjacent_only else (-2, -1, 0, 1, 2):
-            q0 = image_points(p0, m, n, a_x, a_y, parity)
-            q1 = image_points(p1, m, n, a_x, a_y, parity)
+            q0 = image_points(p0, m, n, a_x, a_y, parity, skew)
+            q1 = image_points(p1, m, n, a_x, a_y, parity, skew)
             e = q1 - q0
             i_idx, j_idx = _near_pieces(p0, p1, q0, q1)
             w = q0[j_idx, :2] - p0[i_idx, :2]
@@ -161,7 +167,7 @@ def same_topology(before: Counter, after: Counter) -> tuple[bool, str]:
 
 
 def gauss_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
-               samples: int = SAMPLES, adjacent_only: bool = False
+               samples: int = SAMPLES, adjacent_only: bool = False, skew: float = 0.0
                ) -> tuple[tuple[int, int], ...]:  # fmt: skip
     """The crossings met along the cell's yarn, in order, as (row offset n, sign), in the
     rotation that sorts first (a cyclic word: a crossing sliding across the cell's end
@@ -171,7 +177,7 @@ def gauss_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] =
     ``adjacent_only``, the crossings with the rows just above and below alone (the word
     ``adjacent_rows`` keeps, at less cost)."""
     along: list = []
-    crossings(cp, a_x, a_y, samples, parity, along=along, adjacent_only=adjacent_only)
+    crossings(cp, a_x, a_y, samples, parity, along=along, adjacent_only=adjacent_only, skew=skew)
     return least_rotation([(n, s) for _, n, s in sorted(along)])
 
 
@@ -195,7 +201,7 @@ def row_period(cp: np.ndarray, a_x: float, parity: tuple[int, int] = (0, 0)):
 
 
 def fabric_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
-                samples: int = SAMPLES) -> tuple[tuple[int, int], ...]:  # fmt: skip
+                samples: int = SAMPLES, skew: float = 0.0) -> tuple[tuple[int, int], ...]:  # fmt: skip
     """How a row interlocks with the other rows: the cyclic ``gauss_word`` of one whole
     row period (``row_period``) with its crossings with the rows beside it (|n| = 1)
     only (``adjacent_rows``).
@@ -207,7 +213,8 @@ def fabric_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] 
     the word; over the cell alone, where the course closes through a glide, it would
     come back mirrored (its sign flipped)."""
     cp2, a_x2, parity2 = row_period(cp, a_x, parity)
-    return adjacent_rows(gauss_word(cp2, a_x2, a_y, parity2, samples, adjacent_only=True))
+    return adjacent_rows(gauss_word(cp2, a_x2, a_y, parity2, samples, adjacent_only=True,
+                                    skew=skew))  # fmt: skip
 
 
 def adjacent_rows(word) -> tuple[tuple[int, int], ...]:
@@ -223,7 +230,8 @@ def adjacent_rows(word) -> tuple[tuple[int, int], ...]:
 
 
 def interlocking(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
-                 samples: int = SAMPLES) -> tuple[tuple[int, tuple[int, ...]], ...]:  # fmt: skip
+                 samples: int = SAMPLES, skew: float = 0.0
+                 ) -> tuple[tuple[int, tuple[int, ...]], ...]:  # fmt: skip
     """What a relaxation must keep (``CellModel.topology_change``): along one row period,
     the runs of consecutive crossings with the same other row, as (n, the run's signs
     sorted), cyclic (``fabric_word`` grouped).
@@ -234,7 +242,7 @@ def interlocking(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int]
     how the rows hold each other. A sign that flips (yarn through yarn), a crossing
     gained or lost, or a run that moves does change the word. Unlike ``gauss_word`` it
     does not tell garter from stockinette, whose runs differ only in their order."""
-    word = fabric_word(cp, a_x, a_y, parity, samples)
+    word = fabric_word(cp, a_x, a_y, parity, samples, skew)
     if not word:
         return ()
     k = next((i for i in range(len(word)) if word[i][0] != word[i - 1][0]), 0)
@@ -249,13 +257,14 @@ def interlocking(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int]
 
 
 def topology_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
-                  samples: int = SAMPLES) -> tuple[tuple[int, tuple[int, ...]], ...]:  # fmt: skip
+                  samples: int = SAMPLES, skew: float = 0.0
+                  ) -> tuple[tuple[int, tuple[int, ...]], ...]:  # fmt: skip
     """The word a relaxation of a pattern must keep (``CellModel.topology_change``), as
     runs (n, signs), with the rows beside it only (``adjacent_rows``). Where the course
     closes by a translation (garter): the cell's ``gauss_word``, every crossing in its
     order (runs of one), which tells garter from stockinette. Where it closes through a glide (rib): ``interlocking``, since there
     the knit and purl columns slide behind one another as the fabric draws in."""
     if parity[0]:
-        return interlocking(cp, a_x, a_y, parity, samples)
-    word = adjacent_rows(gauss_word(cp, a_x, a_y, parity, samples, adjacent_only=True))
+        return interlocking(cp, a_x, a_y, parity, samples, skew)
+    word = adjacent_rows(gauss_word(cp, a_x, a_y, parity, samples, adjacent_only=True, skew=skew))
     return tuple((n, (s,)) for n, s in word)

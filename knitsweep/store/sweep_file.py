@@ -15,7 +15,7 @@ from ..quantities import STEP_QUANTITIES, registered
 if TYPE_CHECKING:
     from ..config import StitchParams
 
-COLUMNS = ("strain", "a_x", "a_y", "stress", "stress_envelope", "stress_xx", "stress_yy",
+COLUMNS = ("strain", "a_x", "a_y", "stress", "stress_envelope", "stress_xx", "stress_yy", "stress_xy",
            "bending_energy", "contact_energy", "total_energy",
            *(o.name for o in registered("step")), "winner", "converged")  # fmt: skip
 """The per-step quantities of the CSV table, in order (the registered step observables,

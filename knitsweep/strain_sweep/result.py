@@ -11,7 +11,10 @@ transverse width at zero force:
   length constraint (envelope theorem), free of differencing error;
 * ``stress_xx``, ``stress_yy``: the stress tensor's normal components from the period
   forces, F_x/a_y0 and F_y/a_x0 (zero in a free period's direction, to the solver's
-  tolerance).
+  tolerance); ``stress_xy``: its shear component F_s/a_x0 from the force on the wale
+  vector's skew (``CellModel.skew_force``): along the other paths the force that holds
+  the skew at 0 (0 by symmetry for a left-right mirror-symmetric stitch; 0 for the
+  ansatz, which cannot shear).
 
 Along a path that controls both periods (``paths``: equibiaxial, strip biaxial), ``stress``
 and ``stress_envelope`` are dE/dε per unit area of the zero-force cell, the sum of the
@@ -68,6 +71,7 @@ class SweepResult:
     stress_envelope: np.ndarray = field(default_factory=lambda: np.empty(0))
     stress_xx: np.ndarray = field(default_factory=lambda: np.empty(0))
     stress_yy: np.ndarray = field(default_factory=lambda: np.empty(0))
+    stress_xy: np.ndarray = field(default_factory=lambda: np.empty(0))
     bending_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
     contact_energy: np.ndarray = field(default_factory=lambda: np.empty(0))
     observed: dict[str, np.ndarray] = field(default_factory=dict)
@@ -166,7 +170,7 @@ class SweepResult:
 
 
 _STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "stress_xx",
-                "stress_yy", "bending_energy", "contact_energy", "winner", "converged",
+                "stress_yy", "stress_xy", "bending_energy", "contact_energy", "winner", "converged",
                 "iterations", "evaluations", "min_zeta", "length_residual", "kkt_residual", "relax_seconds", "states")  # fmt: skip
 _START_ARRAYS = ("carried", "merged_into", "merged_at")
 

@@ -105,7 +105,14 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
     idx = {d: model.stitch.period_index(d) for d in ("x", "y")}
     best = zero.best
     rest = {d: float(best.x[i]) for d, i in idx.items()}  # a_x0, a_y0
+    rest["xy"] = rest["y"]  # a shear's coordinate: a_y0 (1 + γ) (paths.LoadPath.leading)
     a0, a_perp0 = rest[path.leading], rest[path.transverse]
+    if path.shears:
+        if not model.image_group.shears:
+            raise ValueError(f"direction = {direction!r}: stitch {model.stitch.name} cannot "
+                             "shear (a mirror-symmetric ansatz); shear a free yarn such as "
+                             "stockinette_free")  # fmt: skip
+        check_rest = False  # a lower minimum at zero force is looked for along pulls only
     sign = 1.0 if protocol.mode == "tension" else -1.0
     n_starts = len(zero.relaxations)
     # starts that merged on their way to the zero-force state count as merged there
@@ -116,7 +123,10 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
     carried[[c.start for c in chains]] = True
     chains = merge_chains(chains, model, None, protocol.merge_tolerance_mJ, 0, merged_into,
                           merged_at)  # fmt: skip
+    model.skew = 0.0
     steps: list[Relaxation] = [best]
+    shears = model.image_group.shears  # the force on the skew is measured (σ_xy)
+    skew_forces = [model.skew_force(best.x) if shears else 0.0]
     winners = [zero.winner]
     a_values, strains = [a0], [0.0]
     envelope = [0.0]
@@ -134,7 +144,10 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         saved = (copy.deepcopy(chains), merged_into.copy(), merged_at.copy()
                  ) if sigma_last > STOP_WATCH * stop else None  # fmt: skip
         targets = path.targets(rest, (a_next - a0) / a0)
-        targets[path.leading] = a_next  # (exactly: the schedule's value)
+        if path.shears:  # the skew leads (exactly the schedule's value), not a state entry
+            model.skew = a_next - a0
+        else:
+            targets[path.leading] = a_next  # (exactly: the schedule's value)
         for c in chains:
             x = c.x.copy()
             for d, a in targets.items():
@@ -155,7 +168,9 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         winners.append(chains[w].start)
         a_values.append(a_next)
         strains.append((a_next - a0) / a0)
-        envelope.append(path.conjugate_stress(*win.period_forces, rest["x"], rest["y"]))
+        skew_forces.append(model.skew_force(win.x) if shears else 0.0)
+        envelope.append(path.conjugate_stress(*win.period_forces, rest["x"], rest["y"],
+                                              skew_forces[-1]))  # fmt: skip
         eb.append(win.bending_energy)
         ec.append(win.contact_energy)
         i = len(steps) - 1
@@ -169,7 +184,7 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
                 and (overshot or step_status == NOT_KNITTABLE)):  # fmt: skip
             # past the stop stress by more than 10 %, or a long step near it that ended
             # with the cores overlapping: take the step again, half as long
-            for values in (steps, winners, a_values, strains, envelope, eb, ec):
+            for values in (steps, winners, a_values, strains, envelope, eb, ec, skew_forces):
                 values.pop()
             chains, merged_into[:], merged_at[:] = saved[0], saved[1], saved[2]
             a_next = a_values[-1] + sign * max(h / 2.0, protocol.step_mm)
@@ -205,9 +220,10 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         if stopped_by:
             break
         a_next = control.next(a_values, envelope, eb, ec)
+    model.skew = 0.0
     result = _assemble(model, path, steps, winners, a_values, rest, status, reason,
                        stopped_by, n_relax, n_eval, (carried, merged_into, merged_at),
-                       time.perf_counter() - t_start)  # fmt: skip
+                       time.perf_counter() - t_start, np.array(skew_forces))  # fmt: skip
     return result, None, unfound
 
 
@@ -235,7 +251,8 @@ def _lower_rest(model, zero, start, step, direction, strain, fall, solver, toler
 def _crossings(model: CellModel, x: np.ndarray) -> tuple:
     """How the rows of state ``x`` cross one another in projection (``topology_word``: the
     word a relaxation of a pattern must keep), for any stitch."""
-    return topology_word(model.control_points(x), x[-2], x[-1], model.stitch.mirror_parity)
+    return topology_word(model.control_points(x), x[-2], x[-1], model.stitch.mirror_parity,
+                         skew=model.skew)  # fmt: skip
 
 
 def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettings) -> list[Chain]:
@@ -250,7 +267,7 @@ def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettin
 
 
 def _assemble(model, path, steps, winners, a_values, rest, status, reason,
-              stopped_by, n_relax, n_eval, starts, wall) -> SweepResult:  # fmt: skip
+              stopped_by, n_relax, n_eval, starts, wall, skew_forces) -> SweepResult:  # fmt: skip
     a0, a_perp0 = rest[path.leading], rest[path.transverse]
     a = np.array(a_values)
     eb = np.array([s.bending_energy for s in steps])
@@ -264,9 +281,10 @@ def _assemble(model, path, steps, winners, a_values, rest, status, reason,
         a_y=np.array([s.a_y for s in steps]),
         strain=(a - a0) / a0,
         stress=centred_stress(eb + ec, a, a_perp0),
-        stress_envelope=path.conjugate_stress(fx, fy, rest["x"], rest["y"]),
+        stress_envelope=path.conjugate_stress(fx, fy, rest["x"], rest["y"], skew_forces),
         stress_xx=fx / rest["y"],
         stress_yy=fy / rest["x"],
+        stress_xy=skew_forces / rest["x"],
         bending_energy=eb,
         contact_energy=ec,
         observed=_step_observables(model, steps),

@@ -1,0 +1,89 @@
+"""Simple shear (knitsweep.paths 'shear', 'shear_free'; docs/inplane.md): the wale vector
+tilted, t_w = (γ a_y0, a_y), the shear stress σ_xy from the force on the skew against the
+energy's differences, the left-right mirror's W(γ) = W(-γ), periods held or relaxed, and
+the ansatz refused before any compute."""
+
+import numpy as np
+import pytest
+from conftest import one_error_line, run_knitsweep
+
+from knitsweep.config import StartSettings, StitchParams, SweepProtocol
+from knitsweep.paths import load_path
+from knitsweep.relax.zero_force import zero_force
+from knitsweep.strain_sweep import strain_sweep
+
+FREE = StitchParams(stitch="stockinette_free", L_mm=11.0, k_mN_per_mm2=0.1)
+PROTOCOL = SweepProtocol(step_mm=0.004, max_strain=0.03)
+
+
+@pytest.fixture(scope="module")
+def zero():
+    return zero_force(FREE, starts=StartSettings(count=1))
+
+
+@pytest.fixture(scope="module")
+def sweeps(zero):
+    back = PROTOCOL.model_copy(update={"mode": "compression"})
+    return {"shear": strain_sweep(FREE, zero, "shear", PROTOCOL),
+            "shear_free": strain_sweep(FREE, zero, "shear_free", PROTOCOL),
+            "back": strain_sweep(FREE, zero, "shear", back)}  # fmt: skip
+
+
+def test_shear_paths():
+    s, f = load_path("shear"), load_path("shear_free")
+    assert s.shears and f.shears and not load_path("x").shears
+    assert s.controlled == ("x", "y") and f.controlled == () and s.leading == "xy"
+    assert s.skew(2.0, 0.1) == pytest.approx(0.2) and load_path("biaxial").skew(2.0, 0.1) == 0.0
+    assert s.conjugate_stress(3.0, 5.0, 2.0, 4.0, 0.7) == pytest.approx(0.7 / 2.0)
+
+
+def test_shear_stress_is_the_energy_derivative(sweeps, zero):
+    sw = sweeps["shear"]
+    assert sw.status == "done" and sw.converged.all() and sw.strain[-1] >= 0.03
+    ax0, ay0 = zero.best.a_x, zero.best.a_y
+    assert np.all(sw.a_x == ax0) and np.all(sw.a_y == ay0)  # the periods held
+    assert np.array_equal(sw.stress_envelope, sw.stress_xy)
+    assert abs(sw.stress_xy[0]) < 1e-6  # at rest: no shear stress (a mirror-symmetric stitch)
+    # the energy's centred differences per unit width: dE/dγ / (a_x0 a_y0) = dE/ds / a_x0
+    inner = slice(1, -1)
+    got, ref = sw.stress[inner], sw.stress_xy[inner]
+    close = np.abs(got - ref) <= 0.02 * np.abs(ref) + 2e-6
+    assert close.mean() >= 0.9, np.c_[sw.strain[inner], got, ref][~close]
+    assert np.all(np.diff(sw.stress_xy) > 0)  # stiffens monotonically at small shear
+    assert sw.stress_xy[-1] > 0.0 and sw.total_energy[-1] > sw.total_energy[0]
+
+
+def test_shear_is_symmetric_for_a_mirror_symmetric_stitch(sweeps):
+    """Sheared back (γ < 0): σ_xy(-γ) = -σ_xy(γ) and the same energy, on the forward
+    sweep's strains (the two schedules' steps differ)."""
+    fwd, back = sweeps["shear"], sweeps["back"]
+    assert back.status == "done" and back.strain[-1] <= -0.03
+    g = fwd.strain[fwd.strain <= -back.strain[-1]]
+    flip = np.interp(g, -back.strain, -back.stress_xy)
+    np.testing.assert_allclose(flip, fwd.stress_xy[: len(g)], rtol=0.02, atol=2e-6)
+    rise = np.interp(g, -back.strain, back.total_energy - back.total_energy[0])
+    ref = fwd.total_energy[: len(g)] - fwd.total_energy[0]
+    np.testing.assert_allclose(rise, ref, rtol=0.02, atol=2e-7)  # (linear interpolation)
+
+
+def test_shear_with_free_periods(sweeps, zero):
+    sw = sweeps["shear_free"]
+    assert sw.status == "done" and sw.converged.all()
+    assert np.abs(sw.stress_xx).max() < 1e-4 and np.abs(sw.stress_yy).max() < 1e-4
+    assert sw.a_x[-1] != zero.best.a_x and sw.a_y[-1] != zero.best.a_y
+    # relaxing the periods can only lower the energy at the same shear
+    n = min(len(sw.strain), len(sweeps["shear"].strain))
+    assert np.all(sw.total_energy[:n] <= sweeps["shear"].total_energy[:n] + 1e-10)
+
+
+def test_the_ansatz_cannot_shear(tmp_path, zero):
+    with pytest.raises(ValueError, match="cannot shear"):
+        paper = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)
+        strain_sweep(paper, zero_force(paper, starts=StartSettings(count=1)), "shear", PROTOCOL)
+    job = tmp_path / "j.toml"
+    job.write_text('schema_version = 1\nname = "j"\ndirections = ["x", "shear"]\n'
+                   '[grid]\nL_mm = 11.6\n')  # fmt: skip
+    one_error_line(run_knitsweep("run", job, "--out", tmp_path / "j.h5"), "shears the cell")
+    assert not (tmp_path / "j.h5").exists()
+    one_error_line(run_knitsweep("sweep", "--direction", "shear_free", "--L", "11.6"),
+                   "stockinette_free")  # fmt: skip
