@@ -31,20 +31,23 @@ from .series import series_key
 PATH_MARKER = PerPath({"x": "o", "y": "s", "biaxial": "D", "strip_x": ">", "strip_y": "^",
                        "shear": "X", "shear_free": "P"}, lambda _path: "*")  # fmt: skip
 """The marker of each load path in panel (a) (a ray's: a star)."""
-LINESTYLE = {"x": "-", "y": "--", "strip_x": "-", "strip_y": "--", "biaxial": "-"}
+LINESTYLE = {"x": "-", "y": "--", "strip_x": "-", "strip_y": "--", "biaxial": "-", "shear": ":",
+             "shear_free": "-."}  # fmt: skip
 
 
 def figI_inplane(red: Reduction, notes: list[str]) -> Any:
     """(a) (L/r)_trans of each stitch along each load path, the bar its bracket (▼: unjammed
     from the first L, ▲: jammed throughout; hollow: jammed again at a larger L, the first
     crossing shown, as the paper defines it); (b) Poisson's ratios ν_xy (pulled in x, solid)
-    and ν_yx (in y, dashed) against L/r, one colour per stitch; (c) the equibiaxial secant
-    modulus (σ_xx + σ_yy at ε = 0.02, over 0.02); (d) in strip biaxial, the stress that holds
+    and ν_yx (in y, dashed) against L/r, one colour per stitch; (c) the secant moduli at
+    0.02: equibiaxial ((σ_xx + σ_yy)/0.02, solid) and in simple shear (G_sec = σ_xy/γ,
+    dotted with the periods held, dash-dotted with them free); (d) in strip biaxial, the stress that holds
     the transverse period over the pulled one's, σ_⊥/σ_∥ at 2 % strain (strip_x solid,
     strip_y dashed)."""
     paths = path_order({row["direction"] for row in red.sweeps})
     if all(load_path(d).uniaxial for d in paths):
-        raise SkipFigure("needs sweeps along a biaxial path (directions biaxial, strip_x, strip_y)")
+        raise SkipFigure("needs sweeps along a biaxial or shear path (directions biaxial, "
+                         "strip_x, strip_y, shear, shear_free)")  # fmt: skip
     from matplotlib.lines import Line2D
 
     chosen = _one_series_per_stitch(red, notes)
@@ -78,7 +81,8 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
             elif t is not None:
                 notes.append(f"in-plane: {stitch} along {d}: {t['status']}")
             for ax, column, wanted in ((ax_p, "poisson_ratio", ("x", "y")),
-                                       (ax_b, "Y_sec_N_per_mm", ("biaxial",)),
+                                       (ax_b, "Y_sec_N_per_mm", ("biaxial", "shear",
+                                                                 "shear_free")),
                                        (ax_s, "transverse_stress_ratio", ("strip_x", "strip_y"))):  # fmt: skip
                 if d not in wanted:
                     continue
@@ -98,12 +102,18 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
     ax_p.set_ylabel(r"Poisson's ratio at 2 % strain")
     ax_p.axhline(0.0, color="0.55", lw=0.8, zorder=0)
     panel_title(ax_p, r"(b) $\nu_{xy}$ (pulled in x, ─), $\nu_{yx}$ (in y, ‑‑)")
-    ax_b.set_ylabel(r"equibiaxial $Y_{\rm sec}$ (N/mm)")
-    positive = [v for line in ax_b.get_lines() for v in line.get_ydata() if v > 0]
-    if positive and max(positive) > 10 * min(positive):
+    ax_b.set_ylabel(r"secant modulus at 0.02 (N/mm)")
+    values = [v for line in ax_b.get_lines() for v in line.get_ydata()]
+    positive = [v for v in values if v > 0]
+    if any(v < 0 for v in values):  # a negative G_sec: the unsheared rest is no minimum
+        ax_b.set_yscale("symlog", linthresh=0.01)
+        ax_b.axhline(0.0, color="0.55", lw=0.8, zorder=0)
+        notes.append("in-plane: a negative secant modulus in shear: the energy falls as the "
+                     "cell shears, its unsheared zero-force state is no minimum in shear")  # fmt: skip
+    elif positive and max(positive) > 10 * min(positive):
         ax_b.set_yscale("log")
-    panel_title(ax_b, r"(c) $(\sigma_{xx} + \sigma_{yy})/0.02$ at $\varepsilon_x = \varepsilon_y$"
-                " = 0.02")  # fmt: skip
+    panel_title(ax_b, r"(c) equibiaxial $(\sigma_{xx} + \sigma_{yy})/0.02$ ─; shear"
+                "\n" r"$G_{\rm sec} = \sigma_{xy}/\gamma$, periods held ···, free -·-")  # fmt: skip
     ax_s.set_ylabel(r"$\sigma_\perp / \sigma_\parallel$ at 2 % strain")
     ax_s.axhline(0.0, color="0.55", lw=0.8, zorder=0)
     panel_title(ax_s, "(d) strip biaxial: the held period's stress\n(strip_x ─, strip_y ‑‑)")
@@ -111,5 +121,5 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
         ax.set_xlabel(L_OVER_R)
     ax_b.legend(handles=[Line2D([], [], color=_colour(s, i), marker="o", ms=4, label=s)
                          for i, s in enumerate(stitches)], loc="best", frameon=False)  # fmt: skip
-    title(fig, red, "In-plane response: uniaxial, equibiaxial and strip biaxial")
+    title(fig, red, "In-plane response: uniaxial, biaxial and shear")
     return fig

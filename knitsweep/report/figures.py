@@ -87,10 +87,10 @@ CAPTIONS: dict[str, str] = {
     "fig6h_contact_force_ratio.png": "Ratio of the x and y contact forces at zero strain "
     "against L/r (paper Fig. 6h).",
     "figI_inplane.png": "The in-plane response along every load path: (a) the unjamming "
-    "transition (L/r)_trans of each stitch pulled uniaxially (x, y), equibiaxially and in "
-    "strip biaxial, the bar its bracket; (b) Poisson's ratios against L/r; (c) the "
-    "equibiaxial secant modulus; (d) in strip biaxial, the stress holding the transverse "
-    "period over the pulled one's.",
+    "transition (L/r)_trans of each stitch pulled uniaxially (x, y), equibiaxially, in "
+    "strip biaxial and sheared, the bar its bracket; (b) Poisson's ratios against L/r; (c) the "
+    "equibiaxial and shear secant moduli; (d) in strip biaxial, the stress holding the "
+    "transverse period over the pulled one's.",
     "figP_patterns.png": "Stitch patterns side by side: (a) the unjamming transition "
     "(L/r)_trans of each pattern pulled in x and y, the bar its bracket; (b) the secant "
     "modulus against L/r, one colour per pattern, x solid and y dashed; (c) the zero-force "
