@@ -14,7 +14,8 @@ fixes a_i = a_i0 (1 + rate_i ε) for every controlled period i, and relaxes the 
   (``shear``) or relaxed with the shape (``shear_free``); the sweep's strain is γ;
 * ``ray:<rate_x>,<rate_y>``: any ray in (ε_x, ε_y), e.g. ``ray:1,-0.3`` (x pulled, y
   pushed in at 0.3 of its rate); the larger |rate| leads (on a tie the positive one) and
-  is scaled to 1, and must be positive (a pull; the protocol's ``mode = "compression"`` reverses a whole sweep).
+  is scaled to 1, and must be positive (a pull; the protocol's ``mode = "compression"``
+  reverses a whole sweep).
 
 The stress a path reports (``stress``, ``stress_envelope``, N/mm) is the work
 conjugate of ε per unit width: dE/dε / (a_lead0 a_perp0) = Σ_i rate_i σ_ii with
@@ -25,7 +26,8 @@ F_s = dE*/ds_x the force on the skew. Each sweep stores all three components as 
 
 The gap that marks jamming (docs/model.md §9) is that of the path's leading period: ΔE_c
 pulled in x, ΔE_b in y (the paper's), ΔE_c along ``strip_x`` and ``biaxial``, ΔE_b along
-``strip_y`` (and along a ray, that of its leading period); ΔE_c in shear. The other gap is no marker where a period is held or pulled too: holding or
+``strip_y`` (and along a ray, that of its leading period); ΔE_c in shear. The other gap
+is no marker where a period is held or pulled too: holding or
 pulling the transverse period makes a loose fabric straighten its yarn (fixed length,
 larger cell) and give up the other energy without any contact being relieved (measured,
 ``jobs/inplane_k0.1.toml``: garter's ΔE_b along ``strip_x`` and ``biaxial`` is 3–7·10⁻⁵ mJ
@@ -96,10 +98,6 @@ class LoadPath:
     def targets(self, a0: dict[str, float], strain: float) -> dict[str, float]:
         """The controlled periods (mm) at the sweep's ``strain`` from the zero-force ones."""
         return {d: a0[d] * (1.0 + self.rates[d] * strain) for d in self.controlled}  # type: ignore[operator]
-
-    def skew(self, a_y0: float, strain: float) -> float:
-        """The wale vector's skew s_x (mm) at the sweep's ``strain``."""
-        return self.rate_xy * strain * a_y0
 
     def conjugate_stress(self, force_x, force_y, a_x0: float, a_y0: float, force_s=0.0):
         """dE/dε per unit width (N/mm) from the period forces and the force on the skew

@@ -33,7 +33,6 @@ def test_shear_paths():
     s, f = load_path("shear"), load_path("shear_free")
     assert s.shears and f.shears and not load_path("x").shears
     assert s.controlled == ("x", "y") and f.controlled == () and s.leading == "xy"
-    assert s.skew(2.0, 0.1) == pytest.approx(0.2) and load_path("biaxial").skew(2.0, 0.1) == 0.0
     assert s.conjugate_stress(3.0, 5.0, 2.0, 4.0, 0.7) == pytest.approx(0.7 / 2.0)
 
 

@@ -6,7 +6,9 @@ m t_c + n t_w and glide reflections: the image at (m, n) is the cell mirrored th
 the fabric plane (z -> -z, a purl stitch) when ``pm * m + pn * n`` is odd, where
 (pm, pn) = (0, 0) stockinette (no mirror), (0, 1) garter (purl rows), (1, 0) 1x1 rib
 (purl columns), (1, 1) seed (checkerboard). The image of sample p_j is
-g p_j = M^mu p_j + m t_c + n t_w, M = diag(1, 1, -1), mu the mirror flag.
+g p_j = M^mu p_j + m t_c + n t_w, M = diag(1, 1, -1), mu the mirror flag, t_c = (a_x, 0, 0)
+and t_w = (s_x, a_y, 0): s_x, the wale vector's skew, is 0 but in a sheared cell
+(``CellModel.skew``), and every kernel here takes it (``sx``) after the periods.
 
 The sum is §6's: every ordered pair (i, j, g) closer than 2r adds V(|p_i - g p_j|)
 v_i v_j dt², same-row pairs (n = 0) within 2.1 r along the yarn left out
