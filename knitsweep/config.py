@@ -356,7 +356,7 @@ class SolverSettings(BaseModel):
 
 Direction = Annotated[str, AfterValidator(check_path)]
 """A sweep's load path by name (``knitsweep.paths``: uniaxial x and y, the paper's;
-equibiaxial; strip biaxial; ``ray:<rate_x>,<rate_y>``)."""
+equibiaxial; strip biaxial; ``ray:<rate_x>,<rate_y>[,<rate_xy>]``)."""
 
 
 Observable = Literal["curve", "secant_modulus", "offset_stress", "energy_gaps"]

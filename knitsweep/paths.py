@@ -12,10 +12,11 @@ fixes a_i = a_i0 (1 + rate_i ε) for every controlled period i, and relaxes the 
 * ``shear``, ``shear_free``: simple shear γ of the cell, its wale vector tilted to
   t_w = (γ a_y0, a_y) (``CellModel.skew``), the periods held at their zero-force values
   (``shear``) or relaxed with the shape (``shear_free``); the sweep's strain is γ;
-* ``ray:<rate_x>,<rate_y>``: any ray in (ε_x, ε_y), e.g. ``ray:1,-0.3`` (x pulled, y
-  pushed in at 0.3 of its rate); the larger |rate| leads (on a tie the positive one) and
-  is scaled to 1, and must be positive (a pull; the protocol's ``mode = "compression"``
-  reverses a whole sweep).
+* ``ray:<rate_x>,<rate_y>[,<rate_xy>]``: any ray in (ε_x, ε_y) or (ε_x, ε_y, γ), e.g.
+  ``ray:1,-0.3`` (x pulled, y pushed in at 0.3 of its rate) or ``ray:1,0,0.5`` (x pulled and
+  the cell sheared at half its rate, a free yarn's); the largest |rate| leads (on a tie the
+  positive one, x before y before γ) and is scaled to 1, and must be positive (a pull; the
+  protocol's ``mode = "compression"`` reverses a whole sweep).
 
 The stress a path reports (``stress``, ``stress_envelope``, N/mm) is the work
 conjugate of ε per unit width: dE/dε / (a_lead0 a_perp0) = Σ_i rate_i σ_ii with
@@ -69,8 +70,8 @@ class LoadPath:
 
     @property
     def controlled(self) -> tuple[str, ...]:
-        """The periods a step fixes ('x', 'y', both or none), the leading one first."""
-        order = ("x", "y") if self.shears else self._order
+        """The periods a step fixes ('x', 'y', both or none), a leading one first."""
+        order = ("x", "y") if self.leading == "xy" else self._order
         return tuple(d for d in order if self.rates[d] is not None)
 
     @property
@@ -91,9 +92,11 @@ class LoadPath:
 
     @property
     def _order(self) -> tuple[str, str]:
-        if self.rate_xy == 1.0:  # shear leads: its coordinate a_y0 (1 + γ), per unit a_x0
-            return ("xy", "x")
-        return ("x", "y") if self.rate_x == 1.0 else ("y", "x")  # (a ray: |rate_y| < 1 then)
+        if self.rate_x == 1.0:
+            return ("x", "y")
+        if self.rate_y == 1.0:
+            return ("y", "x")
+        return ("xy", "x")  # shear leads: its coordinate a_y0 (1 + γ), per unit a_x0
 
     def targets(self, a0: dict[str, float], strain: float) -> dict[str, float]:
         """The controlled periods (mm) at the sweep's ``strain`` from the zero-force ones."""
@@ -124,8 +127,8 @@ PATHS: dict[str, LoadPath] = {
 """The registered load paths by name (the values of ``Direction``)."""
 PATH_NAMES: tuple[str, ...] = tuple(PATHS)
 RAY = "ray:"
-"""The prefix of a ray's name: ``ray:<rate_x>,<rate_y>``."""
-CHOICES = f"{', '.join(PATH_NAMES)} or {RAY}<rate_x>,<rate_y>"
+"""The prefix of a ray's name: ``ray:<rate_x>,<rate_y>[,<rate_xy>]``."""
+CHOICES = f"{', '.join(PATH_NAMES)} or {RAY}<rate_x>,<rate_y>[,<rate_xy>]"
 
 
 def load_path(name: str) -> LoadPath:
@@ -140,22 +143,26 @@ def load_path(name: str) -> LoadPath:
 
 @lru_cache(maxsize=256)
 def _ray(name: str) -> LoadPath:
-    """The ray ``ray:<rate_x>,<rate_y>``, its larger |rate| scaled to 1."""
+    """The ray ``ray:<rate_x>,<rate_y>[,<rate_xy>]``, its largest |rate| scaled to 1."""
     try:
-        rx, ry = (float(v) for v in name[len(RAY) :].split(","))
+        rates = [float(v) for v in name[len(RAY) :].split(",")]
     except ValueError:
-        raise PathError(name, f"a ray is {RAY}<rate_x>,<rate_y> (two numbers, e.g. ray:1,-0.3)"
-                        ) from None  # fmt: skip
-    if not (math.isfinite(rx) and math.isfinite(ry)) or rx == ry == 0.0:
-        raise PathError(name, "a ray's rates must be finite and not both 0")
-    x_leads = abs(rx) > abs(ry) or (abs(rx) == abs(ry) and rx > 0.0)  # a tie: the pull leads
-    lead, other = (rx, ry) if x_leads else (ry, rx)
-    if lead < 0.0:
-        raise PathError(name, 'the larger rate must be positive (a pull); mode = "compression" '
+        rates = []
+    if len(rates) not in (2, 3):
+        raise PathError(name, f"a ray is {RAY}<rate_x>,<rate_y>[,<rate_xy>] (two or three "
+                        "numbers, e.g. ray:1,-0.3 or ray:1,0,0.5)")  # fmt: skip
+    if not all(math.isfinite(v) for v in rates) or not any(rates):
+        raise PathError(name, "a ray's rates must be finite and not all 0")
+    rates += [0.0] * (3 - len(rates))
+    top = max(abs(v) for v in rates)
+    lead = next((i for i, v in enumerate(rates) if v == top), None)  # a tie: a pull, x first
+    if lead is None:
+        raise PathError(name, 'the largest rate must be positive (a pull); mode = "compression" '
                         "in [protocol] reverses a whole sweep")  # fmt: skip
-    rates = (1.0, other / lead) if x_leads else (other / lead, 1.0)
-    gap = "delta_E_c" if x_leads else "delta_E_b"
-    return LoadPath(name, *rates, gap, f"ray: ε_x : ε_y = {rates[0]:g} : {rates[1]:g}")
+    rx, ry, rxy = (v / top for v in rates)
+    gap = "delta_E_b" if lead == 1 else "delta_E_c"
+    shear = f" : γ = {rx:g} : {ry:g} : {rxy:g}" if rxy else f" = {rx:g} : {ry:g}"
+    return LoadPath(name, rx, ry, gap, f"ray: ε_x : ε_y{shear}", rxy)
 
 
 def check_path(name: str) -> str:

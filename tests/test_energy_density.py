@@ -158,7 +158,8 @@ def test_a_job_fitted_from_the_command_line(tmp_path):
     out = tmp_path / "w.json"
     got = run_knitsweep("energy-density", h5, "--out", out, "--knots", "16,16")
     assert got.returncode == 0, got.stderr
-    assert "states from 7 sweeps" in got.stdout and "between rays" in got.stdout
+    assert "W(eps_xx, eps_yy) from" in got.stdout and "states of 7 sweeps" in got.stdout
+    assert "between rays" in got.stdout
     f = knitsweep.load_energy_density(out)
     assert (tmp_path / "w.png").stat().st_size > 10_000
     assert f.fit["stress_error"]["x"] < 0.02 and f.fit["stress_error"]["y"] < 0.02
@@ -172,5 +173,6 @@ def test_a_job_fitted_from_the_command_line(tmp_path):
     assert np.abs(f.stress(*e.T)[:, 1]).max() < 0.02 * c.stress_xx_N_per_mm.max()  # σ_yy = 0
     # bad input: one line naming the option, before any work
     one_error_line(run_knitsweep("energy-density", h5, "--knots", "1,8"), "knots")
+    one_error_line(run_knitsweep("energy-density", h5, "--knots", "8,8,8"), "2 numbers")
     one_error_line(run_knitsweep("energy-density", h5, "--out", tmp_path / "w.txt"), ".json")
     one_error_line(run_knitsweep("energy-density", h5, "--point-L", "9.0"), "select one point")

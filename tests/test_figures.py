@@ -55,8 +55,8 @@ def test_every_figure_is_written(synthetic_report):
             assert f.reason == "needs sweeps of two or more stitch patterns"
             continue
         if name == "figI_inplane.png":  # x and y here; tests/test_figure_layout.py has biaxial
-            assert f.reason == ("needs sweeps along a biaxial path (directions biaxial, "
-                                "strip_x, strip_y)")  # fmt: skip
+            assert f.reason == ("needs sweeps along a biaxial or shear path (directions "
+                                "biaxial, strip_x, strip_y, shear, shear_free)")  # fmt: skip
             continue
         assert f.reason is None, (name, f.reason)
         assert_image(f.path)

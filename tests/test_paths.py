@@ -42,7 +42,7 @@ def test_registry():
     assert PATHS["biaxial"].conjugate_stress(3.0, 5.0, 2.0, 4.0) == pytest.approx(3 / 4 + 5 / 2)
     assert PATHS["y"].conjugate_stress(3.0, 5.0, 2.0, 4.0) == 5 / 2
     with pytest.raises(ValueError, match="must be one of x, y, biaxial, strip_x, strip_y, shear, "
-                       "shear_free or ray:<rate_x>,<rate_y>"):  # fmt: skip
+                       r"shear_free or ray:<rate_x>,<rate_y>\[,<rate_xy>\]"):  # fmt: skip
         load_path("twist")
     # a ray: its larger rate leads, scaled to 1; the other period follows
     ray = load_path("ray:-0.5,2")
@@ -52,9 +52,19 @@ def test_registry():
     tie = load_path("ray:-1,1")  # a tie: the pull leads
     assert (tie.leading, tie.rate_x, tie.rate_y) == ("y", -1.0, 1.0)
     assert load_path("ray:1,-1").leading == "x"
-    for bad, why in (("ray:-1,0.5", "the larger rate must be positive"), ("ray:-1,-1", "positive"),
-                     ("ray:0,0", "not both 0"), ("ray:1", "two numbers"),
-                     ("ray:1,nan", "finite")):  # fmt: skip
+    # three rates: (ε_x, ε_y, γ), the largest leads; a shear that leads moves the skew
+    r3 = load_path("ray:0.5,-0.25,2")
+    assert (r3.leading, r3.rate_x, r3.rate_y, r3.rate_xy, r3.shears) == ("xy", 0.25, -0.125, 1.0,
+                                                                          True)  # fmt: skip
+    assert r3.controlled == ("x", "y") and r3.gap == "delta_E_c"
+    r3 = load_path("ray:1,0,-0.5")
+    assert (r3.leading, r3.rate_xy, r3.controlled) == ("x", -0.5, ("x", "y"))
+    assert load_path("ray:1,0.5,0").rates == load_path("ray:1,0.5").rates
+    assert not load_path("ray:1,0.5,0").shears
+    for bad, why in (("ray:-1,0.5", "the largest rate must be positive"), ("ray:-1,-1", "positive"),
+                     ("ray:0,0", "not all 0"), ("ray:1", "two or three numbers"),
+                     ("ray:1,nan", "finite"), ("ray:1,2,3,4", "two or three"),
+                     ("ray:0,0,-1", "positive")):  # fmt: skip
         with pytest.raises(ValueError, match=why):
             load_path(bad)
 
@@ -116,11 +126,11 @@ def test_bad_direction_is_one_line(tmp_path):
     proc = run_knitsweep("sweep", "--direction", "twist", "--L", "11.6")
     one_error_line(proc, "direction = 'twist': must be one of x, y, biaxial, strip_x, strip_y")
     proc = run_knitsweep("sweep", "--direction", "ray:0,0", "--L", "11.6")
-    one_error_line(proc, "direction = 'ray:0,0': a ray's rates must be finite and not both 0")
+    one_error_line(proc, "direction = 'ray:0,0': a ray's rates must be finite and not all 0")
     job = tmp_path / "job.toml"
     job.write_text('schema_version = 1\nname = "j"\ndirections = ["x", "twist"]\n'
                    "[grid]\nL_mm = [11.6]\n")  # fmt: skip
     proc = run_knitsweep("run", job, "--out", tmp_path / "j.h5")
     one_error_line(proc, "directions.1 = 'twist': must be one of x, y, biaxial, strip_x, "
-                   "strip_y, shear, shear_free or ray:<rate_x>,<rate_y>")  # fmt: skip
+                   "strip_y, shear, shear_free or ray:<rate_x>,<rate_y>[,<rate_xy>]")  # fmt: skip
     assert not (tmp_path / "j.h5").exists()

@@ -1,29 +1,31 @@
-"""The fabric's in-plane energy density W(ε_xx, ε_yy) from one point's sweeps, fitted by
-a smooth function a cloth simulator can evaluate (docs/energy-density.md).
+"""The fabric's in-plane energy density W(ε_xx, ε_yy[, γ]) from one point's sweeps, fitted
+by a smooth function a cloth simulator can evaluate (docs/energy-density.md).
 
-Every step of a sweep is a relaxed state of the cell at periods (a_x, a_y): a sample of
-the energy per unit area of the undeformed fabric,
+Every step of a sweep is a relaxed state of the cell at periods (a_x, a_y) and skew s_x
+(``paths``: the deformation gradient F = [[1 + ε_xx, γ], [0, 1 + ε_yy]] up to a rotation):
+a sample of the energy per unit area of the undeformed fabric,
 
-    W = (E - E_0) / (a_x0 a_y0)   (mJ/mm² = N/mm),   ε_xx = a_x/a_x0 - 1, ε_yy = a_y/a_y0 - 1,
+    W = (E - E_0) / (a_x0 a_y0)   (mJ/mm² = N/mm),
+    ε_xx = a_x/a_x0 - 1,   ε_yy = a_y/a_y0 - 1,   γ = s_x/a_y0,
 
-with its exact gradient, the sweep's stresses (``paths``): σ_xx = F_x / a_y0 = ∂W/∂ε_xx
-and σ_yy = F_y / a_x0 = ∂W/∂ε_yy (first Piola–Kirchhoff, N/mm). A fan of rays in
-(ε_xx, ε_yy) (``jobs/energy_density_*.toml``) samples a star-shaped region around the
-zero-force state; the uniaxial sweeps sample the curve where the transverse stress is 0.
-The cell's periods are its only in-plane controls here (its lattice has no shear entry
-yet), so W is a function of the two normal strains.
+with its exact gradient, the sweep's stresses: σ_xx = F_x / a_y0 = ∂W/∂ε_xx,
+σ_yy = F_y / a_x0 = ∂W/∂ε_yy and σ_xy = F_s / a_x0 = ∂W/∂γ (first Piola–Kirchhoff, N/mm).
+A fan of rays (``jobs/energy_density_*.toml``) samples a star-shaped region around the
+zero-force state; the uniaxial sweeps sample where the transverse stress is 0. Where no
+sweep shears, W is a function of (ε_xx, ε_yy); with sweeps that shear (rays with a γ rate,
+``shear``) of (ε_xx, ε_yy, γ).
 
-The fit (``fit_energy_density``) is a bicubic tensor-product B-spline on uniform knots,
-W(ε) = Σ_ij c_ij B_i(ε_xx) B_j(ε_yy), whose coefficients minimise the squared misfit of
-the sampled energies *and* stresses (each scaled by its range) plus a small penalty on the
-coefficients' second differences (a P-spline: it fixes the coefficients the samples do not
-reach and damps wiggles between rays). Why this model: it is C², so its stress and tangent
-are continuous, which an implicit simulator needs; its stress and tangent are its exact
-derivatives (``EnergyDensity.stress``, ``tangent``; tested against differences); it is
-linear in its coefficients (one least-squares solve, no iteration); it makes no assumption
-of a functional form, which matters because jamming puts a knee into every stress–strain
-curve that polynomials in the invariants smooth away; and it is the model HYLC (Sperl et
-al. 2020) fits per term, here over the plane at once, which the two strains allow.
+The fit (``fit_energy_density``) is a tensor-product cubic B-spline on uniform knots,
+W(ε) = Σ c_ij(k) B_i(ε_xx) B_j(ε_yy) (B_k(γ)), whose coefficients minimise the squared
+misfit of the sampled energies *and* stresses (each scaled by its range) plus a small
+penalty on the coefficients' second differences (a P-spline: it fixes the coefficients the
+samples do not reach and damps wiggles between rays). Why this model: it is C², so its
+stress and tangent are continuous, which an implicit simulator needs; its stress and
+tangent are its exact derivatives (``EnergyDensity.stress``, ``tangent``; tested against
+differences); it is linear in its coefficients (one sparse least-squares solve, no
+iteration); it assumes no functional form, which matters because jamming puts a knee into
+every stress–strain curve that polynomials in the invariants smooth away; and it is the
+model HYLC (Sperl et al. 2020) fits per term, here over all the strains at once.
 """
 
 from __future__ import annotations
@@ -42,9 +44,11 @@ from ..stitches import DEFAULT_STITCH
 FORMAT = "knitsweep-energy-density"
 VERSION = 1
 DEGREE = 3
-KNOTS = (64, 48)
-"""Default number of knot intervals along ε_xx and ε_yy (checked on the shipped job:
-docs/energy-density.md)."""
+VARIABLES = ("eps_xx", "eps_yy", "gamma")
+"""The strains, in order: a density of two has the first two."""
+KNOTS = {2: (64, 48), 3: (32, 24, 16)}
+"""Default knot intervals per variable across the samples' range (checked on the shipped
+jobs: docs/energy-density.md)."""
 SMOOTHING = 1e-2
 """Default weight of the second-difference penalty, relative to the data's."""
 MARGIN = 0.1
@@ -55,22 +59,27 @@ the sampled region without the margin, 0.06 % with it, 16 x 16 knots)."""
 CONVEX_TOLERANCE = 1e-3
 """A tangent's smallest eigenvalue below -this × the largest over the domain counts as
 not convex (``EnergyDensity.convexity``)."""
-POINT_KEYS = ("stitch", "L_mm", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm", "p")
+POINT_KEYS = ("L_mm", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm", "p")
 
 
 @dataclass(frozen=True)
 class DensitySamples:
-    """One point's relaxed states as samples of W: strains (n, 2), W (n,) N/mm, stresses
-    (n, 2) N/mm, the sweep (direction) of each, the end of each sweep in strain, and the
-    point (its parameters, zero-force periods a_x0_mm, a_y0_mm and energy E0_mJ)."""
+    """One point's relaxed states as samples of W: strains (n, d) (``VARIABLES[:d]``), W
+    (n,) N/mm, stresses (n, d) N/mm, the sweep (direction) of each, the end of each sweep in
+    strain, and the point (its parameters, zero-force periods a_x0_mm, a_y0_mm and energy
+    E0_mJ)."""
 
     eps: np.ndarray
     W: np.ndarray
     stress: np.ndarray
     direction: np.ndarray
-    ends: dict[str, tuple[float, float]]
+    ends: dict[str, tuple[float, ...]]
     point: dict[str, Any]
     left_out: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def dim(self) -> int:
+        return self.eps.shape[1]
 
 
 def density_samples(sweeps, stitch: str | None = None, L_mm: float | None = None
@@ -78,8 +87,8 @@ def density_samples(sweeps, stitch: str | None = None, L_mm: float | None = None
     """The samples of W of the one point among ``sweeps`` ((meta, record) pairs of stored
     sweeps, e.g. ``Results.energy_density_samples``'s) that ``stitch`` and ``L_mm``
     select: the converged steps of its sweeps, also those of a sweep that ended not
-    knittable (its steps up to there are valid states). ValueError naming the points if
-    the selection is not one point."""
+    knittable (its steps up to there are valid states); γ a variable if any sweep shears.
+    ValueError naming the points if the selection is not one point."""
 
     def stitch_of(meta) -> str:  # the paper's stitch is stored without its name
         return meta.get("stitch", DEFAULT_STITCH)
@@ -96,10 +105,10 @@ def density_samples(sweeps, stitch: str | None = None, L_mm: float | None = None
     if len(by_point) != 1:
         found = sorted({(stitch_of(es[0][0]), es[0][0]["L_mm"]) for es in by_point.values()})
         listed = ", ".join(f"{s} L = {L:g} mm" for s, L in found) or "none"
-        raise ValueError(
-            f"select one point (--point-stitch, --point-L): the sweeps' points are {listed}"
-        )
+        raise ValueError(f"select one point (--point-stitch, --point-L): the sweeps' points are "
+                         f"{listed}")  # fmt: skip
     (entries,) = by_point.values()
+    shears = any(load_path(meta["direction"]).shears for meta, _ in entries)
     # every sweep starts at the point's zero-force state; one that found a lower one
     # (its rest_restarts) starts there: the lowest is the reference, the others left out
     e0 = [float(rec["total_energy"][0]) for _, rec in entries]
@@ -112,112 +121,159 @@ def density_samples(sweeps, stitch: str | None = None, L_mm: float | None = None
         if abs(e_start - E0) > 1e-12 or rec["a_x"][0] != a_x0 or rec["a_y"][0] != a_y0:
             left_out[d] = f"starts from another zero-force state ({e_start - E0:+.3g} mJ)"
             continue
+        if shears and rec.get("stress_xy") is None:
+            raise ValueError(f"the {d} sweep stores no shear stress (stress_xy): a file of an "
+                             "earlier version; run the job again")  # fmt: skip
         ok = np.asarray(rec["converged"], dtype=bool)
-        ex = np.asarray(rec["a_x"])[ok] / a_x0 - 1.0
-        ey = np.asarray(rec["a_y"])[ok] / a_y0 - 1.0
+        cols = [np.asarray(rec["a_x"])[ok] / a_x0 - 1.0, np.asarray(rec["a_y"])[ok] / a_y0 - 1.0]
+        sig = [np.asarray(rec["stress_xx"])[ok], np.asarray(rec["stress_yy"])[ok]]
+        if shears:  # the skew follows the path's shear rate: γ = rate_xy × the sweep's strain
+            cols.append(load_path(d).rate_xy * np.asarray(rec["strain"])[ok])
+            sig.append(np.asarray(rec["stress_xy"])[ok])
         w = (np.asarray(rec["total_energy"])[ok] - E0) / (a_x0 * a_y0)
-        s = np.stack([np.asarray(rec["stress_xx"])[ok], np.asarray(rec["stress_yy"])[ok]], 1)
-        parts.append((ex, ey, w, s, np.full(ok.sum(), d, dtype=object)))
-        ends[d] = (float(ex[-1]), float(ey[-1]))
+        parts.append((np.stack(cols, 1), w, np.stack(sig, 1), np.full(ok.sum(), d, dtype=object)))
+        ends[d] = tuple(float(c[-1]) for c in cols)
     if not parts:
         raise ValueError("no sweep of the point has steps to sample")
-    ex, ey, w, s, d = (np.concatenate(p) for p in zip(*parts, strict=True))
-    point = {k: ref_meta[k] for k in POINT_KEYS[1:]} | {"stitch": stitch_of(ref_meta)}
+    eps, w, s, d = (np.concatenate(p) for p in zip(*parts, strict=True))
+    point = {"stitch": stitch_of(ref_meta)} | {k: ref_meta[k] for k in POINT_KEYS}
     point |= {"a_x0_mm": a_x0, "a_y0_mm": a_y0, "E0_mJ": E0}
-    return DensitySamples(np.stack([ex, ey], 1), w, s, d, ends, point, left_out)
+    return DensitySamples(eps, w, s, d, ends, point, left_out)
 
 
-def _basis(t: np.ndarray, x: np.ndarray, nu: int = 0) -> np.ndarray:
-    """The B-spline basis (len(x), n) of knots ``t`` (degree 3) or its ``nu``-th derivative."""
+def _local(t: np.ndarray, x: np.ndarray, nu: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic B-splines of knots ``t`` that do not vanish at each ``x`` (its ``nu``-th
+    derivative): (first index (m,), values (m, 4)); beyond the knots, the end ones."""
     from scipy.interpolate import BSpline
 
     n = len(t) - DEGREE - 1
+    x = np.asarray(x, dtype=float).ravel()
+    start = np.clip(np.searchsorted(t, x, side="right") - DEGREE - 1, 0, n - DEGREE - 1)
     b = BSpline(t, np.eye(n), DEGREE, extrapolate=True)
-    return (b.derivative(nu) if nu else b)(np.asarray(x, dtype=float))
+    dense = (b.derivative(nu) if nu else b)(x)
+    return start, np.take_along_axis(dense, start[:, None] + np.arange(DEGREE + 1), axis=1)
 
 
-def _knots(x: np.ndarray, intervals: int, lo: float | None = None, hi: float | None = None
-           ) -> np.ndarray:  # fmt: skip
-    """Clamped uniform knots over [lo, hi] (default ``x``'s range)."""
-    lo = float(x.min()) - 1e-6 if lo is None else lo
-    hi = float(x.max()) + 1e-6 if hi is None else hi
+def _knots(lo: float, hi: float, intervals: int) -> np.ndarray:
+    """Clamped uniform knots over [lo, hi]."""
     return np.concatenate([[lo] * DEGREE, np.linspace(lo, hi, intervals + 1), [hi] * DEGREE])
 
 
-class EnergyDensity:
-    """W(ε_xx, ε_yy) (N/mm) as a bicubic tensor-product B-spline: knots ``tx``, ``ty``,
-    coefficients ``coef`` (nx, ny); ``domain`` the sampled region's polygon (k, 2) of
-    strains; ``point`` and ``fit`` its provenance and the fit's measured errors. Strains
-    are engineering strains of the periods from the zero-force state; W is the energy per
-    unit area of the undeformed fabric; ``stress`` = ∂W/∂ε (σ_xx, σ_yy) and ``tangent`` =
-    ∂²W/∂ε∂ε, the spline's exact derivatives."""
+def _tensor(knots, eps: np.ndarray, orders) -> tuple[np.ndarray, np.ndarray]:
+    """The tensor-product basis's non-zero entries at the points ``eps`` (m, d) with the
+    derivative ``orders[a]`` along each axis a: (flat coefficient indices, values), each
+    (m, 4^d)."""
+    m, d = eps.shape
+    sizes = [len(t) - DEGREE - 1 for t in knots]
+    index, value = np.zeros((m, 1), dtype=np.int64), np.ones((m, 1))
+    for a in range(d):
+        start, vals = _local(knots[a], eps[:, a], orders[a])
+        cols = start[:, None] + np.arange(DEGREE + 1)
+        index = (index[:, :, None] * sizes[a] + cols[:, None, :]).reshape(m, -1)
+        value = (value[:, :, None] * vals[:, None, :]).reshape(m, -1)
+    return index, value
 
-    def __init__(self, tx, ty, coef, domain, point: dict, fit: dict) -> None:
-        self.tx, self.ty = np.asarray(tx, dtype=float), np.asarray(ty, dtype=float)
+
+class EnergyDensity:
+    """W(ε) (N/mm) as a tensor-product cubic B-spline over ``variables`` (``VARIABLES[:d]``):
+    ``knots`` one knot vector each, coefficients ``coef`` (one axis each); ``domain`` the
+    sweeps' ends (k, d) (in two variables the sampled region's polygon); ``point`` and
+    ``fit`` its provenance and the fit's measured errors. Strains are the deformation's
+    (module docstring) from the zero-force state; W is the energy per unit area of the
+    undeformed fabric; ``stress`` = ∂W/∂ε and ``tangent`` = ∂²W/∂ε∂ε are the spline's exact
+    derivatives."""
+
+    def __init__(self, knots, coef, domain, point: dict, fit: dict) -> None:
+        self.knots = [np.asarray(t, dtype=float) for t in knots]
         self.coef = np.asarray(coef, dtype=float)
         self.domain = np.asarray(domain, dtype=float)
         self.point, self.fit = dict(point), dict(fit)
 
-    def _d(self, exx, eyy, nx: int, ny: int) -> np.ndarray:
-        exx, eyy = np.broadcast_arrays(np.asarray(exx, dtype=float), np.asarray(eyy, dtype=float))
-        bx = _basis(self.tx, exx.ravel(), nx)
-        by = _basis(self.ty, eyy.ravel(), ny)
-        return np.einsum("pi,ij,pj->p", bx, self.coef, by).reshape(exx.shape)
+    @property
+    def dim(self) -> int:
+        return len(self.knots)
 
-    def W(self, exx, eyy) -> np.ndarray:
-        """Energy per unit undeformed area (N/mm = mJ/mm²) at strains (ε_xx, ε_yy)."""
-        return self._d(exx, eyy, 0, 0)
+    @property
+    def variables(self) -> tuple[str, ...]:
+        return VARIABLES[: self.dim]
 
-    def stress(self, exx, eyy) -> np.ndarray:
-        """(σ_xx, σ_yy) = ∂W/∂ε (N/mm), shape (..., 2)."""
-        return np.stack([self._d(exx, eyy, 1, 0), self._d(exx, eyy, 0, 1)], -1)
+    def _points(self, eps) -> tuple[np.ndarray, tuple[int, ...]]:
+        e = np.asarray(eps, dtype=float)
+        if e.shape[-1] != self.dim:
+            raise ValueError(f"strains of shape {e.shape}: the last axis holds "
+                             f"{', '.join(self.variables)}")  # fmt: skip
+        return e.reshape(-1, self.dim), e.shape[:-1]
 
-    def tangent(self, exx, eyy, convexified: bool = False) -> np.ndarray:
-        """∂²W/∂ε_i∂ε_j (N/mm), shape (..., 2, 2), symmetric. ``convexified``: its negative
+    def _d(self, eps, orders) -> np.ndarray:
+        e, shape = self._points(eps)
+        index, value = _tensor(self.knots, e, orders)
+        return (self.coef.ravel()[index] * value).sum(1).reshape(shape)
+
+    def W(self, *eps) -> np.ndarray:
+        """Energy per unit undeformed area (N/mm = mJ/mm²) at strains given as ``d``
+        arrays (ε_xx, ε_yy[, γ]) or one array (..., d)."""
+        return self._d(_stacked(eps), (0,) * self.dim)
+
+    def stress(self, *eps) -> np.ndarray:
+        """∂W/∂ε (N/mm): (σ_xx, σ_yy[, σ_xy]), shape (..., d)."""
+        e = _stacked(eps)
+        return np.stack([self._d(e, tuple(int(a == b) for b in range(self.dim)))
+                         for a in range(self.dim)], -1)  # fmt: skip
+
+    def tangent(self, *eps, convexified: bool = False) -> np.ndarray:
+        """∂²W/∂ε_i∂ε_j (N/mm), shape (..., d, d), symmetric. ``convexified``: its negative
         eigenvalues set to 0 (the nearest positive semi-definite matrix), for a simulator's
         Newton solve where the fit is not convex (``convexity``); then no longer the
         derivative of ``stress``."""
-        xx, xy, yy = self._d(exx, eyy, 2, 0), self._d(exx, eyy, 1, 1), self._d(exx, eyy, 0, 2)
-        K = np.stack([np.stack([xx, xy], -1), np.stack([xy, yy], -1)], -2)
+        e, d = _stacked(eps), self.dim
+        K = np.empty((*np.shape(e)[:-1], d, d))
+        for a in range(d):
+            for b in range(a, d):
+                orders = tuple((c == a) + (c == b) for c in range(d))
+                K[..., a, b] = K[..., b, a] = self._d(e, orders)
         if not convexified:
             return K
         lam, vec = np.linalg.eigh(K)
         return np.einsum("...ik,...k,...jk->...ij", vec, np.maximum(lam, 0.0), vec)
 
-    def in_domain(self, exx, eyy) -> np.ndarray:
-        """True where (ε_xx, ε_yy) lies in the sampled region (``domain``); outside, W is
-        the spline's extension, fixed by its smoothing only: not a prediction."""
-        return _inside(self.domain, np.asarray(exx, dtype=float), np.asarray(eyy, dtype=float))
+    def in_domain(self, *eps) -> np.ndarray:
+        """True where the strains lie in the sampled region; outside, W is the spline's
+        extension, fixed by its smoothing only: not a prediction. In two variables the
+        polygon ``domain``; in three, within the nearest sweeps' reach (``_within_fan``)."""
+        e, shape = self._points(_stacked(eps))
+        if self.dim == 2:
+            return _inside(self.domain, e[:, 0], e[:, 1]).reshape(shape)
+        return _within_fan(self.domain, e).reshape(shape)
 
-    def convexity(self, n: int = 101) -> dict[str, float]:
-        """Where the fit is not convex: on an n × n grid over the domain's box, the
-        fraction of in-domain nodes whose tangent's smallest eigenvalue is below
-        -``CONVEX_TOLERANCE`` × the largest found, that eigenvalue's minimum, and the box
-        (strains) of those nodes (NaN if none)."""
+    def convexity(self, n: int | None = None) -> dict[str, float]:
+        """Where the fit is not convex: on a grid (n per variable; 101 in two, 25 in three)
+        over the sweeps' box, the fraction of in-domain nodes whose tangent's smallest
+        eigenvalue is below -``CONVEX_TOLERANCE`` × the largest found, that eigenvalue's
+        minimum and the largest, and the box of those nodes (NaN if none)."""
+        n = n or (101 if self.dim == 2 else 25)
         lo, hi = self.domain.min(0), self.domain.max(0)
-        gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n))
-        inside = self.in_domain(gx, gy)
-        eig = np.linalg.eigvalsh(self.tangent(gx[inside], gy[inside]))
-        bad = eig[:, 0] < -CONVEX_TOLERANCE * eig[:, 1].max()
+        axes = [np.linspace(lo[a], hi[a], n) for a in range(self.dim)]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, self.dim)
+        grid = grid[self.in_domain(grid)]
+        eig = np.linalg.eigvalsh(self.tangent(grid))
+        bad = eig[:, 0] < -CONVEX_TOLERANCE * eig[:, -1].max()
         out = {"fraction": float(bad.mean()), "min_eigenvalue_N_per_mm": float(eig[:, 0].min()),
-               "max_eigenvalue_N_per_mm": float(eig[:, 1].max())}  # fmt: skip
-        box = [float("nan")] * 4
-        if bad.any():
-            bx, by = gx[inside][bad], gy[inside][bad]
-            box = [float(bx.min()), float(bx.max()), float(by.min()), float(by.max())]
-        return out | dict(zip(("eps_xx_min", "eps_xx_max", "eps_yy_min", "eps_yy_max"), box,
-                              strict=True))  # fmt: skip
+               "max_eigenvalue_N_per_mm": float(eig[:, -1].max())}  # fmt: skip
+        for a, name in enumerate(self.variables):
+            where = grid[bad, a]
+            out[f"{name}_min"] = float(where.min()) if bad.any() else float("nan")
+            out[f"{name}_max"] = float(where.max()) if bad.any() else float("nan")
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """The file's content (docs/energy-density.md)."""
-        return {"format": FORMAT, "version": VERSION, "model": "bicubic tensor-product B-spline",
-                "variables": ["eps_xx", "eps_yy"],
+        return {"format": FORMAT, "version": VERSION,
+                "model": "tensor-product cubic B-spline", "variables": list(self.variables),
                 "units": {"W": "N/mm (mJ/mm^2, per undeformed area)", "strain": "1",
                           "stress": "N/mm"},
-                "degree": [DEGREE, DEGREE], "knots_eps_xx": self.tx.tolist(),
-                "knots_eps_yy": self.ty.tolist(), "coefficients": self.coef.tolist(),
-                "domain": self.domain.tolist(), "point": self.point,
-                "fit": self.fit}  # fmt: skip
+                "degree": DEGREE, "knots": [t.tolist() for t in self.knots],
+                "coefficients": self.coef.tolist(), "domain": self.domain.tolist(),
+                "point": self.point, "fit": self.fit}  # fmt: skip
 
     def save(self, path: str | Path) -> Path:
         path = Path(path)
@@ -229,8 +285,14 @@ class EnergyDensity:
         if d.get("format") != FORMAT or d.get("version") != VERSION:
             raise ValueError(f"not a {FORMAT} file of version {VERSION}: format = "
                              f"{d.get('format')!r}, version = {d.get('version')!r}")  # fmt: skip
-        return cls(d["knots_eps_xx"], d["knots_eps_yy"], d["coefficients"], d["domain"],
-                   d["point"], d["fit"])  # fmt: skip
+        return cls(d["knots"], d["coefficients"], d["domain"], d["point"], d["fit"])
+
+
+def _stacked(eps: tuple) -> np.ndarray:
+    """One array (..., d) from the strains given as d arrays or as one."""
+    if len(eps) == 1:
+        return np.asarray(eps[0], dtype=float)
+    return np.stack(np.broadcast_arrays(*(np.asarray(e, dtype=float) for e in eps)), -1)
 
 
 def load_energy_density(path: str | Path) -> EnergyDensity:
@@ -256,10 +318,29 @@ def _inside(poly: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return inside | on_edge
 
 
+def _within_fan(ends: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """In three variables: a strain lies in the sampled region if its direction is within
+    the fan's resolution of a sweep's (the largest angle from any end to its nearest) and
+    it reaches no farther than the nearest such sweep went (the origin counts)."""
+    r_end = np.linalg.norm(ends, axis=1)
+    u_end = ends / np.maximum(r_end, 1e-300)[:, None]
+    near = u_end @ u_end.T
+    np.fill_diagonal(near, -1.0)
+    resolution = float(np.arccos(np.clip(near.max(1), -1.0, 1.0)).max())
+    r = np.linalg.norm(e, axis=1)
+    ang = np.arccos(np.clip((e / np.maximum(r, 1e-300)[:, None]) @ u_end.T, -1.0, 1.0))
+    best = ang.argmin(1)
+    ok = ang[np.arange(len(e)), best] <= resolution + 1e-12
+    return (r == 0.0) | (ok & (r <= r_end[best] * (1.0 + 1e-12)))
+
+
 def sampled_domain(s: DensitySamples) -> np.ndarray:
-    """The sampled region: the polygon through the origin and the sweeps' ends, by angle
-    (star-shaped about the zero-force state, which every ray starts from)."""
+    """The sampled region: in two variables the polygon through the origin and the sweeps'
+    ends, by angle (star-shaped about the zero-force state, which every ray starts from);
+    in three the ends themselves (``_within_fan``)."""
     ends = np.array(list(s.ends.values()))
+    if s.dim == 3:
+        return ends
     ang = np.arctan2(ends[:, 1], ends[:, 0])
     order = np.argsort(ang)
     ends, ang = ends[order], ang[order]
@@ -271,65 +352,95 @@ def sampled_domain(s: DensitySamples) -> np.ndarray:
     return np.concatenate([np.roll(ends, -(k + 1), axis=0), [[0.0, 0.0]]])
 
 
-def fit_energy_density(s: DensitySamples, knots: tuple[int, int] = KNOTS,
-                       smoothing: float = SMOOTHING, box: np.ndarray | None = None
-                       ) -> EnergyDensity:  # fmt: skip
-    """The least-squares bicubic spline of the samples' energies and stresses (module
-    docstring) on uniform knots, ``knots`` intervals across the samples' range, over
-    ``box`` ((2, 2): the strains' lower and upper corners; default the samples' range
-    widened by ``MARGIN``), with its errors against them in ``fit``: per
-    sweep the largest stress error relative to that sweep's largest |stress|
-    (``stress_error``), the energies' largest error relative to the largest W, and the
-    convexity check. The normal equations are sparse (each sample touches 16
-    coefficients) and solved directly."""
+def fit_energy_density(s: DensitySamples, knots: tuple[int, ...] | None = None,
+                       smoothing: float = SMOOTHING, box: np.ndarray | None = None,
+                       checks: bool = True) -> EnergyDensity:  # fmt: skip
+    """The least-squares tensor-product spline of the samples' energies and stresses
+    (module docstring) on uniform knots, ``knots`` intervals per variable across the
+    samples' range (default ``KNOTS``), over ``box`` ((2, d): the strains' lower and upper
+    corners; default the samples' range widened by ``MARGIN``), with its errors against
+    them in ``fit``: per sweep the largest stress error relative to that sweep's largest
+    |stress| (``stress_error``), the energies' largest error relative to the largest W,
+    and (``checks``) the convexity check and, with a shear, the mirror check
+    (``mirror_asymmetry``). The
+    normal equations are sparse (each sample touches 4^d coefficients) and solved
+    directly."""
     import scipy.sparse as sp
     from scipy.sparse.linalg import spsolve
 
-    for v in knots:
-        if not (isinstance(v, int | np.integer) and 2 <= v <= 400):
-            raise ValueError(f"knots = {tuple(knots)}: each from 2 to 400 intervals")
+    d = s.dim
+    knots = tuple(knots or KNOTS[d])
+    if len(knots) != d or not all(isinstance(v, int | np.integer) and 2 <= v <= 400
+                                  for v in knots):  # fmt: skip
+        raise ValueError(f"knots = {knots}: {d} numbers, each from 2 to 400 intervals")
     if not smoothing >= 0.0:
         raise ValueError(f"smoothing = {smoothing}: must be >= 0")
-    if box is None:
-        box = _box(s)
-    lo, hi = box
-    span = s.eps.max(0) - s.eps.min(0)
-    n = [max(round(k * (h - l) / max(w, 1e-12)), 2) for k, l, h, w in zip(knots, lo, hi, span,
-                                                                           strict=True)]  # fmt: skip
-    tx = _knots(s.eps[:, 0], n[0], lo[0], hi[0])
-    ty = _knots(s.eps[:, 1], n[1], lo[1], hi[1])
-    bx, by = _basis(tx, s.eps[:, 0]), _basis(ty, s.eps[:, 1])
-    dbx, dby = _basis(tx, s.eps[:, 0], 1), _basis(ty, s.eps[:, 1], 1)
-    nx, ny = bx.shape[1], by.shape[1]
+    lo, hi = _box(s) if box is None else box
+    span = np.maximum(s.eps.max(0) - s.eps.min(0), 1e-12)
+    tk = [_knots(lo[a], hi[a], max(round(knots[a] * (hi[a] - lo[a]) / span[a]), 2))
+          for a in range(d)]  # fmt: skip
+    sizes = [len(t) - DEGREE - 1 for t in tk]
+    n_coef = int(np.prod(sizes))
     sig_scale = max(float(np.abs(s.stress).max()), 1e-12)
     w_scale = sig_scale * float(np.abs(s.eps).max())
 
-    def rows(a, b):  # the design rows of Σ c_ij a_i b_j, one per sample
-        return sp.csr_matrix((a[:, :, None] * b[:, None, :]).reshape(len(a), nx * ny))
+    def rows(orders, scale):
+        index, value = _tensor(tk, s.eps, orders)
+        r = np.repeat(np.arange(len(s.W)), index.shape[1])
+        return sp.csr_matrix((value.ravel() / scale, (r, index.ravel())), (len(s.W), n_coef))
 
-    A = sp.vstack([rows(bx, by) / w_scale, rows(dbx, by) / sig_scale,
-                   rows(bx, dby) / sig_scale]).tocsr()  # fmt: skip
-    rhs = np.concatenate([s.W / w_scale, s.stress[:, 0] / sig_scale, s.stress[:, 1] / sig_scale])
+    A = sp.vstack(
+        [rows((0,) * d, w_scale)]
+        + [rows(tuple(int(a == b) for b in range(d)), sig_scale) for a in range(d)]
+    )
+    rhs = np.concatenate([s.W / w_scale] + [s.stress[:, a] / sig_scale for a in range(d)])
 
     def diff(n, order):
         return sp.diags_array([[1.0, -1.0], [1.0, -2.0, 1.0]][order - 1], offsets=range(order + 1),
                               shape=(n - order, n))  # fmt: skip
 
-    ix, iy = sp.eye_array(nx), sp.eye_array(ny)
-    penalty = sp.vstack([sp.kron(diff(nx, 2), iy), math.sqrt(2.0) * sp.kron(diff(nx, 1), diff(ny, 1)),
-                         sp.kron(ix, diff(ny, 2))]) / w_scale  # fmt: skip
+    def along(ops):  # the Kronecker product of one operator per axis (identity elsewhere)
+        out = sp.eye_array(1)
+        for a in range(d):
+            out = sp.kron(out, ops.get(a, sp.eye_array(sizes[a])))
+        return out
+
+    blocks = [along({a: diff(sizes[a], 2)}) for a in range(d)]
+    blocks += [math.sqrt(2.0) * along({a: diff(sizes[a], 1), b: diff(sizes[b], 1)})
+               for a in range(d) for b in range(a + 1, d)]  # fmt: skip
+    penalty = sp.vstack(blocks) / w_scale
     lam = smoothing * A.shape[0] / penalty.shape[0]
     coef = spsolve(sp.csc_matrix(A.T @ A + lam * (penalty.T @ penalty)), A.T @ rhs)
-    out = EnergyDensity(tx, ty, coef.reshape(nx, ny), sampled_domain(s), s.point, {})
-    got_w, got_s = out.W(s.eps[:, 0], s.eps[:, 1]), out.stress(s.eps[:, 0], s.eps[:, 1])
+    out = EnergyDensity(tk, coef.reshape(sizes), sampled_domain(s), s.point, {})
+    got_w, got_s = out.W(s.eps), out.stress(s.eps)
     out.fit.update({
         "knots": [int(k) for k in knots], "smoothing": smoothing, "samples": len(s.W),
         "sweeps": sorted(s.ends), "left_out": s.left_out,
         "stress_error": _stress_errors(s, got_s),
         "energy_error": float(np.abs(got_w - s.W).max() / max(float(np.abs(s.W).max()), 1e-300)),
     })  # fmt: skip
-    out.fit["convexity"] = out.convexity()
+    if checks:
+        out.fit["convexity"] = out.convexity()
+        if d == 3:
+            out.fit["mirror_asymmetry"] = mirror_asymmetry(out, s)
     return out
+
+
+def mirror_asymmetry(f: EnergyDensity, s: DensitySamples) -> dict[str, float]:
+    """How far the fit is from the left–right mirror's W(ε_xx, ε_yy, γ) = W(ε_xx, ε_yy, -γ),
+    at every sample whose mirror image also lies in the sampled region: the largest
+    |W(γ) - W(-γ)| over the largest W and |σ_xy(γ) + σ_xy(-γ)| over the largest |σ_xy|, and
+    how many samples were compared."""
+    flip = s.eps * np.array([1.0, 1.0, -1.0])
+    both = f.in_domain(flip) & (s.eps[:, 2] != 0.0)
+    if not both.any():
+        return {"samples": 0, "energy": float("nan"), "shear_stress": float("nan")}
+    e, m = s.eps[both], flip[both]
+    dw = np.abs(f.W(e) - f.W(m)).max() / max(float(np.abs(s.W).max()), 1e-300)
+    ds = np.abs(f.stress(e)[:, 2] + f.stress(m)[:, 2]).max() / max(
+        float(np.abs(s.stress[:, 2]).max()), 1e-300
+    )
+    return {"samples": int(both.sum()), "energy": float(dw), "shear_stress": float(ds)}
 
 
 def _box(s: DensitySamples) -> np.ndarray:
@@ -349,24 +460,33 @@ def _stress_errors(s: DensitySamples, got: np.ndarray, sweeps=None) -> dict[str,
     return out
 
 
-def held_out_errors(s: DensitySamples, knots: tuple[int, int] = KNOTS,
+HELD_OUT_3D = 12
+"""In three variables (a fit of tens of seconds), this many rays are left out in turn,
+evenly among them by name."""
+
+
+def held_out_errors(s: DensitySamples, knots: tuple[int, ...] | None = None,
                     smoothing: float = SMOOTHING) -> dict[str, float]:  # fmt: skip
     """How well the fit predicts between its rays: each ray in turn left out of the fit
     (same knots and box), its stresses predicted where it lies inside the region the other
-    sweeps sampled, the error as in ``stress_error``. The uniaxial sweeps and the outermost
-    rays by angle are kept (leaving them out extrapolates, not interpolates)."""
+    sweeps sampled, the error as in ``stress_error``. The uniaxial sweeps and, in two
+    variables, the outermost rays by angle are kept (leaving them out extrapolates, not
+    interpolates); in three, ``HELD_OUT_3D`` rays are left out."""
     box = _box(s)
     rays = {d: math.atan2(e[1], e[0]) for d, e in s.ends.items() if not load_path(d).uniaxial}
-    outer = {min(rays, key=rays.get), max(rays, key=rays.get)} if rays else set()
+    outer = {min(rays, key=rays.get), max(rays, key=rays.get)} if rays and s.dim == 2 else set()
+    chosen = sorted(set(rays) - outer)
+    if s.dim == 3 and len(chosen) > HELD_OUT_3D:
+        chosen = [chosen[i] for i in np.linspace(0, len(chosen) - 1, HELD_OUT_3D).astype(int)]
     out = {}
-    for d in sorted(set(rays) - outer):
+    for d in chosen:
         keep = s.direction != d
         rest = DensitySamples(s.eps[keep], s.W[keep], s.stress[keep], s.direction[keep],
                               {k: v for k, v in s.ends.items() if k != d}, s.point)  # fmt: skip
-        f = fit_energy_density(rest, knots, smoothing, box)
-        m = ~keep & f.in_domain(s.eps[:, 0], s.eps[:, 1])
+        f = fit_energy_density(rest, knots, smoothing, box, checks=False)
+        m = ~keep & f.in_domain(s.eps)
         if m.any():
-            got = f.stress(s.eps[m, 0], s.eps[m, 1])
+            got = f.stress(s.eps[m])
             peak = max(float(np.abs(s.stress[~keep]).max()), 1e-12)
             out[d] = float(np.abs(got - s.stress[m]).max() / peak)
     return out

@@ -296,29 +296,30 @@ def energy_density(
                                          "fit", default="the files' only one")] = None,
     L: Annotated[float | None, option("--point-L", help="the yarn length of the point to "
                                       "fit (mm)", default="the files' only one")] = None,
-    knots: Annotated[str, typer.Option("--knots", help="knot intervals along eps_xx,eps_yy")
-                     ] = "64,48",
+    knots: Annotated[str | None, option("--knots", help="knot intervals per strain, "
+                     "comma-separated (eps_xx,eps_yy[,gamma])", default="64,48; 32,24,16 "
+                     "with a shear")] = None,
     smoothing: Annotated[float, typer.Option("--smoothing", help="weight of the spline's "
                          "curvature penalty, relative to the data's")] = 1e-2,
     held_out: Annotated[bool, flag("--held-out", help="measure the error between rays: "
                         "each ray left out of the fit in turn and predicted")] = True,
     figure: Annotated[bool, flag("--figure", help="draw <out>.png as well")] = True,
 ) -> None:  # fmt: skip
-    """Fit the fabric's in-plane energy density W(eps_xx, eps_yy) (N/mm, per undeformed
-    area) to one point's swept states and stresses, write it for `knitsweep.load_energy_density`
-    and print the fit's errors and where it is not convex."""
+    """Fit the fabric's in-plane energy density W(eps_xx, eps_yy[, gamma]) (N/mm, per
+    undeformed area) to one point's swept states and stresses, write it for
+    `knitsweep.load_energy_density` and print the fit's errors and where it is not convex."""
     import knitsweep
 
-    from ..analysis.energy_density import fit_energy_density, held_out_errors
+    from ..analysis.energy_density import VARIABLES, fit_energy_density, held_out_errors
     from ..errors import InputError
 
     with user_errors():
         try:
-            kx, ky = (int(v) for v in knots.split(","))
+            intervals = None if knots is None else tuple(int(v) for v in knots.split(","))
         except ValueError:
-            raise InputError(f"knots = {knots!r}: two integers, e.g. 64,48") from None
-        check_range("knots", min(kx, ky), 2, 400)
-        check_range("knots", max(kx, ky), 2, 400)
+            raise InputError(f"knots = {knots!r}: integers, e.g. 64,48 or 24,18,16") from None
+        for v in intervals or ():
+            check_range("knots", v, 2, 400)
         check_range("smoothing", smoothing, 0.0, 1e6)
         if out.suffix != ".json":
             raise InputError(f"out = {str(out)!r}: the energy density is written as .json")
@@ -327,9 +328,12 @@ def energy_density(
             samples = res.energy_density_samples(stitch, L)
         except ValueError as e:
             raise InputError(str(e)) from None
-    fit = fit_energy_density(samples, (kx, ky), smoothing)
+        if intervals is not None and len(intervals) != samples.dim:
+            raise InputError(f"knots = {knots!r}: {samples.dim} numbers, one per strain "
+                             f"({', '.join(VARIABLES[: samples.dim])})")  # fmt: skip
+    fit = fit_energy_density(samples, intervals, smoothing)
     if held_out:
-        fit.fit["held_out_error"] = held_out_errors(samples, (kx, ky), smoothing)
+        fit.fit["held_out_error"] = held_out_errors(samples, intervals, smoothing)
     fit.save(out)
     typer.echo(_density_summary(fit))
     typer.echo(f"wrote {out}")
@@ -347,8 +351,9 @@ def _density_summary(fit) -> str:
     err = f["stress_error"]
     worst = max(err, key=err.get)
     lines = [
-        f"{pt['stitch']} L = {pt['L_mm']:g} mm: {f['samples']} states from "
-        f"{len(f['sweeps'])} sweeps, knots {f['knots'][0]}x{f['knots'][1]}",
+        f"{pt['stitch']} L = {pt['L_mm']:g} mm: W({', '.join(fit.variables)}) from "
+        f"{f['samples']} states of {len(f['sweeps'])} sweeps, knots "
+        + "x".join(str(k) for k in f["knots"]),
         "stress error (% of each sweep's peak): "
         + ", ".join(f"{d} {100 * err[d]:.2f}" for d in ("x", "y") if d in err)
         + f"; largest {100 * err[worst]:.2f} ({worst}); energy {100 * f['energy_error']:.2f}",
@@ -365,6 +370,11 @@ def _density_summary(fit) -> str:
         f"(smallest eigenvalue {c['min_eigenvalue_N_per_mm']:.3g} N/mm, largest "
         f"{c['max_eigenvalue_N_per_mm']:.3g})"
     )
+    if "mirror_asymmetry" in f:
+        m = f["mirror_asymmetry"]
+        lines.append(f"mirror W(gamma) = W(-gamma) at {m['samples']} samples: energy within "
+                     f"{100 * m['energy']:.2g} % of the largest W, shear stress within "
+                     f"{100 * m['shear_stress']:.2g} % of the largest")  # fmt: skip
     if f["left_out"]:
         lines.append("left out: " + "; ".join(f"{d}: {w}" for d, w in f["left_out"].items()))
     return "\n".join(lines)

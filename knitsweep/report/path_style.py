@@ -21,11 +21,14 @@ class PerPath(dict):
 
 
 RAY_COLOUR = "#555555"
-"""The colour of a ray (``ray:<rate_x>,<rate_y>``) in the figures."""
+"""The colour of a ray (``ray:<rate_x>,<rate_y>[,<rate_xy>]``) in the figures."""
 
 
 def _ray_strain(path: str) -> str:
     p = load_path(path)
+    if p.shears:
+        return (rf"strain along the ray $\varepsilon_x : \varepsilon_y : \gamma$ = "
+                rf"{p.rate_x:g} : {p.rate_y:g} : {p.rate_xy:g}")  # fmt: skip
     lead, across = p.leading, p.transverse
     return (rf"strain $\varepsilon_{lead}$ ($\varepsilon_{across}$ = "
             rf"{p.rates[across]:g} $\varepsilon_{lead}$)")  # fmt: skip

@@ -151,7 +151,7 @@ class JobSpec(BaseModel):
         description="the load paths each point is swept along (knitsweep.paths): 'x', 'y' "
         "(uniaxial, the paper's), 'biaxial' (equibiaxial), 'strip_x', 'strip_y' (one period "
         "pulled, the other held), 'shear', 'shear_free' (simple shear, the periods held or "
-        "relaxed; free yarns only), 'ray:<rate_x>,<rate_y>'",
+        "relaxed; free yarns only), 'ray:<rate_x>,<rate_y>[,<rate_xy>]'",
     )
     preset: str = DEFAULT_PRESET
     stitch: StitchName = Field(

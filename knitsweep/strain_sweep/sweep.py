@@ -144,10 +144,12 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         saved = (copy.deepcopy(chains), merged_into.copy(), merged_at.copy()
                  ) if sigma_last > STOP_WATCH * stop else None  # fmt: skip
         targets = path.targets(rest, (a_next - a0) / a0)
-        if path.shears:  # the skew leads (exactly the schedule's value), not a state entry
+        if path.leading == "xy":  # the skew leads (exactly the schedule's value)
             model.skew = a_next - a0
         else:
             targets[path.leading] = a_next  # (exactly: the schedule's value)
+            if path.shears:  # a ray that shears as it pulls: the skew follows its rate
+                model.skew = path.rate_xy * (a_next - a0) / a0 * rest["y"]
         for c in chains:
             x = c.x.copy()
             for d, a in targets.items():
