@@ -176,3 +176,67 @@ def test_a_job_fitted_from_the_command_line(tmp_path):
     one_error_line(run_knitsweep("energy-density", h5, "--knots", "8,8,8"), "2 numbers")
     one_error_line(run_knitsweep("energy-density", h5, "--out", tmp_path / "w.txt"), ".json")
     one_error_line(run_knitsweep("energy-density", h5, "--point-L", "9.0"), "select one point")
+
+
+# ---------------------------------------------------------------- with a shear
+
+
+def _known3(e):
+    """A smooth convex W(ε_xx, ε_yy, γ), even in γ (a left–right mirror), its gradient."""
+    w, g = _known(e[..., :2])
+    x, gam = e[..., 0], e[..., 2]
+    w = w + 0.03 * gam**2 + 1.5 * gam**4 + 0.05 * x * gam**2
+    g = np.concatenate([g, (0.06 * gam + 6.0 * gam**3 + 0.1 * x * gam)[..., None]], -1)
+    g[..., 0] += 0.05 * gam**2
+    return w, g
+
+
+def _fan3(n=25, reach=0.25):
+    """Rays in (ε_xx, ε_yy, γ): azimuths every 30° from -45° to 135° at elevations 0 and
+    ±35° (their mirror images), named as the jobs name them."""
+    eps, names, ends = [], [], {}
+    for el in (0, 35, -35):
+        for az in range(-45, 136, 30):
+            d = np.array([np.cos(np.radians(el)) * np.cos(np.radians(az)),
+                          np.cos(np.radians(el)) * np.sin(np.radians(az)),
+                          np.sin(np.radians(el))])  # fmt: skip
+            d /= np.abs(d).max()
+            name = "ray:" + ",".join(f"{v:.6g}" for v in d)
+            t = np.linspace(0.0, reach, n)[:, None] * d / np.linalg.norm(d)
+            eps.append(t)
+            names += [name] * n
+            ends[name] = tuple(t[-1])
+    eps = np.concatenate(eps)
+    w, g = _known3(eps)
+    point = {"stitch": "test", "L_mm": 1.0, "k_mN_per_mm2": 0.1, "a_x0_mm": 1.0, "a_y0_mm": 1.0}
+    return DensitySamples(eps, w, g, np.array(names, dtype=object), ends, point)
+
+
+@pytest.fixture(scope="module")
+def known3():
+    s = _fan3()
+    return s, fit_energy_density(s, (10, 10, 10), 1e-4)
+
+
+def test_a_density_with_shear(known3, tmp_path):
+    s, f = known3
+    assert f.dim == 3 and f.variables == ("eps_xx", "eps_yy", "gamma")
+    assert max(f.fit["stress_error"].values()) < 0.01 and f.fit["energy_error"] < 0.01
+    m = f.fit["mirror_asymmetry"]  # the known W is even in γ, so nearly is its fit
+    assert m["samples"] > 0 and m["energy"] < 0.01 and m["shear_stress"] < 0.02
+    # exact derivatives in three variables
+    p = np.random.default_rng(4).uniform(-0.05, 0.12, (30, 3))
+    h = 1e-6
+    for a in range(3):
+        step = np.eye(3)[a] * h
+        fd = (f.W(p + step) - f.W(p - step)) / (2 * h)
+        assert np.abs(fd - f.stress(p)[:, a]).max() < 1e-7 * np.abs(f.stress(p)).max()
+        fd = (f.stress(p + step) - f.stress(p - step)) / (2 * h)
+        assert np.abs(fd - f.tangent(p)[:, :, a]).max() < 1e-6 * np.abs(f.tangent(p)).max()
+    # the sampled region: along the rays, not beyond them nor far between them
+    assert f.in_domain(np.array(list(s.ends.values())) * 0.9).all()
+    assert not f.in_domain([0.5, 0.0, 0.0]) and not f.in_domain([-0.2, -0.2, 0.0])
+    g = knitsweep.load_energy_density(f.save(tmp_path / "w3.json"))
+    assert np.array_equal(g.tangent(p), f.tangent(p)) and g.dim == 3
+    with pytest.raises(ValueError, match="eps_xx, eps_yy, gamma"):
+        f.W(0.1, 0.0)  # two strains for a density of three

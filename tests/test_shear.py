@@ -14,6 +14,7 @@ from knitsweep.strain_sweep import strain_sweep
 
 FREE = StitchParams(stitch="stockinette_free", L_mm=11.0, k_mN_per_mm2=0.1)
 PROTOCOL = SweepProtocol(step_mm=0.004, max_strain=0.03)
+RAY3 = "ray:1,-0.25,0.5"  # x pulled, y pushed in at a quarter of its rate, sheared at half
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +27,8 @@ def sweeps(zero):
     back = PROTOCOL.model_copy(update={"mode": "compression"})
     return {"shear": strain_sweep(FREE, zero, "shear", PROTOCOL),
             "shear_free": strain_sweep(FREE, zero, "shear_free", PROTOCOL),
-            "back": strain_sweep(FREE, zero, "shear", back)}  # fmt: skip
+            "back": strain_sweep(FREE, zero, "shear", back),
+            RAY3: strain_sweep(FREE, zero, RAY3, PROTOCOL)}  # fmt: skip
 
 
 def test_shear_paths():
@@ -86,3 +88,39 @@ def test_the_ansatz_cannot_shear(tmp_path, zero):
     assert not (tmp_path / "j.h5").exists()
     one_error_line(run_knitsweep("sweep", "--direction", "shear_free", "--L", "11.6"),
                    "stockinette_free")  # fmt: skip
+
+
+def test_sheared_sweeps_sample_a_density_of_three_strains(sweeps, zero):
+    """The sweeps as samples of W(ε_xx, ε_yy, γ): γ the shear, σ_xy the third stress,
+    W the energy over the zero-force cell's area (analysis.energy_density)."""
+    from knitsweep.analysis.energy_density import density_samples
+
+    meta = {"status": "done", "stitch": "stockinette_free", "point_id": "p"} | {
+        k: getattr(FREE, k) for k in ("L_mm", "k_mN_per_mm2", "B_mN_mm2", "r_mm", "r_core_mm", "p")
+    }
+    pairs = [(meta | {"direction": d}, sweeps[d].to_record()) for d in ("shear", "shear_free")]
+    s = density_samples(pairs)
+    assert s.dim == 3 and set(s.ends) == {"shear", "shear_free"}
+    sw, m = sweeps["shear"], s.direction == "shear"
+    np.testing.assert_array_equal(s.eps[m, 2], sw.strain[sw.converged])
+    np.testing.assert_array_equal(s.stress[m, 2], sw.stress_xy[sw.converged])
+    ax0, ay0 = zero.best.a_x, zero.best.a_y
+    np.testing.assert_allclose(s.W[m], (sw.total_energy - sw.total_energy[0])[sw.converged]
+                               / (ax0 * ay0), rtol=0, atol=1e-15)  # fmt: skip
+
+
+def test_a_ray_that_pulls_and_shears(sweeps, zero):
+    """Along ray:1,-0.25,0.5 the skew follows the pull: the path's stress is
+    σ_xx - 0.25 σ_yy + 0.5 σ_xy, and it is the energy's centred differences."""
+    sw = sweeps[RAY3]
+    assert sw.status == "done" and sw.converged.all()
+    ax0, ay0 = zero.best.a_x, zero.best.a_y
+    np.testing.assert_allclose(sw.a_y, ay0 * (1 - 0.25 * sw.strain), rtol=1e-14)
+    np.testing.assert_allclose(sw.stress_envelope,
+                               sw.stress_xx - 0.25 * sw.stress_yy + 0.5 * sw.stress_xy,
+                               rtol=1e-12, atol=1e-15)  # fmt: skip
+    inner = slice(1, -1)
+    got, ref = sw.stress[inner], sw.stress_envelope[inner]
+    close = np.abs(got - ref) <= 0.02 * np.abs(ref) + 2e-6
+    assert close.mean() >= 0.9, np.c_[sw.strain[inner], got, ref][~close]
+    assert np.abs(sw.stress_xy[1:]).max() > 1e-4  # the skew moved, and is resisted
