@@ -115,6 +115,7 @@ def test_a_ray_that_pulls_and_shears(sweeps, zero):
     sw = sweeps[RAY3]
     assert sw.status == "done" and sw.converged.all()
     ax0, ay0 = zero.best.a_x, zero.best.a_y
+    np.testing.assert_allclose(sw.a_x, ax0 * (1 + sw.strain), rtol=1e-14)
     np.testing.assert_allclose(sw.a_y, ay0 * (1 - 0.25 * sw.strain), rtol=1e-14)
     np.testing.assert_allclose(sw.stress_envelope,
                                sw.stress_xx - 0.25 * sw.stress_yy + 0.5 * sw.stress_xy,
