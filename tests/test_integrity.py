@@ -112,11 +112,11 @@ def test_a_file_of_schema_2_reads_as_the_same_results(schema2, tiny_reference):
     with h5py.File(schema2, "r") as f:
         for key, e in old.items():
             # observables registered since, and the stress components stored since the load
-            # paths (knitsweep.paths)
+            # paths and shear (knitsweep.paths)
             added = fresh[key].record.keys() - e.record.keys()
             assert e.record.keys() <= fresh[key].record.keys(), key
-            assert added <= {o.name for o in OBSERVABLE_REGISTRY} | {"stress_xx", "stress_yy"}, (
-                key, added)  # fmt: skip
+            stresses = {"stress_xx", "stress_yy", "stress_xy"}
+            assert added <= {o.name for o in OBSERVABLE_REGISTRY} | stresses, (key, added)
             group = f[key[0]][key[1]]
             for name, value in e.record.items():  # as stored, bit for bit
                 raw = group[name][()]
