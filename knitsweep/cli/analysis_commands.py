@@ -297,8 +297,8 @@ def energy_density(
     L: Annotated[float | None, option("--point-L", help="the yarn length of the point to "
                                       "fit (mm)", default="the files' only one")] = None,
     knots: Annotated[str | None, option("--knots", help="knot intervals per strain, "
-                     "comma-separated (eps_xx,eps_yy[,gamma])", default="64,48; 32,24,16 "
-                     "with a shear")] = None,
+                     "comma-separated: eps_xx,eps_yy, or eps_xx,eps_yy,gamma with a shear",
+                     default="64,48; 32,24,16 with a shear")] = None,
     smoothing: Annotated[float, typer.Option("--smoothing", help="weight of the spline's "
                          "curvature penalty, relative to the data's")] = 1e-2,
     held_out: Annotated[bool, flag("--held-out", help="measure the error between rays: "

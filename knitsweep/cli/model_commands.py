@@ -157,7 +157,7 @@ def relax(
 
 @app.command()
 def sweep(
-    direction: Annotated[str, typer.Option("--direction", help="load path: x or y (uniaxial), biaxial, strip_x, strip_y, shear, shear_free (free yarns), or ray:<rate_x>,<rate_y>[,<rate_xy>]")],
+    direction: Annotated[str, typer.Option("--direction", help="load path: x or y (uniaxial), biaxial, strip_x, strip_y, shear, shear_free (free yarns), or ray:<rate_x>,<rate_y> with an optional ,<rate_xy> (free yarns)")],
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
     r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
     samples: SamplesOpt = None,
