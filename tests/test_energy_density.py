@@ -29,16 +29,22 @@ def _known(e):
 def _fan(angles_deg=range(-45, 136, 15), n=40, reach=0.3):
     """Samples of ``_known`` along rays from the origin (as a sweep's steps), and the two
     'uniaxial' curves (here rays too)."""
+    units = [np.array([np.cos(np.radians(a)), np.sin(np.radians(a))]) for a in angles_deg]
+    return _along(units, _known, n, reach)
+
+
+def _along(units, known, n, reach):
+    """Samples of ``known`` along rays from the origin in the unit directions ``units``, n
+    steps to ``reach`` each, each ray named as the jobs name it."""
     eps, names, ends = [], [], {}
-    for a in angles_deg:
-        d = np.array([np.cos(np.radians(a)), np.sin(np.radians(a))])
-        t = np.linspace(0.0, reach, n)[:, None] * d
+    for u in units:
+        name = "ray:" + ",".join(f"{v:.6g}" for v in u / np.abs(u).max())
+        t = np.linspace(0.0, reach, n)[:, None] * u
         eps.append(t)
-        name = f"ray:{d[0] / np.abs(d).max():.6g},{d[1] / np.abs(d).max():.6g}"
         names += [name] * n
         ends[name] = tuple(t[-1])
     eps = np.concatenate(eps)
-    w, g = _known(eps)
+    w, g = known(eps)
     point = {"stitch": "test", "L_mm": 1.0, "k_mN_per_mm2": 0.1, "a_x0_mm": 1.0, "a_y0_mm": 1.0}
     return DensitySamples(eps, w, g, np.array(names, dtype=object), ends, point)
 
@@ -194,22 +200,11 @@ def _known3(e):
 def _fan3(n=25, reach=0.25):
     """Rays in (ε_xx, ε_yy, γ): azimuths every 30° from -45° to 135° at elevations 0 and
     ±35° (their mirror images), named as the jobs name them."""
-    eps, names, ends = [], [], {}
-    for el in (0, 35, -35):
-        for az in range(-45, 136, 30):
-            d = np.array([np.cos(np.radians(el)) * np.cos(np.radians(az)),
-                          np.cos(np.radians(el)) * np.sin(np.radians(az)),
-                          np.sin(np.radians(el))])  # fmt: skip
-            d /= np.abs(d).max()
-            name = "ray:" + ",".join(f"{v:.6g}" for v in d)
-            t = np.linspace(0.0, reach, n)[:, None] * d / np.linalg.norm(d)
-            eps.append(t)
-            names += [name] * n
-            ends[name] = tuple(t[-1])
-    eps = np.concatenate(eps)
-    w, g = _known3(eps)
-    point = {"stitch": "test", "L_mm": 1.0, "k_mN_per_mm2": 0.1, "a_x0_mm": 1.0, "a_y0_mm": 1.0}
-    return DensitySamples(eps, w, g, np.array(names, dtype=object), ends, point)
+    units = [np.array([np.cos(np.radians(el)) * np.cos(np.radians(az)),
+                       np.cos(np.radians(el)) * np.sin(np.radians(az)),
+                       np.sin(np.radians(el))])
+             for el in (0, 35, -35) for az in range(-45, 136, 30)]  # fmt: skip
+    return _along(units, _known3, n, reach)
 
 
 @pytest.fixture(scope="module")
