@@ -175,6 +175,21 @@ def check_path(name: str) -> str:
     return name
 
 
+def check_path_for_stitch(direction: str, stitch: str) -> None:
+    """ValueError if the load path ``direction`` shears the cell and ``stitch`` cannot (the
+    paper's crossover ansatz is mirror-symmetric by construction: its images are
+    translations of a stitch with no skew, ``stitches.images``)."""
+    if not load_path(direction).shears:
+        return
+    from .stitches import get_stitch
+    from .stitches.images import image_group
+
+    if not image_group(get_stitch(stitch)).shears:
+        raise ValueError(f"direction {direction!r} shears the cell, which stitch {stitch!r} "
+                         "cannot (the paper's ansatz is mirror-symmetric by construction): "
+                         "shear the free yarn, stitch = 'stockinette_free'")  # fmt: skip
+
+
 class PathError(ValueError):
     """Not a load path: ``direction = '<name>': <why>``."""
 

@@ -187,8 +187,9 @@ def sweep(
     import time
 
     from ..compilation import compile_clock
-    from ..config import StartSettings, check_path_for_stitch
+    from ..config import StartSettings
     from ..errors import InputError, check_seed
+    from ..paths import check_path_for_stitch
     from ..presets import Numerics
     from ..service.progress import SweepProgress
     from ..store.sweep_file import sweep_inputs, sweep_table, write_sweep

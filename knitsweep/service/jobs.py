@@ -40,10 +40,10 @@ from ..config import (
     StitchName,
     StitchParams,
     SweepProtocol,
-    check_path_for_stitch,
     zero_force_solvers,
 )
 from ..errors import MAX_SEED, describe_validation_error
+from ..paths import check_path_for_stitch
 from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
 from ..stitches import DEFAULT_STITCH, STITCH_CHOICES, get_stitch
 from ..util.safe_files import read_text
