@@ -291,7 +291,9 @@ def _worker(comm) -> int | None:
             # loads the cache rank 0 filled, if this node shares it; else one rank of
             # the node compiles (``worker.compile_lock``) and the others wait
             prepare(job, _rank_notice(comm.Get_rank()))
-    except Interrupted:
+    except BaseException as e:  # a signal's exception may arrive wrapped (``as_interrupt``)
+        if signals.as_interrupt(e) is None and signals.received() is None:
+            raise
         return _leave(comm, status, backoff)
     return _serve(comm, job, status, backoff)
 
