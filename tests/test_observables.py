@@ -123,3 +123,19 @@ def test_the_tables_poisson_ratios_come_from_the_transverse_period(tiny_referenc
         w = (0.02 - eps[j - 1]) / (eps[j] - eps[j - 1])
         expect = -((1 - w) * e_perp[j - 1] + w * e_perp[j]) / 0.02
         assert nu[task] == pytest.approx(expect, rel=1e-12) and 0 < nu[task] < 2
+
+
+def test_the_poisson_curve_is_the_tables_ratio_at_the_secant_strain(tiny_reference):
+    """The report's ν(ε) of each uniaxial sweep (figure fig5c) is −ε_⊥/ε of the free
+    period at every step, NaN at rest, and its chord at ε = 0.02 is the tables' value."""
+    from knitsweep.report import reduce_results
+
+    red = reduce_results(tiny_reference)
+    nu = {row["task_id"]: row["poisson_ratio"] for row in red.sweeps}
+    assert red.curves and all(c.direction in ("x", "y") for c in red.curves)
+    for c in red.curves:
+        assert np.isnan(c.poisson_ratio[0]) and np.all(np.isfinite(c.poisson_ratio[1:]))
+        np.testing.assert_allclose(c.poisson_ratio[1:] * c.strain[1:], -c.transverse_strain[1:],
+                                   rtol=1e-12)  # fmt: skip
+        chord = -np.interp(0.02, c.strain, c.transverse_strain) / 0.02
+        assert nu[c.task_id] == pytest.approx(chord, rel=1e-12)

@@ -185,6 +185,14 @@ def fig5b_area_strain_y(red: Reduction, notes: list[str], upto: float | None = N
                          r"area strain $A/A_0 - 1$", heading, True, upto)  # fmt: skip
 
 
+def fig5c_poisson_strain(red: Reduction, notes: list[str]) -> Any:
+    """Poisson's ratio against strain, ν_xy(ε) pulled in x and ν_yx(ε) in y: the
+    secant −ε_⊥/ε of the period left free, which the tables give at ε = 0.02."""
+    return _curve_panels(red, notes, ("x", "y"), "fig5c", lambda c: c.poisson_ratio,
+                         r"Poisson's ratio $-\varepsilon_\perp/\varepsilon$",
+                         "Poisson's ratio along uniaxial pulls", True)  # fmt: skip
+
+
 def fig6g_thickness_strain_x(red: Reduction, notes: list[str], upto: float | None = None) -> Any:
     """Thickness strain Δz/Δz0 − 1 against ε_x for x pulls (paper Fig. 6g): jammed
     fabrics first shrink in z, unjammed ones expand; ``upto``: small strains only."""

@@ -22,6 +22,7 @@ from .fig_mechanics import (
     fig2ef_secant_offset,
     fig5a_aspect_ratio,
     fig5b_area_strain_y,
+    fig5c_poisson_strain,
     fig6g_thickness_strain_x,
     fig6h_contact_force_ratio,
 )
@@ -42,6 +43,7 @@ FIGURES: dict[str, Callable[[Reduction, list[str]], Any]] = {
     "fig5a_aspect_ratio.png": fig5a_aspect_ratio,
     "fig5b_area_strain_y.png": fig5b_area_strain_y,
     "fig5b_area_strain_y_small.png": partial(fig5b_area_strain_y, upto=SMALL_STRAIN),
+    "fig5c_poisson_strain.png": fig5c_poisson_strain,
     "fig6g_thickness_strain_x.png": fig6g_thickness_strain_x,
     "fig6g_thickness_strain_x_small.png": partial(fig6g_thickness_strain_x, upto=SMALL_STRAIN),
     "fig6h_contact_force_ratio.png": fig6h_contact_force_ratio,
@@ -81,6 +83,8 @@ CAPTIONS: dict[str, str] = {
     "fig5b_area_strain_y.png": "Area strain of pulls in y: unjammed fabrics lose area at "
     "first, jammed ones do not (paper Fig. 5b).",
     "fig5b_area_strain_y_small.png": "Area strain of pulls in y up to 10 % strain.",
+    "fig5c_poisson_strain.png": "Poisson's ratio against strain: the secant −ε_⊥/ε of the "
+    "free transverse period, ν_xy pulled in x and ν_yx in y (the tables give it at 2 %).",
     "fig6g_thickness_strain_x.png": "Thickness strain of pulls in x: jammed fabrics first "
     "thin, unjammed ones thicken (paper Fig. 6g).",
     "fig6g_thickness_strain_x_small.png": "Thickness strain of pulls in x up to 10 % strain.",

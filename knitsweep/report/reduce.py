@@ -37,6 +37,7 @@ from ..analysis.stress_strain import FD_STRESS_SMOOTHING
 from ..analysis.transitions import Transition
 from ..config import Fidelity
 from ..errors import InputError
+from ..paths import load_path
 from ..quantities import NUMERIC_SERIES_PARAMS, SERIES_PARAMS, registered, sweep_observables
 from ..service.spread import POINT_SPREADS, SWEEP_SPREADS
 from ..stitches import DEFAULT_STITCH
@@ -73,7 +74,8 @@ class SweepCurves:
 
     ``strain`` (dimensionless), ``stress`` (N/mm), ``area_strain`` and
     ``thickness_strain`` (dimensionless), ``bending_energy``/``contact_energy`` (mJ),
-    ``packing_fraction`` (dimensionless; None unless the job stored it).
+    ``packing_fraction`` (dimensionless; None unless the job stored it),
+    ``transverse_strain`` a_⊥/a_⊥0 − 1 of the period left free (uniaxial paths; else None).
     """
 
     task_id: str
@@ -89,6 +91,16 @@ class SweepCurves:
     bending_energy: np.ndarray
     contact_energy: np.ndarray
     packing_fraction: np.ndarray | None = None
+    transverse_strain: np.ndarray | None = None
+
+    @property
+    def poisson_ratio(self) -> np.ndarray:
+        """ν(ε) = −ε_⊥/ε along a uniaxial pull, secant from the rest (NaN at ε = 0 and
+        on other paths); at ε = 0.02 it is the tables' ``poisson_ratio``."""
+        if self.transverse_strain is None:
+            return np.full_like(self.strain, np.nan)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.strain > 0.0, -self.transverse_strain / self.strain, np.nan)
 
 
 @dataclass(frozen=True)
@@ -288,6 +300,7 @@ def _analyse_sweep(
         bending_energy=arrays["bending_energy"],
         contact_energy=arrays["contact_energy"],
         packing_fraction=_optional_array(rec.get("packing_fraction")),
+        transverse_strain=_transverse_strain(arrays, direction),
     )
     return row, curves
 
@@ -305,6 +318,15 @@ def spread_columns(meta: Mapping[str, Any], fields: Mapping[str, str]) -> dict[s
     out = {f"{stem}_spread_{_SPREAD_UNITS[stem]}": plain_value(meta.get(f))
            for f, stem in fields.items()}  # fmt: skip
     return out | {"spread_count": plain_value(meta.get("spread_count"))}
+
+
+def _transverse_strain(arrays: Mapping[str, np.ndarray], direction: str) -> np.ndarray | None:
+    """a_⊥/a_⊥0 − 1 of the period a uniaxial path leaves free; None on other paths."""
+    path = load_path(direction)
+    if not path.uniaxial:
+        return None
+    across = np.asarray(arrays["a_" + path.transverse], dtype=float)
+    return across / across[0] - 1.0
 
 
 def _optional_array(value: Any) -> np.ndarray | None:
