@@ -182,6 +182,13 @@ def test_a_job_fitted_from_the_command_line(tmp_path):
     one_error_line(run_knitsweep("energy-density", h5, "--knots", "8,8,8"), "2 numbers")
     one_error_line(run_knitsweep("energy-density", h5, "--out", tmp_path / "w.txt"), ".json")
     one_error_line(run_knitsweep("energy-density", h5, "--point-L", "9.0"), "select one point")
+    # the report carries the same fit: its figure and errors (the defaults: 64 x 48 knots)
+    from knitsweep.report.html import report_html
+
+    page = report_html(res)
+    section = page[page.index("<h2 id='energy-density'>") : page.index("<h2>Sweeps</h2>")]
+    assert "data:image/png;base64," in section and "states of 7 sweeps, knots 64x48" in section
+    assert "<h2 id='energy-density'>" not in report_html(res.select(direction=["x", "y"]))
 
 
 # ---------------------------------------------------------------- with a shear

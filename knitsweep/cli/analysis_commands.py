@@ -312,6 +312,7 @@ def energy_density(
 
     from ..analysis.energy_density import VARIABLES, fit_energy_density, held_out_errors
     from ..errors import InputError
+    from ..report.fig_energy_density import density_summary, energy_density_figure
 
     with user_errors():
         try:
@@ -335,46 +336,7 @@ def energy_density(
     if held_out:
         fit.fit["held_out_error"] = held_out_errors(samples, intervals, smoothing)
     fit.save(out)
-    typer.echo(_density_summary(fit))
+    typer.echo(density_summary(fit))
     typer.echo(f"wrote {out}")
     if figure:
-        from ..report.fig_energy_density import energy_density_figure
-
         typer.echo(f"wrote {energy_density_figure(fit, samples, out.with_suffix('.png'))}")
-
-
-def _density_summary(fit) -> str:
-    """The fit's measured errors in a few lines."""
-    import numpy as np
-
-    f, pt = fit.fit, fit.point
-    err = f["stress_error"]
-    worst = max(err, key=err.get)
-    lines = [
-        f"{pt['stitch']} L = {pt['L_mm']:g} mm: W({', '.join(fit.variables)}) from "
-        f"{f['samples']} states of {len(f['sweeps'])} sweeps, knots "
-        + "x".join(str(k) for k in f["knots"]),
-        "stress error (% of each sweep's peak): "
-        + ", ".join(f"{d} {100 * err[d]:.2f}" for d in ("x", "y") if d in err)
-        + f"; largest {100 * err[worst]:.2f} ({worst}); energy {100 * f['energy_error']:.2f}",
-    ]
-    if f.get("held_out_error"):
-        h = np.array(list(f["held_out_error"].values()))
-        lines.append(
-            f"between rays (each left out): median {100 * np.median(h):.1f} %, "
-            f"largest {100 * h.max():.1f} % of the ray's peak stress"
-        )
-    c = f["convexity"]
-    lines.append(
-        f"not convex on {100 * c['fraction']:.0f} % of the sampled region "
-        f"(smallest eigenvalue {c['min_eigenvalue_N_per_mm']:.3g} N/mm, largest "
-        f"{c['max_eigenvalue_N_per_mm']:.3g})"
-    )
-    if "mirror_asymmetry" in f:
-        m = f["mirror_asymmetry"]
-        lines.append(f"mirror W(gamma) = W(-gamma) at {m['samples']} samples: energy within "
-                     f"{100 * m['energy']:.2g} % of the largest W, shear stress within "
-                     f"{100 * m['shear_stress']:.2g} % of the largest")  # fmt: skip
-    if f["left_out"]:
-        lines.append("left out: " + "; ".join(f"{d}: {w}" for d, w in f["left_out"].items()))
-    return "\n".join(lines)

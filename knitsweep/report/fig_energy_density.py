@@ -44,6 +44,16 @@ def _map(fig, ax, f, s, axes, n, title):
 
 
 def energy_density_figure(f: EnergyDensity, s: DensitySamples, out: Path, n: int = 161) -> Path:
+    """``draw_energy_density``'s figure written to ``out`` (PNG)."""
+    import matplotlib.pyplot as plt
+
+    fig = draw_energy_density(f, s, n)
+    fig.savefig(out, dpi=130)
+    plt.close(fig)
+    return out
+
+
+def draw_energy_density(f: EnergyDensity, s: DensitySamples, n: int = 161):
     """(a) W (N/mm) over (ε_xx, ε_yy) in the sampled region, the states on that plane
     drawn (rays white; the uniaxial and shear sweeps red); with a shear (b) W over
     (ε_xx, γ) at ε_yy = 0; then σ_xx of the x sweep, σ_yy of the y sweep (and σ_xy of the
@@ -93,6 +103,40 @@ def energy_density_figure(f: EnergyDensity, s: DensitySamples, out: Path, n: int
     last.set(xlabel="ε_xx", ylabel="ε_yy",
              title=f"({'cd'[f.dim - 2]}) not convex (outlined): {share:.0f} %"
              + (" of the region" if f.dim == 3 else ""))  # fmt: skip
-    fig.savefig(out, dpi=130)
-    plt.close(fig)
-    return out
+    return fig
+
+
+def density_summary(fit: EnergyDensity) -> str:
+    """The fit's measured errors in a few lines (``knitsweep energy-density`` prints
+    them; the report shows them under the figure)."""
+    f, pt = fit.fit, fit.point
+    err = f["stress_error"]
+    worst = max(err, key=err.get)
+    lines = [
+        f"{pt['stitch']} L = {pt['L_mm']:g} mm: W({', '.join(fit.variables)}) from "
+        f"{f['samples']} states of {len(f['sweeps'])} sweeps, knots "
+        + "x".join(str(k) for k in f["knots"]),
+        "stress error (% of each sweep's peak): "
+        + ", ".join(f"{d} {100 * err[d]:.2f}" for d in ("x", "y") if d in err)
+        + f"; largest {100 * err[worst]:.2f} ({worst}); energy {100 * f['energy_error']:.2f}",
+    ]
+    if f.get("held_out_error"):
+        h = np.array(list(f["held_out_error"].values()))
+        lines.append(
+            f"between rays (each left out): median {100 * np.median(h):.1f} %, "
+            f"largest {100 * h.max():.1f} % of the ray's peak stress"
+        )
+    c = f["convexity"]
+    lines.append(
+        f"not convex on {100 * c['fraction']:.0f} % of the sampled region "
+        f"(smallest eigenvalue {c['min_eigenvalue_N_per_mm']:.3g} N/mm, largest "
+        f"{c['max_eigenvalue_N_per_mm']:.3g})"
+    )
+    if "mirror_asymmetry" in f:
+        m = f["mirror_asymmetry"]
+        lines.append(f"mirror W(gamma) = W(-gamma) at {m['samples']} samples: energy within "
+                     f"{100 * m['energy']:.2g} % of the largest W, shear stress within "
+                     f"{100 * m['shear_stress']:.2g} % of the largest")  # fmt: skip
+    if f["left_out"]:
+        lines.append("left out: " + "; ".join(f"{d}: {w}" for d, w in f["left_out"].items()))
+    return "\n".join(lines)

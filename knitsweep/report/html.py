@@ -176,6 +176,42 @@ def _figures(
     return blocks, skipped
 
 
+def _energy_density(results: Results) -> str:
+    """The energy density section, when the files sweep along rays
+    (docs/energy-density.md): W fitted to the one point's states as ``knitsweep
+    energy-density`` fits it by default (no held-out rays: that is a fit per ray), its
+    figure and measured errors; why not, where the files hold several points."""
+    import io
+
+    from ..analysis.energy_density import fit_energy_density
+    from .fig_energy_density import density_summary, draw_energy_density
+
+    sweeps = results.sweeps
+    if not len(sweeps) or not sweeps["direction"].astype(str).str.startswith("ray:").any():
+        return ""
+    head = "<h2 id='energy-density'>Energy density</h2>"
+    try:
+        samples = results.energy_density_samples()
+    except ValueError as e:
+        return (f"{head}<p>Not fitted: {html.escape(str(e))}; fit one point with "
+                "<code>knitsweep energy-density</code>.</p>")  # fmt: skip
+    fit = fit_energy_density(samples)
+    import matplotlib.pyplot as plt
+
+    fig = draw_energy_density(fit, samples)
+    png = io.BytesIO()
+    fig.savefig(png, format="png", dpi=110)
+    plt.close(fig)
+    data = base64.b64encode(png.getvalue()).decode()
+    return (f"{head}<p>W(ε) per undeformed area, fitted to the swept states and stresses "
+            "by a tensor-product cubic B-spline, as <code>knitsweep energy-density</code> "
+            "fits it (which also writes it for <code>knitsweep.load_energy_density</code> "
+            "and measures the error between rays).</p>"
+            f"<figure><img alt='energy density' src='data:image/png;base64,{data}'>"
+            f"<figcaption><pre>{html.escape(density_summary(fit))}</pre></figcaption>"
+            "</figure>")  # fmt: skip
+
+
 def _headline(red: Any) -> str:
     """Whether the results are partial, and how many tasks failed and how many series
     they leave without a transition: a complete run can hold failed tasks."""
@@ -240,6 +276,7 @@ def report_html(
         "<h2>Figures</h2>",
         *blocks,
         f"<ul>{skipped_html}</ul>" if skipped else "",
+        _energy_density(results),
         "<h2>Sweeps</h2>",
         table(results.sweeps, cols(_SWEEP_COLUMNS), "sweeps-table"),
         "<h2>Zero-force states</h2>",
