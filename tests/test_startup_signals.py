@@ -4,7 +4,8 @@ the compile, the job's broadcast and the first hand-out. The signal is raised at
 stage itself (``KNITSWEEP_TEST_SIGNAL_AT=<stage>@<rank>``: the tests' fault injector,
 tests/fault_plugin, at the named point ``signals.fault_point``),
 not at a wall-clock delay. Every rank reports one line and the run ends within
-seconds with exit code 3, no traceback, no process left (integration tier)."""
+seconds with exit code 3, no traceback, no process left (integration tier). Last, a
+worker's side of the MPI protocol against a scripted master (unit tier)."""
 
 import os
 import shutil
@@ -96,3 +97,74 @@ def test_signal_at_each_start_up_stage_in_each_rank(tmp_path, stage):
         if out.exists():
             with h5py.File(out) as f:
                 assert f.attrs["run_status"] == "interrupted"
+
+
+class _Status:
+    tag = source = None
+
+    def Get_tag(self):
+        return self.tag
+
+    def Get_source(self):
+        return self.source
+
+
+class _Master:
+    """A worker's communicator whose other end plays rank 0: the job first, then a task
+    batch and STOP when the worker says it LEFT; records what the worker sends."""
+
+    def __init__(self, job_json):
+        from knitsweep.service.executors.protocol import JOB
+
+        self.inbox, self.sent = [(JOB, job_json)], []
+
+    def Get_rank(self):
+        return 1
+
+    def Iprobe(self, source, tag, status):
+        if self.inbox:
+            status.tag, status.source = self.inbox[0][0], 0
+        return bool(self.inbox)
+
+    def recv(self, source, tag):
+        got, message = self.inbox.pop(0)
+        assert got == tag
+        return message
+
+    def send(self, message, dest, tag):
+        from types import SimpleNamespace
+
+        from knitsweep.service.executors.protocol import LEFT, STOP, TASK
+
+        self.sent.append(tag)
+        if tag == LEFT:  # tasks were on their way; then the master stops the run
+            self.inbox += [(TASK, [(SimpleNamespace(task_id="p1"), None)]), (STOP, 3)]
+
+
+def test_a_worker_stopped_while_loading_the_kernels_leaves_through_the_protocol(monkeypatch):
+    """The signal's exception comes out of the kernels' loading wrapped (numba hands it
+    back as SystemError): the worker still says it LEFT, returns the tasks that arrive
+    (ABANDONED) and answers STOP (STOPPED), so nothing the master sent is left unreceived;
+    MPI_Finalize failed on such a message (mpirun exit 1, 9 or 11) before."""
+    import types
+
+    from knitsweep.service.executors import mpi
+    from knitsweep.service.executors.protocol import ABANDONED, LEFT, STOPPED
+    from knitsweep.service.jobs import load_job
+
+    fake = types.SimpleNamespace(Status=_Status, ANY_TAG=-1, ANY_SOURCE=-2)
+    monkeypatch.setitem(sys.modules, "mpi4py", types.SimpleNamespace(MPI=fake))
+    monkeypatch.setitem(sys.modules, "mpi4py.MPI", fake)
+    monkeypatch.setattr(signals, "_state", {"signum": None, "count": 0, "raise": False})
+
+    def loading(job, notice):
+        signals.request(signal.SIGTERM)
+        try:
+            raise signals.Interrupted(signal.SIGTERM)
+        except signals.Interrupted as e:
+            raise SystemError("<numba dispatcher> returned a result with an exception set") from e
+
+    monkeypatch.setattr(mpi, "prepare", loading)
+    comm = _Master(load_job(TINY).model_dump_json())
+    assert mpi.mpi_worker_loop(comm) == signals.EXIT_INTERRUPTED
+    assert comm.sent == [LEFT, ABANDONED, STOPPED] and comm.inbox == []
