@@ -5,6 +5,7 @@ against the fit's, and where the fit is not convex."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -43,18 +44,10 @@ def _map(fig, ax, f, s, axes, n, title):
     ax.set(xlabel=LABEL[f.variables[axes[0]]], ylabel=LABEL[f.variables[axes[1]]], title=title)
 
 
-def energy_density_figure(f: EnergyDensity, s: DensitySamples, out: Path, n: int = 161) -> Path:
-    """``draw_energy_density``'s figure written to ``out`` (PNG)."""
-    import matplotlib.pyplot as plt
-
-    fig = draw_energy_density(f, s, n)
-    fig.savefig(out, dpi=130)
-    plt.close(fig)
-    return out
-
-
-def draw_energy_density(f: EnergyDensity, s: DensitySamples, n: int = 161):
-    """(a) W (N/mm) over (ε_xx, ε_yy) in the sampled region, the states on that plane
+def energy_density_figure(f: EnergyDensity, s: DensitySamples, out: Path | BinaryIO,
+                          n: int = 161, dpi: int = 130) -> Path | BinaryIO:  # fmt: skip
+    """A PNG written to ``out`` (a path, or a binary file such as the report's buffer):
+    (a) W (N/mm) over (ε_xx, ε_yy) in the sampled region, the states on that plane
     drawn (rays white; the uniaxial and shear sweeps red); with a shear (b) W over
     (ε_xx, γ) at ε_yy = 0; then σ_xx of the x sweep, σ_yy of the y sweep (and σ_xy of the
     shear sweep), sampled (dots) and fitted (lines); last the tangent's smallest eigenvalue
@@ -103,7 +96,9 @@ def draw_energy_density(f: EnergyDensity, s: DensitySamples, n: int = 161):
     last.set(xlabel="ε_xx", ylabel="ε_yy",
              title=f"({'cd'[f.dim - 2]}) not convex (outlined): {share:.0f} %"
              + (" of the region" if f.dim == 3 else ""))  # fmt: skip
-    return fig
+    fig.savefig(out, format="png", dpi=dpi)
+    plt.close(fig)
+    return out
 
 
 def density_summary(fit: EnergyDensity) -> str:

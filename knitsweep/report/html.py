@@ -184,7 +184,7 @@ def _energy_density(results: Results) -> str:
     import io
 
     from ..analysis.energy_density import fit_energy_density
-    from .fig_energy_density import density_summary, draw_energy_density
+    from .fig_energy_density import density_summary, energy_density_figure
 
     sweeps = results.sweeps
     if not len(sweeps) or not sweeps["direction"].astype(str).str.startswith("ray:").any():
@@ -196,12 +196,7 @@ def _energy_density(results: Results) -> str:
         return (f"{head}<p>Not fitted: {html.escape(str(e))}; fit one point with "
                 "<code>knitsweep energy-density</code>.</p>")  # fmt: skip
     fit = fit_energy_density(samples)
-    import matplotlib.pyplot as plt
-
-    fig = draw_energy_density(fit, samples)
-    png = io.BytesIO()
-    fig.savefig(png, format="png", dpi=110)
-    plt.close(fig)
+    png = energy_density_figure(fit, samples, io.BytesIO(), dpi=110)
     data = base64.b64encode(png.getvalue()).decode()
     return (f"{head}<p>W(ε) per undeformed area, fitted to the swept states and stresses "
             "by a tensor-product cubic B-spline, as <code>knitsweep energy-density</code> "
