@@ -425,6 +425,14 @@ class SweepProtocol(BaseModel):
         "gap threshold; 1 mJ turns it off)",
     )
 
+    shear_rest: Literal["relaxed", "held"] = Field(
+        "relaxed",
+        description="a path that shears a free yarn starts from the zero-force state with its "
+        "skew relaxed ('relaxed': the minimum in shear, this sweep's rest alone, where it lies "
+        "more than rest_tolerance_mJ below the upright state) or upright ('held': the point's "
+        "zero-force state, skew 0)",
+    )
+
     @field_validator("observables", mode="before")
     @classmethod
     def _from_a_list(cls, v: Any) -> Any:

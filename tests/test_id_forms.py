@@ -201,11 +201,12 @@ def test_the_task_forms_are_numbered_in_order():
 
 
 TASK_DUMPS = [(PARAMS_FORMS, StitchParams()), (STARTS_FORMS, StartSettings()),
-              (PROTOCOL_FORMS, SweepProtocol()),
+              (PROTOCOL_FORMS, SweepProtocol(shear_rest="held")),
               (FIDELITY_FORMS, Fidelity(contact_sampling="parameter"))]  # fmt: skip
 """Each form's settings as the earliest form had them (the fidelity's 'auto' sampling is
 resolved per stitch before it is hashed, ``jobs.fidelity_form``: 'parameter' for the
-ansatz)."""
+ansatz; a shear started upright, and a sweep that does not shear hashes its protocol so,
+``id_forms.protocol_id_form``)."""
 
 
 @pytest.mark.parametrize(("forms", "settings"), TASK_DUMPS, ids=lambda v: getattr(v, "what", ""))
@@ -230,6 +231,7 @@ def test_each_task_form_step_migrates_down_and_up_losslessly(forms, settings):
         (STARTS_FORMS, StartSettings(spread=3), "spread"),
         (FIDELITY_FORMS, Fidelity(contact_sampling="arclength"), "contact_sampling"),
         (PROTOCOL_FORMS, SweepProtocol(rest_tolerance_mJ=1e-5), "rest_tolerance_mJ"),
+        (PROTOCOL_FORMS, SweepProtocol(), "shear_rest"),
     ],
 )
 def test_settings_using_a_later_field_keep_it_in_their_id_form(forms, settings, kept):
@@ -289,3 +291,31 @@ def test_a_schema3_file_from_before_the_task_forms_resumes_with_nothing_to_compu
                                 "sweeps": {s.task_id for s in sweeps}}  # fmt: skip
     summary = service.run(tiny, old, executor="serial", show_progress=False)
     assert summary.skipped == summary.total == 6 and summary.exit_code == 0
+
+
+def test_a_shear_started_from_its_relaxed_skew_is_a_new_task_and_nothing_else_is(tmp_path):
+    """protocol.shear_rest: the shear sweeps of a job at the default ('relaxed') hash anew
+    (they compute something else than before), its x sweeps, points and a job without a
+    shear keep their ids; 'held' is the shear as before."""
+
+    def planned(top: str, directions: str):
+        path = tmp_path / "j.toml"
+        path.write_text(
+            f'schema_version = 1\nname = "j"\nstitch = "garter"\n'
+            f"directions = {directions}\n{top}[grid]\nL_mm = [11.0, 11.6]\n"
+        )
+        job = load_job(path)
+        points, sweeps = plan(job)
+        return job, [p.task_id for p in points], {(s.point_id, s.direction): s.task_id
+                                                  for s in sweeps}  # fmt: skip
+
+    both = '["x", "shear"]'
+    relaxed, held = planned("", both), planned('[protocol]\nshear_rest = "held"\n', both)
+    assert relaxed[0].protocol.shear_rest == "relaxed" and relaxed[0].job_hash != held[0].job_hash
+    assert relaxed[1] == held[1]
+    for key, sid in relaxed[2].items():
+        assert (sid == held[2][key]) == (key[1] == "x")
+    x_only = planned("", '["x"]'), planned('[protocol]\nshear_rest = "relaxed"\n', '["x"]')
+    assert x_only[0][0].job_hash == x_only[1][0].job_hash
+    assert migrate_up(id_form(held[0].full_form())) == held[0].full_form()
+    assert migrate_up(id_form(relaxed[0].full_form())) == relaxed[0].full_form()

@@ -110,14 +110,22 @@ def density_samples(sweeps, stitch: str | None = None, L_mm: float | None = None
     (entries,) = by_point.values()
     shears = any(load_path(meta["direction"]).shears for meta, _ in entries)
     # every sweep starts at the point's zero-force state; one that found a lower one
-    # (its rest_restarts) starts there: the lowest is the reference, the others left out
+    # (its rest_restarts) starts there: the lowest is the reference, the others left out;
+    # a shear that relaxed its skew at rest (rest_skew) starts from its own rest, never
+    # the reference (its strains are not the point's)
     e0 = [float(rec["total_energy"][0]) for _, rec in entries]
-    ref_meta, ref = entries[int(np.argmin(e0))]
-    a_x0, a_y0, E0 = float(ref["a_x"][0]), float(ref["a_y"][0]), min(e0)
+    upright = [i for i, (meta, _) in enumerate(entries) if not meta.get("rest_skew")]
+    i_ref = min(upright or range(len(entries)), key=lambda i: e0[i])
+    ref_meta, ref = entries[i_ref]
+    a_x0, a_y0, E0 = float(ref["a_x"][0]), float(ref["a_y"][0]), e0[i_ref]
     parts, ends, left_out = [], {}, {}
     for (meta, rec), e_start in sorted(zip(entries, e0, strict=True),
                                        key=lambda me: me[0][0]["direction"]):  # fmt: skip
         d = meta["direction"]
+        if meta.get("rest_skew") and upright:
+            left_out[d] = (f"starts from its rest sheared by gamma0 = {meta['rest_skew']:.4g} "
+                           f"({e_start - E0:+.3g} mJ)")  # fmt: skip
+            continue
         if abs(e_start - E0) > 1e-12 or rec["a_x"][0] != a_x0 or rec["a_y"][0] != a_y0:
             left_out[d] = f"starts from another zero-force state ({e_start - E0:+.3g} mJ)"
             continue

@@ -245,6 +245,8 @@ def _analyse_sweep(
     row |= {
         "sweep_status": str(meta.get("sweep_status", "")),
         "rest_restarts": int(meta.get("rest_restarts", 0)),
+        "rest_skew": float(meta.get("rest_skew", 0.0)),
+        "rest_skew_fall_mJ": float(meta.get("rest_skew_fall_mJ", 0.0)),
         "n_steps": m.n_steps,
         "max_strain": m.max_strain,
         "max_stress_N_per_mm": m.max_stress,

@@ -36,7 +36,7 @@ from typing import Any, Literal
 
 from ..analysis.transitions import transition
 from ..config import DONE, NOT_KNITTABLE, StitchParams
-from .id_forms import PROTOCOL_FORMS
+from .id_forms import protocol_id_form
 from .jobs import JobSpec, digest, fidelity_form, params_form
 
 SeriesStatus = Literal[
@@ -168,7 +168,8 @@ class Refiner:
         base = params_form(params, exclude={"L_mm"})  # the id forms, as task ids'
         return digest({"series": base, "direction": direction,
                        "adaptive": self.settings.model_dump(mode="json"),
-                       "protocol": PROTOCOL_FORMS.id_form(self.job.protocol.model_dump(mode="json")),
+                       "protocol": protocol_id_form(self.job.protocol.model_dump(mode="json"),
+                                                    direction),
                        "fidelity": fidelity_form(self.job.fidelity, params.stitch)})  # fmt: skip
 
     def observe(self, sweep_meta: dict[str, Any]) -> None:

@@ -116,6 +116,30 @@ class FormHistory:
         return d
 
 
+def _shears(d: Form) -> bool:
+    from ..paths import load_path
+
+    return any(load_path(x).shears for x in d.get("directions", ()))
+
+
+def _shear_rest_up(d: Form) -> Form:
+    """A job's ``protocol.shear_rest`` up: 'held' (upright) where a direction shears, as
+    every job before it held it; else the default 'relaxed' (the same results)."""
+    out = copy.deepcopy(d)
+    out["protocol"].setdefault("shear_rest", "held" if _shears(d) else "relaxed")
+    return out
+
+
+def _shear_rest_down(d: Form) -> Form | None:
+    """The inverse of ``_shear_rest_up`` (None where the job's value is not the one it
+    restores)."""
+    if d["protocol"].get("shear_rest") != ("held" if _shears(d) else "relaxed"):
+        return None
+    out = copy.deepcopy(d)
+    out["protocol"].pop("shear_rest", None)
+    return out
+
+
 JOB_FORMS = FormHistory("a job (JobSpec.full_form)", (
     Migration(2, "stitch: the stitch of every point (before: stockinette, the paper's; "
               "several stitches are the grid axis grid.stitch)", _stitch_up, _stitch_down),
@@ -135,6 +159,9 @@ JOB_FORMS = FormHistory("a job (JobSpec.full_form)", (
               "(before: off)", *_field(("starts", "spread"), 1)),
     Migration(10, "fidelity.contact_sampling: how the contact sum samples the yarn (before: "
               "'parameter')", *_field(("fidelity", "contact_sampling"), "parameter")),
+    Migration(11, "protocol.shear_rest: a shear starts from the zero-force state with its skew "
+              "relaxed (before: 'held', upright)",
+              _shear_rest_up, _shear_rest_down),
 ))  # fmt: skip
 """Every step of the job format since its first form."""
 MIGRATIONS = JOB_FORMS.migrations
@@ -160,10 +187,25 @@ PROTOCOL_FORMS = FormHistory("a sweep's protocol (SweepProtocol)", (
     Migration(2, "rest_tolerance_mJ: a sweep falling this far below its zero-force energy "
               "relaxes again at rest (before: the default was the only one)",
               *_field(("rest_tolerance_mJ",), REST_TOLERANCE_MJ)),
+    Migration(3, "shear_rest: a shear starts from the zero-force state with its skew relaxed "
+              "(before: 'held'; a sweep that does not shear hashes it as 'held')",
+              *_field(("shear_rest",), "held")),
 ))  # fmt: skip
 FIDELITY_FORMS = FormHistory("the fidelity (Fidelity)", (
     Migration(2, "contact_sampling: how the contact sum samples the yarn (before: "
               "'parameter')", *_field(("contact_sampling",), "parameter")),
 ))  # fmt: skip
+
+
+def protocol_id_form(protocol: Form, direction: str) -> Form:
+    """The id form of a sweep's protocol (``SweepProtocol`` dumped) along ``direction``:
+    where the path does not shear, ``shear_rest`` changes nothing and hashes as 'held'."""
+    from ..paths import load_path
+
+    if not load_path(direction).shears:
+        protocol = {**protocol, "shear_rest": "held"}
+    return PROTOCOL_FORMS.id_form(protocol)
+
+
 TASK_FORMS = (PARAMS_FORMS, STARTS_FORMS, PROTOCOL_FORMS, FIDELITY_FORMS)
 """The settings a task's id hashes, each with its forms."""

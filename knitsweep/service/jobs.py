@@ -48,7 +48,7 @@ from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
 from ..stitches import DEFAULT_STITCH, STITCH_CHOICES, get_stitch
 from ..util.safe_files import read_text
 from .grid import MAX_POINTS, Grid
-from .id_forms import FIDELITY_FORMS, PARAMS_FORMS, PROTOCOL_FORMS, STARTS_FORMS, id_form
+from .id_forms import FIDELITY_FORMS, PARAMS_FORMS, STARTS_FORMS, id_form, protocol_id_form
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -416,7 +416,7 @@ def series_key(params: StitchParams) -> str:
 
 def sweep_task(job: JobSpec, point_id: str, direction: str) -> SweepTask:
     sid = digest({"point": point_id, "direction": direction,
-                  "protocol": PROTOCOL_FORMS.id_form(job.protocol.model_dump(mode="json"))})  # fmt: skip
+                  "protocol": protocol_id_form(job.protocol.model_dump(mode="json"), direction)})  # fmt: skip
     return SweepTask(sid, point_id, direction)
 
 

@@ -98,6 +98,12 @@ class SweepResult:
     rest_restarts: int = 0
     rest_found: str = ""
     rest: ZeroForce | None = None
+    rest_skew: float = 0.0
+    """A shear's rest: γ0 = s0/a_y0 of the zero-force state with its skew relaxed
+    (``rest_skew.relax_skew``; step 0, this sweep's alone), 0 where the upright state is
+    the minimum in shear or the path does not shear."""
+    rest_skew_fall_mJ: float = 0.0
+    """How far below the point's (upright) zero-force state that rest lies (mJ)."""
 
     def __getattr__(self, name: str) -> np.ndarray:
         observed = self.__dict__.get("observed", {})
@@ -145,6 +151,8 @@ class SweepResult:
             "rest_energy": float(self.total_energy[0]),
             "rest_restarts": self.rest_restarts,
             "rest_found": self.rest_found,
+            "rest_skew": self.rest_skew,
+            "rest_skew_fall_mJ": self.rest_skew_fall_mJ,
             "delta_E_b": gaps.delta_E_b,
             "delta_E_c": gaps.delta_E_c,
             "jamming_gap": gaps.jamming_gap(self.direction),
@@ -166,7 +174,9 @@ class SweepResult:
                    evaluations_total=int(rec.get("evaluations_total", 0)),
                    wall_seconds=float(rec["wall_seconds"]),
                    rest_restarts=int(rec.get("rest_restarts", 0)),
-                   rest_found=str(rec.get("rest_found", "")))  # fmt: skip
+                   rest_found=str(rec.get("rest_found", "")),
+                   rest_skew=float(rec.get("rest_skew", 0.0)),
+                   rest_skew_fall_mJ=float(rec.get("rest_skew_fall_mJ", 0.0)))  # fmt: skip
 
 
 _STEP_ARRAYS = ("a_fixed", "a_x", "a_y", "strain", "stress", "stress_envelope", "stress_xx",

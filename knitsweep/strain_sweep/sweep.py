@@ -43,6 +43,7 @@ from ..quantities import registered
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
 from ..relax.zero_force import ZeroForce, pick_lowest, relax_at_rest, zero_force
 from ..stitches.topology import topology_word
+from .rest_skew import relax_skew
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
 
@@ -80,9 +81,18 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
     notes: list[str] = []
     restarts = 0
     spent = [0, 0]  # relaxations and energy evaluations of every pull
+    skewed = None
+    if (load_path(direction).shears and model.image_group.shears
+            and protocol.shear_rest == "relaxed"):  # fmt: skip
+        skewed = relax_skew(model, zero.best, solver, protocol.rest_tolerance_mJ)
+        if skewed is not None:  # this sweep's rest (the point's stays upright)
+            zero = zero.with_lower_minimum(zero.winner, skewed.relaxation, skewed.note)
+            notes.append(skewed.note)
+            spent[0] += skewed.relaxations
+    skew0 = 0.0 if skewed is None else skewed.skew_mm
     while True:
         result, found, note = _pull(model, zero, direction, protocol, solver, progress, t_start,
-                                    restarts < MAX_REST_RESTARTS, spent)  # fmt: skip
+                                    restarts < MAX_REST_RESTARTS, spent, skew0)  # fmt: skip
         if note:
             notes.append(note)
         if found is None:
@@ -91,12 +101,16 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
     result.rest = zero if restarts else None
     result.rest_restarts = restarts
     result.rest_found = "; ".join(notes)
+    if skewed is not None:
+        result.rest_skew, result.rest_skew_fall_mJ = skewed.gamma, skewed.fall_mJ
     result.wall_seconds = time.perf_counter() - t_start
     return result
 
 
-def _pull(model, zero, direction, protocol, solver, progress, t_start, check_rest, spent):
-    """One pull from ``zero``: (the sweep, None, a note or ""); or, with ``check_rest``,
+def _pull(model, zero, direction, protocol, solver, progress, t_start, check_rest, spent,
+          skew0=0.0):  # fmt: skip
+    """One pull from ``zero`` (its skew ``skew0``, mm; the path's skew adds to it): (the
+    sweep, None, a note or ""); or, with ``check_rest``,
     as soon as a step's energy falls more than ``protocol.rest_tolerance_mJ`` below the
     zero-force energy and relaxing that step at zero force finds a minimum lower by as
     much, (None, the zero-force state with that minimum, a note saying so). If it finds
@@ -123,7 +137,7 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
     carried[[c.start for c in chains]] = True
     chains = merge_chains(chains, model, None, protocol.merge_tolerance_mJ, 0, merged_into,
                           merged_at)  # fmt: skip
-    model.skew = 0.0
+    model.skew = skew0
     steps: list[Relaxation] = [best]
     shears = model.image_group.shears  # the force on the skew is measured (σ_xy)
     skew_forces = [model.skew_force(best.x) if shears else 0.0]
@@ -145,11 +159,11 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
                  ) if sigma_last > STOP_WATCH * stop else None  # fmt: skip
         targets = path.targets(rest, (a_next - a0) / a0)
         if path.leading == "xy":  # the skew leads (exactly the schedule's value)
-            model.skew = a_next - a0
+            model.skew = skew0 + (a_next - a0)
         else:
             targets[path.leading] = a_next  # (exactly: the schedule's value)
             if path.shears:  # a ray that shears as it pulls: the skew follows its rate
-                model.skew = path.rate_xy * (a_next - a0) / a0 * rest["y"]
+                model.skew = skew0 + path.rate_xy * (a_next - a0) / a0 * rest["y"]
         for c in chains:
             x = c.x.copy()
             for d, a in targets.items():
