@@ -223,6 +223,12 @@ def _point_row(entry: Entry, meta: Mapping[str, Any], fidelity: Fidelity) -> dic
     return row
 
 
+def _fall_below_rest(arrays: Mapping[str, np.ndarray]) -> float:
+    """How far (mJ) a sweep's energy fell below its first step's, 0 if never."""
+    e = arrays["bending_energy"] + arrays["contact_energy"]
+    return float(max(0.0, e[0] - np.min(e)))
+
+
 def _analyse_sweep(
     entry: Entry, meta: Mapping[str, Any], point_forces: Any, threshold: float
 ) -> tuple[dict[str, Any], SweepCurves]:
@@ -247,6 +253,9 @@ def _analyse_sweep(
         "rest_restarts": int(meta.get("rest_restarts", 0)),
         "rest_skew": float(meta.get("rest_skew", 0.0)),
         "rest_skew_fall_mJ": float(meta.get("rest_skew_fall_mJ", 0.0)),
+        # > 0: the sweep fell below the state it started from (after its restarts): it
+        # did not start at its path's minimum, its modulus and gaps are not verdicts
+        "fall_below_rest_mJ": _fall_below_rest(arrays),
         "n_steps": m.n_steps,
         "max_strain": m.max_strain,
         "max_stress_N_per_mm": m.max_stress,

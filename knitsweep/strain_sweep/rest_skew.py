@@ -5,11 +5,12 @@ the skew s_x is held at 0, as the paper's ansatz (mirror-symmetric) holds it. Wh
 cell's relaxed energy E*(s) at zero force (both periods free) is not at its minimum there
 (rib's one-stitch cell leans and carries a shear stress; tight seed is a saddle), a
 shear pulled from s = 0 starts off its path's minimum and measures no modulus or jamming
-gap. ``relax_skew`` finds the skew s0 where E* is least: it steps downhill from s = 0
+gap. ``relax_skew`` finds a skew s0 where E* is least: it steps downhill from s = 0
 (the force F = dE*/ds, exact by the envelope theorem, gives the way; where F vanishes,
 relaxations at ±h tell a minimum from a saddle), doubling the step until F turns, then
 closes the bracket on F = 0 by regula falsi (Illinois), each relaxation warm-started
-from the nearest state.
+from the nearest state. That is a local minimum; a shear that falls below it further on
+relaxes the skew again from there and starts over (``strain_sweep``), as a pull does.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ MAX_RELAXATIONS = 40
 @dataclass(frozen=True)
 class RestSkew:
     """The zero-force state with its skew relaxed: ``skew_mm`` (s0, the wale vector's x
-    component), its ``relaxation`` (periods free), ``fall_mJ`` below the state with s = 0,
+    component), its ``relaxation`` (periods free), ``fall_mJ`` below the state it started from,
     ``sigma_xy`` (F/a_x0 there, N/mm), ``relaxations`` spent and a ``note`` in words."""
 
     skew_mm: float
@@ -54,10 +55,11 @@ class RestSkew:
 
 
 def relax_skew(model: CellModel, rest: Relaxation, solver: SolverSettings | None = None,
-               tolerance_mJ: float = 0.0) -> RestSkew | None:  # fmt: skip
+               tolerance_mJ: float = 0.0, skew: float = 0.0) -> RestSkew | None:  # fmt: skip
     """The minimum of the relaxed energy over the skew from zero-force state ``rest`` (at
-    s = 0), or None where s = 0 is that minimum to within ``tolerance_mJ`` (then nothing
-    changes) or a relaxation on the way did not converge. ``model.skew`` is left at 0."""
+    skew ``skew``, mm), or None where ``skew`` is that minimum to within ``tolerance_mJ``
+    (then nothing changes) or a relaxation on the way did not converge. ``model.skew`` is
+    left at 0."""
     solver = solver or SolverSettings()
     spent = [0]
     e0 = rest.total_energy
@@ -72,21 +74,21 @@ def relax_skew(model: CellModel, rest: Relaxation, solver: SolverSettings | None
         return r, model.skew_force(r.x)
 
     try:
-        model.skew = 0.0
+        model.skew = skew
         f0 = model.skew_force(rest.x)
-        lo = (0.0, rest, f0)  # (s, state, F): F points downhill away from lo
+        lo = (skew, rest, f0)  # (s, state, F): F points downhill away from lo
         if abs(f0) / rest.a_x > FORCE_TOLERANCE_N_PER_MM:
             way = -math.copysign(1.0, f0)
-        else:  # stationary at s = 0: a minimum or a saddle?
-            sides = [(w, at(w * h, rest.x)) for w in (1.0, -1.0)]
+        else:  # stationary: a minimum or a saddle?
+            sides = [(w, at(skew + w * h, rest.x)) for w in (1.0, -1.0)]
             sides = [(w, got) for w, got in sides if got is not None]
             lower = [(w, got) for w, got in sides if got[0].total_energy < e0]
             if not lower:
                 return None
             way, (r, f) = min(lower, key=lambda wg: wg[1][0].total_energy)
-            lo = (way * h, r, f)
+            lo = (skew + way * h, r, f)
             if f * way > 0.0:  # already past the minimum on that side
-                return _found(rest, *_close(at, (0.0, rest, f0), lo, way, spent),
+                return _found(rest, *_close(at, (skew, rest, f0), lo, way, spent),
                               spent[0], tolerance_mJ)  # fmt: skip
         step = h
         while spent[0] < MAX_RELAXATIONS:  # downhill, doubling, until F turns
@@ -146,6 +148,6 @@ def _found(rest, s, r, f, relaxations, tolerance_mJ) -> RestSkew | None:
         return None
     sigma = f / r.a_x
     note = (f"the skew relaxed at zero force: gamma0 = {s / r.a_y:.5g} (s = {s:.5g} mm), "
-            f"{fall:.3g} mJ below the upright state, sigma_xy {sigma:.2g} N/mm there "
+            f"{fall:.3g} mJ lower, sigma_xy {sigma:.2g} N/mm there "
             f"({relaxations} relaxations)")  # fmt: skip
     return RestSkew(s, r, fall, sigma, relaxations, note)

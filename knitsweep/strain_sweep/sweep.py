@@ -81,36 +81,40 @@ def _sweep(params, zero, direction, protocol, fidelity, solver, progress) -> Swe
     notes: list[str] = []
     restarts = 0
     spent = [0, 0]  # relaxations and energy evaluations of every pull
-    skewed = None
-    if (load_path(direction).shears and model.image_group.shears
-            and protocol.shear_rest == "relaxed"):  # fmt: skip
+    upright = zero.best.total_energy
+    skew0 = 0.0  # a shear's rest skew (mm): that rest is this sweep's alone
+    skewing = (load_path(direction).shears and model.image_group.shears
+               and protocol.shear_rest == "relaxed")  # fmt: skip
+    if skewing:
         skewed = relax_skew(model, zero.best, solver, protocol.rest_tolerance_mJ)
-        if skewed is not None:  # this sweep's rest (the point's stays upright)
+        if skewed is not None:
             zero = zero.with_lower_minimum(zero.winner, skewed.relaxation, skewed.note)
+            skew0 = skewed.skew_mm
             notes.append(skewed.note)
             spent[0] += skewed.relaxations
-    skew0 = 0.0 if skewed is None else skewed.skew_mm
     while True:
         result, found, note = _pull(model, zero, direction, protocol, solver, progress, t_start,
-                                    restarts < MAX_REST_RESTARTS, spent, skew0)  # fmt: skip
+                                    restarts < MAX_REST_RESTARTS, spent, skew0, skewing)  # fmt: skip
         if note:
             notes.append(note)
         if found is None:
             break
-        zero, restarts = found, restarts + 1
-    result.rest = zero if restarts else None
+        (zero, skew0), restarts = found, restarts + 1
+    result.rest = zero if restarts and not skewing else None
     result.rest_restarts = restarts
     result.rest_found = "; ".join(notes)
-    if skewed is not None:
-        result.rest_skew, result.rest_skew_fall_mJ = skewed.gamma, skewed.fall_mJ
+    if skew0 != 0.0:
+        result.rest_skew = skew0 / zero.best.a_y
+        result.rest_skew_fall_mJ = upright - zero.best.total_energy
     result.wall_seconds = time.perf_counter() - t_start
     return result
 
 
 def _pull(model, zero, direction, protocol, solver, progress, t_start, check_rest, spent,
-          skew0=0.0):  # fmt: skip
-    """One pull from ``zero`` (its skew ``skew0``, mm; the path's skew adds to it): (the
-    sweep, None, a note or ""); or, with ``check_rest``,
+          skew0=0.0, skewing=False):  # fmt: skip
+    """One pull from ``zero`` (its skew ``skew0``, mm; the path's skew adds to it; with
+    ``skewing`` a lower rest is relaxed in its skew too): (the sweep, None, a note or "");
+    or, with ``check_rest``,
     as soon as a step's energy falls more than ``protocol.rest_tolerance_mJ`` below the
     zero-force energy and relaxing that step at zero force finds a minimum lower by as
     much, (None, the zero-force state with that minimum, a note saying so). If it finds
@@ -126,7 +130,7 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
             raise ValueError(f"direction = {direction!r}: stitch {model.stitch.name} cannot "
                              "shear (a mirror-symmetric ansatz); shear a free yarn such as "
                              "stockinette_free")  # fmt: skip
-        check_rest = False  # a lower minimum at zero force is looked for along pulls only
+        check_rest = check_rest and skewing  # a shear's lower rest: its skew relaxed too
     sign = 1.0 if protocol.mode == "tension" else -1.0
     n_starts = len(zero.relaxations)
     # starts that merged on their way to the zero-force state count as merged there
@@ -209,7 +213,8 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
         fall = steps[0].total_energy - win.total_energy
         if check_rest and win.status == CONVERGED and fall > protocol.rest_tolerance_mJ:
             found, note = _lower_rest(model, zero, chains[w].start, win, direction, strain, fall,
-                                      solver, protocol.rest_tolerance_mJ)  # fmt: skip
+                                      solver, protocol.rest_tolerance_mJ, skewing,
+                                      skew0)  # fmt: skip
             if found is not None:
                 spent[:] = n_relax, n_eval
                 return None, found, note
@@ -243,32 +248,52 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
     return result, None, unfound
 
 
-def _lower_rest(model, zero, start, step, direction, strain, fall, solver, tolerance):
-    """(the zero-force state with the minimum relaxed at zero force from sweep step
-    ``step`` of chain ``start``, or None if that is not lower by the tolerance, and a
-    note saying what was found)."""
+def _lower_rest(model, zero, start, step, direction, strain, fall, solver, tolerance,
+                skewing=False, skew0=0.0):  # fmt: skip
+    """((the zero-force state with the minimum relaxed at zero force from sweep step
+    ``step`` of chain ``start``, its skew), or None if that is not lower by the tolerance,
+    and a note saying what was found). With ``skewing`` (a shear from a rest at skew
+    ``skew0``) the skew relaxes too, from the step's (``rest_skew.relax_skew``).
+    ``model.skew`` is the step's again on return."""
+    at_step = model.skew
+    try:
+        return _lower_rest_from(model, zero, start, step, direction, strain, fall, solver,
+                                tolerance, skewing, skew0)  # fmt: skip
+    finally:
+        model.skew = at_step
+
+
+def _lower_rest_from(model, zero, start, step, direction, strain, fall, solver, tolerance,
+                     skewing, skew0):  # fmt: skip
     rest = zero.best.total_energy
+    skew = model.skew if skewing else 0.0
     lower = relax_at_rest(model, step.x, solver)
+    if skewing and lower.status == CONVERGED:
+        skewed = relax_skew(model, lower, solver, 0.0, skew)
+        if skewed is not None:
+            lower, skew = skewed.relaxation, skewed.skew_mm
     where = (f"the {direction} sweep fell {fall:.3g} mJ below the zero-force energy "
              f"{rest:.7f} mJ at strain {strain:.4g}")  # fmt: skip
     if lower.status != CONVERGED or not rest - lower.total_energy > tolerance:
         return None, (f"{where}; relaxed again at zero force from there: "
                       f"{lower.total_energy:.7f} mJ ({lower.status}), kept the first")  # fmt: skip
-    if _crossings(model, lower.x) != _crossings(model, zero.best.x):
+    if _crossings(model, lower.x, skew) != _crossings(model, zero.best.x, skew0):
         # another fabric (a free yarn pulled straight, rows apart): not this point's rest
         return None, (f"{where}; relaxed again at zero force from there: "
                       f"{lower.total_energy:.7f} mJ with other crossings than the zero-force "
                       "state's (another fabric), kept the first")  # fmt: skip
-    note = (f"{where}; relaxed again at zero force from there: {lower.total_energy:.7f} mJ, "
-            "the zero-force state from then on")  # fmt: skip
-    return zero.with_lower_minimum(start, lower, note), note
+    at = f" at gamma0 = {skew / lower.a_y:.5g}" if skewing else ""
+    note = (f"{where}; relaxed again at zero force from there: {lower.total_energy:.7f} mJ"
+            f"{at}, the zero-force state from then on")  # fmt: skip
+    return (zero.with_lower_minimum(start, lower, note), skew), note
 
 
-def _crossings(model: CellModel, x: np.ndarray) -> tuple:
-    """How the rows of state ``x`` cross one another in projection (``topology_word``: the
-    word a relaxation of a pattern must keep), for any stitch."""
+def _crossings(model: CellModel, x: np.ndarray, skew: float) -> tuple:
+    """How the rows of state ``x`` (its wale vector's skew ``skew``, mm) cross one another
+    in projection (``topology_word``: the word a relaxation of a pattern must keep), for
+    any stitch."""
     return topology_word(model.control_points(x), x[-2], x[-1], model.stitch.mirror_parity,
-                         skew=model.skew)  # fmt: skip
+                         skew=skew)  # fmt: skip
 
 
 def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettings) -> list[Chain]:
