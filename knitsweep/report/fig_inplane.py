@@ -105,11 +105,12 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
     ax_b.set_ylabel(r"secant modulus at 0.02 (N/mm)")
     values = [v for line in ax_b.get_lines() for v in line.get_ydata()]
     positive = [v for v in values if v > 0]
-    if any(v < 0 for v in values):  # a negative G_sec: the unsheared rest is no minimum
+    if any(v < 0 for v in values):  # a negative G_sec: the shear's rest is no minimum
         ax_b.set_yscale("symlog", linthresh=0.01)
         ax_b.axhline(0.0, color="0.55", lw=0.8, zorder=0)
         notes.append("in-plane: a negative secant modulus in shear: the energy falls as the "
-                     "cell shears, its unsheared zero-force state is no minimum in shear")  # fmt: skip
+                     "cell shears, the state it started from is no minimum in shear (the "
+                     "sweeps table's fall_below_rest_mJ)")  # fmt: skip
     elif positive and max(positive) > 10 * min(positive):
         ax_b.set_yscale("log")
     panel_title(ax_b, r"(c) equibiaxial $(\sigma_{xx} + \sigma_{yy})/0.02$ ─; shear"
