@@ -114,11 +114,11 @@ def _pull(model, zero, direction, protocol, solver, progress, t_start, check_res
           skew0=0.0, skewing=False):  # fmt: skip
     """One pull from ``zero`` (its skew ``skew0``, mm; the path's skew adds to it; with
     ``skewing`` a lower rest is relaxed in its skew too): (the sweep, None, a note or "");
-    or, with ``check_rest``,
-    as soon as a step's energy falls more than ``protocol.rest_tolerance_mJ`` below the
-    zero-force energy and relaxing that step at zero force finds a minimum lower by as
-    much, (None, the zero-force state with that minimum, a note saying so). If it finds
-    none, the pull goes on unchecked and its note says so."""
+    or, with ``check_rest``, as soon as a step's energy falls more than
+    ``protocol.rest_tolerance_mJ`` below the zero-force energy and relaxing that step at
+    zero force finds a minimum lower by as much, (None, (the zero-force state with that
+    minimum, its skew), a note saying so). If it finds none, the pull goes on unchecked
+    and its note says so."""
     path = load_path(direction)
     idx = {d: model.stitch.period_index(d) for d in ("x", "y")}
     best = zero.best
