@@ -188,3 +188,36 @@ def test_status_counts_add_up_while_an_adaptive_job_grows(tmp_path):
         assert finished + running + pending == total and finished <= total
     s = service.status(out)
     assert not s["live"] and s["pending"] == 0 and s["done"] == s["total"] > planned
+
+
+def test_the_last_crossing_of_a_re_entrant_series_is_refined_when_asked():
+    """[adaptive] last_crossing: once the first crossing is bracketed, a series jammed again
+    beyond it has its last crossing bisected to the tolerance; without it (the default)
+    the series is done at the first, as before."""
+    coarse = [8.5, 9.3, 10.1, 10.9, 11.7, 12.5]
+
+    def gap(L):  # unjams at 9.2 mm, jammed again from 9.8 to 10.77 mm
+        return 1e-3 if L < 9.2 else 0.0 if L < 9.8 else 1e-4 if L < 10.77 else 0.0
+
+    gaps = {L: gap(L) for L in coarse}
+    for _ in range(40):
+        st = series_state(coarse, gaps, T, 0.02, last_crossing=True)
+        if st.next_L is None:
+            break
+        assert st.status == "refining"
+        gaps[st.next_L] = gap(st.next_L)
+    assert st.status == "done" and st.lo < 9.2 <= st.hi and st.hi - st.lo <= 0.02
+    assert st.last_lo < 10.77 <= st.last_hi and st.last_hi - st.last_lo <= 0.02
+    first = series_state(coarse, gaps, T, 0.02)
+    assert (
+        first.status == "done" and first.last_lo is None and (first.lo, first.hi) == (st.lo, st.hi)
+    )
+    # jammed again up to the largest L: no last crossing to refine
+    end = {**{L: gap(L) for L in coarse}, 11.7: 1e-4, 12.5: 1e-4}
+    for _ in range(40):
+        st = series_state(coarse, end, T, 0.02, last_crossing=True)
+        if st.next_L is None:
+            break
+        end[st.next_L] = gap(st.next_L) if st.next_L < 11 else 1e-4
+    assert st.status == "done" and st.last_hi is None and st.last_lo == 12.5
+    assert "jammed again up to the largest L" in st.message

@@ -13,6 +13,7 @@ import pytest
 from knitsweep.config import Fidelity, StartSettings, StitchParams, SweepProtocol
 from knitsweep.service.adaptive import Refiner
 from knitsweep.service.id_forms import (
+    ADAPTIVE_FORMS,
     FIDELITY_FORMS,
     FORM_VERSION,
     MIGRATIONS,
@@ -23,7 +24,7 @@ from knitsweep.service.id_forms import (
     id_form,
     migrate_up,
 )
-from knitsweep.service.jobs import fidelity_form, load_job, plan
+from knitsweep.service.jobs import AdaptiveSettings, fidelity_form, load_job, plan
 
 IDS_BEFORE = [
     ('jobs/adaptive_k0.1.toml', '006c3b907e2aa31a', '3190d5abd8ca4252', '94467af5906a59dd'),
@@ -202,7 +203,8 @@ def test_the_task_forms_are_numbered_in_order():
 
 TASK_DUMPS = [(PARAMS_FORMS, StitchParams()), (STARTS_FORMS, StartSettings()),
               (PROTOCOL_FORMS, SweepProtocol(shear_rest="held")),
-              (FIDELITY_FORMS, Fidelity(contact_sampling="parameter"))]  # fmt: skip
+              (FIDELITY_FORMS, Fidelity(contact_sampling="parameter")),
+              (ADAPTIVE_FORMS, AdaptiveSettings())]  # fmt: skip
 """Each form's settings as the earliest form had them (the fidelity's 'auto' sampling is
 resolved per stitch before it is hashed, ``jobs.fidelity_form``: 'parameter' for the
 ansatz; a shear started upright, and a sweep that does not shear hashes its protocol so,
@@ -232,6 +234,7 @@ def test_each_task_form_step_migrates_down_and_up_losslessly(forms, settings):
         (FIDELITY_FORMS, Fidelity(contact_sampling="arclength"), "contact_sampling"),
         (PROTOCOL_FORMS, SweepProtocol(rest_tolerance_mJ=1e-5), "rest_tolerance_mJ"),
         (PROTOCOL_FORMS, SweepProtocol(), "shear_rest"),
+        (ADAPTIVE_FORMS, AdaptiveSettings(last_crossing=True), "last_crossing"),
     ],
 )
 def test_settings_using_a_later_field_keep_it_in_their_id_form(forms, settings, kept):

@@ -60,7 +60,7 @@ MODULE_ORDER = {
               "compatible", "failed_writes", "writer", "salvage", "sweep_file"],
     "relax": ["problem", "slsqp", "newton", "result", "relaxer", "chains", "continuation",
               "zero_force"],
-    "strain_sweep": ["result", "schedule", "sweep"],
+    "strain_sweep": ["result", "schedule", "rest_skew", "sweep"],
     "studies": ["accuracy"],
     "service": ["signals", "grid", "id_forms", "jobs", "run_plan", "progress", "retry", "spread", "worker",
                 "adaptive", "executors", "slurm", "master", "runs", "recovery"],

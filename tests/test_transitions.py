@@ -464,3 +464,21 @@ def test_table_s4_from_stored_gaps():
             assert every.slope / paper.slope_mJ_per_mm < 0.75, k
         checked += 1
     assert checked >= 4
+
+
+def test_last_crossing_of_a_re_entrant_series():
+    """(L/r)_trans is the first crossing (the paper's); the last crossing is where every
+    sampled L/r from there on is unjammed: the first for a monotone series, None where the
+    largest L/r is jammed."""
+    x = np.array([12.0, 12.5, 13.0, 13.5, 14.0, 14.5, 15.0])
+    g = np.array([2e-4, 1e-5, 1e-4, 2e-4, 0.0, 0.0, 0.0])  # unjams at 12.5, again at 14.0
+    t = transition(x, g, 5e-5)
+    assert (t.L_over_r_trans, t.bracket_lower, t.n_jammed_after) == (12.5, 12.0, 2)
+    assert (t.L_over_r_trans_last, t.bracket_lower_last) == (14.0, 13.5)
+    m = transition(x[[0, 1, 4, 5]], g[[0, 1, 4, 5]], 5e-5)  # monotone
+    assert (m.L_over_r_trans_last, m.bracket_lower_last) == (m.L_over_r_trans, m.bracket_lower)
+    end = transition(x[:4], g[:4], 5e-5)  # jammed again up to the last point
+    assert end.L_over_r_trans_last is None and end.bracket_lower_last == 13.5
+    assert transition(x[:1], g[:1], 5e-5).L_over_r_trans_last is None  # jammed throughout
+    loose = transition(x[4:], g[4:], 5e-5)
+    assert loose.L_over_r_trans_last == 14.0 and loose.bracket_lower_last is None

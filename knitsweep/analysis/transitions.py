@@ -76,6 +76,12 @@ class Transition(PlainDict):
         n_jammed: points before the transition (all with gap ≥ threshold).
         n_jammed_after: points after the transition whose gap is again ≥ threshold
             (0 for a monotone series; > 0 deserves a look).
+        L_over_r_trans_last: the last crossing, from which every sampled L/r is
+            unjammed: the sampled L/r after the last jammed one (``L_over_r_trans`` for
+            a monotone series; None where the largest L/r is jammed). A re-entrant
+            series (``n_jammed_after`` > 0) unjams for good there.
+        bracket_lower_last: the last jammed L/r before it (None for a series unjammed
+            at every point).
         fit: least-squares line of gap against L/r over the linear jammed run of
             :func:`linear_jammed_run` (≥ 2 points needed), else None. Its
             ``n_points`` are the fitted points, its residuals the Table S4 columns.
@@ -97,6 +103,8 @@ class Transition(PlainDict):
     n_points: int
     n_jammed: int
     n_jammed_after: int
+    L_over_r_trans_last: float | None
+    bracket_lower_last: float | None
     fit: LinearFit | None
     fit_lower: float | None
     fit_upper: float | None
@@ -191,6 +199,17 @@ def _jammed_line(
     return fit, x0, float(x[run.start]), float(x[run.stop - 1])
 
 
+def _last_crossing(x, g, threshold, trans, lower) -> tuple[float | None, float | None]:
+    """(the sampled L/r after the last jammed one, that jammed L/r): (``trans``,
+    ``lower``) where no point beyond ``trans`` is jammed, (None, the last L/r) where the
+    last is."""
+    jammed = np.flatnonzero(g >= threshold)
+    if trans is None or not np.any(x[jammed] > trans):
+        return trans, lower
+    j = int(jammed[-1])
+    return (float(x[j + 1]) if j + 1 < x.size else None), float(x[j])
+
+
 def _result(
     status: TransitionStatus,
     trans: float | None,
@@ -203,6 +222,7 @@ def _result(
 ) -> Transition:
     fit, x0, lo, hi = _jammed_line(x[:n_jammed], g[:n_jammed], threshold)
     after = x > trans if trans is not None else np.zeros(x.size, dtype=bool)
+    last, last_lower = _last_crossing(x, g, threshold, trans, lower)
     return Transition(
         status=status,
         L_over_r_trans=trans,
@@ -213,6 +233,8 @@ def _result(
         n_points=int(x.size),
         n_jammed=n_jammed,
         n_jammed_after=int(np.count_nonzero(after & (g >= threshold))),
+        L_over_r_trans_last=last,
+        bracket_lower_last=last_lower,
         fit=fit,
         fit_lower=lo,
         fit_upper=hi,

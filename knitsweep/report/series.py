@@ -58,6 +58,11 @@ def transition_row(
         "n_points": t.n_points,
         "n_jammed": t.n_jammed,
         "n_jammed_after": t.n_jammed_after,
+        # the last crossing: unjammed at every sampled L/r from here (= the first for a
+        # monotone series; None where the largest L/r is jammed)
+        "L_over_r_trans_last": t.L_over_r_trans_last,
+        "bracket_lower_last": t.bracket_lower_last,
+        "L_trans_last_mm": mm(t.L_over_r_trans_last),
         "n_missing": n_missing,
         "fit_n_points": fit.n_points if fit else None,
         "fit_L_lo_mm": mm(t.fit_lower),

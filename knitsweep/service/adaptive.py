@@ -36,7 +36,7 @@ from typing import Any, Literal
 
 from ..analysis.transitions import transition
 from ..config import DONE, NOT_KNITTABLE, StitchParams
-from .id_forms import protocol_id_form
+from .id_forms import ADAPTIVE_FORMS, protocol_id_form
 from .jobs import JobSpec, digest, fidelity_form, params_form
 
 SeriesStatus = Literal[
@@ -56,10 +56,20 @@ class SeriesState:
     next_L: float | None
     evaluations: int
     message: str = ""
+    last_lo: float | None = None
+    last_hi: float | None = None
+    """With ``last_crossing``: the bracket of a re-entrant series' last crossing (mm;
+    ``last_hi`` None where the largest L is jammed); else None."""
 
     @property
     def finished(self) -> bool:
         return self.status in FINISHED
+
+    @property
+    def upper(self) -> float | None:
+        """The upper end of the bracket being refined: the last crossing's once that is
+        refined, else the first's."""
+        return self.last_hi if self.last_hi is not None and self.status == "refining" else self.hi
 
 
 def failure_status(L_mm: float, message: str, limit: int = 72) -> str:
@@ -85,12 +95,15 @@ def series_state(
     tolerance: float,
     secant_span: float = 0.05,
     max_refinements: int = 40,
+    last_crossing: bool = False,
 ) -> SeriesState:
     """The next step of one series.
 
     coarse: the job's coarse L values (mm); gaps: every evaluated L -> its gap
     (mJ), ``None`` where the point could not be evaluated, ``JAMMED_GAP`` where it
-    cannot be knitted.
+    cannot be knitted. With ``last_crossing``, once the first crossing is bracketed, a
+    series jammed again beyond it has its last crossing (``transitions.Transition``'s
+    ``L_over_r_trans_last``) bisected to the tolerance too.
     """
     n = len(gaps)
     if any(L not in gaps for L in coarse):
@@ -114,13 +127,36 @@ def series_state(
                            f"already unjammed at the smallest L, {hi} mm")  # fmt: skip
     lo = t.bracket_lower
     jammed = [L for L in Ls if L < hi]
+    exhausted = n - len(set(coarse)) >= max_refinements
     if hi - lo <= tolerance * (1.0 + 1e-9):
-        return SeriesState("done", lo, hi, None, n)
-    if n - len(set(coarse)) >= max_refinements:
+        if not last_crossing or t.n_jammed_after == 0:
+            return SeriesState("done", lo, hi, None, n)
+        return _last(t, gaps, lo, hi, n, tolerance, exhausted, max_refinements)
+    if exhausted:
         return SeriesState("failed", lo, hi, None, n,
                            f"bracket still {hi - lo:.3g} mm after {max_refinements} refinements")  # fmt: skip
     L = _propose(gaps, jammed, lo, hi, threshold, tolerance, secant_span)
     return SeriesState("refining", lo, hi, L, n)
+
+
+def _last(t, gaps, lo, hi, n, tolerance, exhausted, max_refinements) -> SeriesState:
+    """A re-entrant series whose first crossing is bracketed: its last crossing's bracket
+    (last jammed L, the L after it) bisected to ``tolerance`` (the gap is not monotone
+    there: no secant)."""
+    last_lo, last_hi = t.bracket_lower_last, t.L_over_r_trans_last
+    if last_hi is None:
+        return SeriesState("done", lo, hi, None, n,
+                           f"jammed again up to the largest L, {last_lo} mm", last_lo, None)  # fmt: skip
+    if last_hi - last_lo <= tolerance * (1.0 + 1e-9):
+        return SeriesState("done", lo, hi, None, n, "", last_lo, last_hi)
+    if exhausted:  # the first crossing, the paper's, stands
+        return SeriesState("done", lo, hi, None, n,
+                           f"last crossing's bracket still {last_hi - last_lo:.3g} mm after "
+                           f"{max_refinements} refinements", last_lo, last_hi)  # fmt: skip
+    L = _on_lattice(last_lo + (last_hi - last_lo) / 2.0)
+    if L in gaps:  # (the lattice's resolution reached)
+        return SeriesState("done", lo, hi, None, n, "", last_lo, last_hi)
+    return SeriesState("refining", lo, hi, L, n, "", last_lo, last_hi)
 
 
 def _propose(gaps, jammed, lo, hi, threshold, tol, span) -> float:
@@ -167,7 +203,7 @@ class Refiner:
     def key(self, params: StitchParams, direction: str) -> str:
         base = params_form(params, exclude={"L_mm"})  # the id forms, as task ids'
         return digest({"series": base, "direction": direction,
-                       "adaptive": self.settings.model_dump(mode="json"),
+                       "adaptive": ADAPTIVE_FORMS.id_form(self.settings.model_dump(mode="json")),
                        "protocol": protocol_id_form(self.job.protocol.model_dump(mode="json"),
                                                     direction),
                        "fidelity": fidelity_form(self.job.fidelity, params.stitch)})  # fmt: skip
@@ -200,7 +236,7 @@ class Refiner:
             if key not in self._states:
                 self._states[key] = series_state(self.coarse, series["gaps"], s.threshold_mJ,
                                                  s.tolerance_mm, s.secant_span_mm,
-                                                 s.max_refinements)  # fmt: skip
+                                                 s.max_refinements, s.last_crossing)  # fmt: skip
             yield key, self._states[key]
 
     def point_params(self, key: str, L: float) -> tuple[StitchParams, str]:
@@ -228,6 +264,8 @@ class Refiner:
             "L_over_r_trans": None if state.hi is None or state.status != "done" else state.hi / r,
             "bracket_lower": None if state.lo is None else state.lo / r,
             "bracket_upper": None if state.hi is None else state.hi / r,
+            "last_lo_mm": state.last_lo,
+            "last_hi_mm": state.last_hi,
             "evaluations": state.evaluations,
             "tolerance_mm": self.settings.tolerance_mm,
             "threshold_mJ": self.settings.threshold_mJ,

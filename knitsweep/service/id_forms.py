@@ -162,6 +162,8 @@ JOB_FORMS = FormHistory("a job (JobSpec.full_form)", (
     Migration(11, "protocol.shear_rest: a shear starts from the zero-force state with its skew "
               "relaxed (before: 'held', upright)",
               _shear_rest_up, _shear_rest_down),
+    Migration(12, "adaptive.last_crossing: a re-entrant series' last crossing refined too "
+              "(before: not)", *_field(("adaptive", "last_crossing"), False)),
 ))  # fmt: skip
 """Every step of the job format since its first form."""
 MIGRATIONS = JOB_FORMS.migrations
@@ -206,6 +208,12 @@ def protocol_id_form(protocol: Form, direction: str) -> Form:
         protocol = {**protocol, "shear_rest": "held"}
     return PROTOCOL_FORMS.id_form(protocol)
 
+
+ADAPTIVE_FORMS = FormHistory("the adaptive search (AdaptiveSettings)", (
+    Migration(2, "last_crossing: a re-entrant series' last crossing refined too (before: not)",
+              *_field(("last_crossing",), False)),
+))  # fmt: skip
+"""The forms of the adaptive settings a series' key hashes."""
 
 TASK_FORMS = (PARAMS_FORMS, STARTS_FORMS, PROTOCOL_FORMS, FIDELITY_FORMS)
 """The settings a task's id hashes, each with its forms."""

@@ -128,6 +128,11 @@ class AdaptiveSettings(BaseModel):
         description="shortest L span of the secant that extrapolates the gap (mm, <= 10)",
     )
     max_refinements: int = Field(40, ge=1, le=1000, description="refinements per series, at most")
+    last_crossing: bool = Field(
+        False,
+        description="also refine where a re-entrant series (jammed again beyond its first "
+        "crossing, the paper's (L/r)_trans) unjams for good: its last crossing",
+    )
 
 
 class JobSpec(BaseModel):

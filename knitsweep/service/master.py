@@ -230,7 +230,7 @@ class _Master:
         for key, state in self.refiner.states():
             if state.status == "refining":
                 params, direction = self.refiner.point_params(key, state.next_L)
-                p = point_task(self.job, params, self._carry_source(key, params, state.hi))
+                p = point_task(self.job, params, self._carry_source(key, params, state.upper))
                 self._refined_at[(key, params.L_mm)] = p.task_id
                 self._request(p, [direction])
             elif state.finished and key not in self.finished[SERIES]:
