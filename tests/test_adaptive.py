@@ -221,3 +221,21 @@ def test_the_last_crossing_of_a_re_entrant_series_is_refined_when_asked():
         end[st.next_L] = gap(st.next_L) if st.next_L < 11 else 1e-4
     assert st.status == "done" and st.last_hi is None and st.last_lo == 12.5
     assert "jammed again up to the largest L" in st.message
+
+
+def test_a_series_unjammed_at_start_and_jammed_again_has_its_last_crossing_refined():
+    coarse = [8.5, 9.3, 10.1, 10.9]
+
+    def gap(L):  # unjammed at 8.5 mm, jammed at 9.3 mm alone (rib's equibiaxial series)
+        return 2e-4 if 9.0 < L < 9.61 else 0.0
+
+    gaps = {L: gap(L) for L in coarse}
+    for _ in range(40):
+        st = series_state(coarse, gaps, T, 0.02, last_crossing=True)
+        if st.next_L is None:
+            break
+        assert st.status == "refining" and st.lo is None
+        gaps[st.next_L] = gap(st.next_L)
+    assert st.status == "unjammed_at_start" and st.hi == 8.5
+    assert st.last_lo < 9.61 <= st.last_hi and st.last_hi - st.last_lo <= 0.02
+    assert series_state(coarse, gaps, T, 0.02).last_lo is None

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 from ..analysis.transitions import transition
@@ -122,16 +122,20 @@ def series_state(
         return SeriesState("jammed_throughout", Ls[-1], None, None, n,
                            f"jammed at every L up to {Ls[-1]} mm")  # fmt: skip
     hi = t.L_over_r_trans
+    exhausted = n - len(set(coarse)) >= max_refinements
     if t.status == "unjammed_at_start":
-        return SeriesState("unjammed_at_start", None, hi, None, n,
-                           f"already unjammed at the smallest L, {hi} mm")  # fmt: skip
+        first = SeriesState("unjammed_at_start", None, hi, None, n,
+                            f"already unjammed at the smallest L, {hi} mm")  # fmt: skip
+        if not last_crossing or t.n_jammed_after == 0:
+            return first
+        return _last(t, gaps, first, tolerance, exhausted, max_refinements)
     lo = t.bracket_lower
     jammed = [L for L in Ls if L < hi]
-    exhausted = n - len(set(coarse)) >= max_refinements
     if hi - lo <= tolerance * (1.0 + 1e-9):
+        first = SeriesState("done", lo, hi, None, n)
         if not last_crossing or t.n_jammed_after == 0:
-            return SeriesState("done", lo, hi, None, n)
-        return _last(t, gaps, lo, hi, n, tolerance, exhausted, max_refinements)
+            return first
+        return _last(t, gaps, first, tolerance, exhausted, max_refinements)
     if exhausted:
         return SeriesState("failed", lo, hi, None, n,
                            f"bracket still {hi - lo:.3g} mm after {max_refinements} refinements")  # fmt: skip
@@ -139,24 +143,24 @@ def series_state(
     return SeriesState("refining", lo, hi, L, n)
 
 
-def _last(t, gaps, lo, hi, n, tolerance, exhausted, max_refinements) -> SeriesState:
-    """A re-entrant series whose first crossing is bracketed: its last crossing's bracket
-    (last jammed L, the L after it) bisected to ``tolerance`` (the gap is not monotone
-    there: no secant)."""
+def _last(t, gaps, first: SeriesState, tolerance, exhausted, max_refinements) -> SeriesState:
+    """A re-entrant series whose first crossing is settled (``first``, how it ends without
+    this): its last crossing's bracket (last jammed L, the L after it) bisected to
+    ``tolerance`` (the gap is not monotone there: no secant)."""
     last_lo, last_hi = t.bracket_lower_last, t.L_over_r_trans_last
     if last_hi is None:
-        return SeriesState("done", lo, hi, None, n,
-                           f"jammed again up to the largest L, {last_lo} mm", last_lo, None)  # fmt: skip
+        return replace(first, message=f"jammed again up to the largest L, {last_lo} mm",
+                       last_lo=last_lo)  # fmt: skip
     if last_hi - last_lo <= tolerance * (1.0 + 1e-9):
-        return SeriesState("done", lo, hi, None, n, "", last_lo, last_hi)
+        return replace(first, last_lo=last_lo, last_hi=last_hi)
     if exhausted:  # the first crossing, the paper's, stands
-        return SeriesState("done", lo, hi, None, n,
-                           f"last crossing's bracket still {last_hi - last_lo:.3g} mm after "
-                           f"{max_refinements} refinements", last_lo, last_hi)  # fmt: skip
+        return replace(first, message=f"last crossing's bracket still {last_hi - last_lo:.3g} "
+                       f"mm after {max_refinements} refinements", last_lo=last_lo,
+                       last_hi=last_hi)  # fmt: skip
     L = _on_lattice(last_lo + (last_hi - last_lo) / 2.0)
     if L in gaps:  # (the lattice's resolution reached)
-        return SeriesState("done", lo, hi, None, n, "", last_lo, last_hi)
-    return SeriesState("refining", lo, hi, L, n, "", last_lo, last_hi)
+        return replace(first, last_lo=last_lo, last_hi=last_hi)
+    return SeriesState("refining", first.lo, first.hi, L, first.evaluations, "", last_lo, last_hi)
 
 
 def _propose(gaps, jammed, lo, hi, threshold, tol, span) -> float:
