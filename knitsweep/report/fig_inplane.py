@@ -80,6 +80,9 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
                 notes.append(f"in-plane: {stitch} along {d}: {t['status'].replace('_', ' ')}")
             elif t is not None:
                 notes.append(f"in-plane: {stitch} along {d}: {t['status']}")
+            if t is not None and rows and t.get("n_jammed_after"):  # where it unjams for good
+                reentrant = True
+                _last_crossing(ax_t, pos, t, rows, DIRECTION_COLOUR[d])
             for ax, column, wanted in ((ax_p, "poisson_ratio", ("x", "y")),
                                        (ax_b, "Y_sec_N_per_mm", ("biaxial", "shear",
                                                                  "shear_free")),
@@ -95,7 +98,8 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
     ax_t.set_xlim(-0.6, len(stitches) - 0.4)
     ax_t.set_ylabel(r"$(L/r)_{\rm trans}$")
     panel_title(ax_t, "(a) unjamming transition by load path\nbar: bracket; ▲▼: beyond the L "
-                "range" + ("; hollow: jammed again beyond" if reentrant else ""))  # fmt: skip
+                "range" + ("; hollow: jammed again beyond,\n"
+                           "dotted up to where it unjams for good (—)" if reentrant else ""))  # fmt: skip
     ax_t.legend(handles=[Line2D([], [], color=DIRECTION_COLOUR[d], marker=PATH_MARKER[d],
                                 ls="none", label=d) for d in paths],
                 loc="best", frameon=False)  # fmt: skip
@@ -124,3 +128,15 @@ def figI_inplane(red: Reduction, notes: list[str]) -> Any:
                          for i, s in enumerate(stitches)], loc="best", frameon=False)  # fmt: skip
     title(fig, red, "In-plane response: uniaxial, biaxial and shear")
     return fig
+
+
+def _last_crossing(ax, pos: float, t: dict, rows: list, colour: str) -> None:
+    """A re-entrant series' last crossing (transitions.csv's ``L_over_r_trans_last``): a
+    dotted line from its first crossing (or the first L) to a bar there, or to a ▲ at
+    the largest L where it is jammed up to the last point."""
+    start = t["L_over_r_trans"]
+    last = t.get("L_over_r_trans_last")
+    end = last if last is not None else rows[-1]["L_over_r"]
+    ax.plot([pos, pos], [start, end], color=colour, ls=":", lw=1.0)
+    ax.plot([pos], [end], color=colour, ls="none", marker="_" if last is not None else "^",
+            ms=10 if last is not None else 6, mew=1.6)  # fmt: skip
