@@ -59,8 +59,9 @@ def relax_skew(model: CellModel, rest: Relaxation, solver: SolverSettings | None
     """The minimum of the relaxed energy over the skew from zero-force state ``rest`` (at
     skew ``skew``, mm), or None where ``skew`` is that minimum to within ``tolerance_mJ``
     (then nothing changes) or a relaxation on the way did not converge. ``model.skew`` is
-    left at 0."""
+    left as it was."""
     solver = solver or SolverSettings()
+    entry = model.skew
     spent = [0]
     e0 = rest.total_energy
     h = PROBE * rest.a_y
@@ -103,7 +104,7 @@ def relax_skew(model: CellModel, rest: Relaxation, solver: SolverSettings | None
             lo, step = hi, 2.0 * step
         return None
     finally:
-        model.skew = 0.0
+        model.skew = entry
 
 
 def _close(at, lo, hi, way, spent):

@@ -253,18 +253,8 @@ def _lower_rest(model, zero, start, step, direction, strain, fall, solver, toler
     """((the zero-force state with the minimum relaxed at zero force from sweep step
     ``step`` of chain ``start``, its skew), or None if that is not lower by the tolerance,
     and a note saying what was found). With ``skewing`` (a shear from a rest at skew
-    ``skew0``) the skew relaxes too, from the step's (``rest_skew.relax_skew``).
-    ``model.skew`` is the step's again on return."""
-    at_step = model.skew
-    try:
-        return _lower_rest_from(model, zero, start, step, direction, strain, fall, solver,
-                                tolerance, skewing, skew0)  # fmt: skip
-    finally:
-        model.skew = at_step
-
-
-def _lower_rest_from(model, zero, start, step, direction, strain, fall, solver, tolerance,
-                     skewing, skew0):  # fmt: skip
+    ``skew0``) the skew relaxes too, from the step's (``rest_skew.relax_skew``, which
+    leaves ``model.skew`` the step's)."""
     rest = zero.best.total_energy
     skew = model.skew if skewing else 0.0
     lower = relax_at_rest(model, step.x, solver)
