@@ -50,7 +50,7 @@ PARAMS = StitchParams(L_mm=11.6, k_mN_per_mm2=0.1)
 
 
 @njit(cache=True)
-def _pattern_cell_energy_exhaustive(cp, jac, ax, ay, sx, qtab, qw, ctab, aq, seg_w, bend, reg, r,
+def _pattern_cell_energy_exhaustive(cp, jac, ax, ay, sx, cx, qtab, qw, ctab, aq, seg_w, bend, reg, r,
                                     rc, k, p, pm, pn, gauge_rule, gauge_stiffness, with_grad,
                                     grad_e, grad_l):  # fmt: skip
     """``pattern_cell.pattern_cell_energy`` with the exhaustive contact kernel."""
@@ -64,6 +64,7 @@ def _pattern_cell_energy_exhaustive(cp, jac, ax, ay, sx, qtab, qw, ctab, aq, seg
     if gauge_stiffness > 0.0:
         penalty = length_spread(cp, gauge_rule, gauge_stiffness, with_grad, ge)
     if with_grad:
+        gcell[0] *= cx
         _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
     return eb, ec, length, penalty
 

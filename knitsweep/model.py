@@ -208,7 +208,7 @@ class CellModel:
             return x
         x = self._as_state(x)
         speeds = x[self.gauge]
-        speed = self.ip.L / self.stitch.n_segments
+        speed = self.ip.L * self.stitch.cell_stitches / self.stitch.n_segments
         if np.all(speeds == speed):
             return x
         if np.ptp(speeds) <= GAUGE_RTOL * abs(speeds[0]):
@@ -239,7 +239,7 @@ class CellModel:
         ``min_zeta``, for every stitch."""
         ip = self.ip
         x = self._as_state(x)
-        return check_start(self.control_points(x), x[-2], x[-1], ip.r, ip.rc,
+        return check_start(self.control_points(x), *self.stitch.cell_periods(x), ip.r, ip.rc,
                            self.stitch.mirror_parity, label, self.fidelity.samples_per_segment,
                            compiled=False, arc_rule=self._aq)  # fmt: skip
 

@@ -14,11 +14,13 @@ from .mirrored import N_MIRROR_CLASSES, mirrored_contact_energy
 
 
 @njit(cache=True)
-def pattern_cell_energy(cp, jac, ax, ay, sx, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc, k, p, pm,
+def pattern_cell_energy(cp, jac, ax, ay, sx, cx, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc, k, p, pm,
                         pn, gauge_rule, gauge_stiffness, with_grad, grad_e, grad_l):  # fmt: skip
     """(E_b, E_c, length, gauge penalty) of the cell ``cp`` (S, 6, 3) with Jacobian ``jac``
     (S, 6, 3, n) over images mirrored by parities (pm, pn), the wale vector skewed by
-    ``sx`` (t_w = (s_x, a_y), mm; a prescribed shear, not a state entry); with ``with_grad`` the
+    ``sx`` (t_w = (s_x, a_y), mm; a prescribed shear, not a state entry); ``ax`` the
+    cell's course period, ``cx`` times the state's (a chart's row of ``cx`` stitches,
+    ``stitches.charts``; 1 for one stitch); with ``with_grad`` the
     gradients of E_b + E_c + the penalty and of the length with respect to the state into
     ``grad_e``, ``grad_l`` (n,). Arguments as ``cell.cell_energy``'s; ``aq`` the
     arclength rule of samples placed by arclength, empty for samples at ``ctab``'s
@@ -35,5 +37,6 @@ def pattern_cell_energy(cp, jac, ax, ay, sx, qtab, qw, ctab, aq, seg_w, bend, re
     if gauge_stiffness > 0.0:
         penalty = length_spread(cp, gauge_rule, gauge_stiffness, with_grad, ge)
     if with_grad:
+        gcell[0] *= cx  # d a_cell / d a_x
         _state_gradients(jac, ge, gl, gc, gcell, grad_e, grad_l)
     return eb, ec, length, penalty

@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 
 from ..errors import InputError
+from . import chart
 from .base import TRANSLATION_CLASSES, Stitch
 
 STITCH_NAMES = ("stockinette", "stockinette_free", "garter", "rib", "seed")
@@ -27,11 +28,18 @@ __all__ = ["DEFAULT_STITCH", "STITCH_CHOICES", "STITCH_NAMES", "TRANSLATION_CLAS
 
 
 def unknown_stitch(name: object) -> str | None:
-    """None if ``name`` is a registered stitch, else why not (the text every check of a
-    stitch name gives: the settings', the grid's, the CLI's)."""
+    """None if ``name`` is a registered stitch or a chart (``chart:KKPP``,
+    ``stitches.chart``), else why not (the text every check of a stitch name gives: the
+    settings', the grid's, the CLI's)."""
     if isinstance(name, str) and name in STITCH_NAMES:
         return None
-    return f"must be one of {STITCH_CHOICES}"
+    if chart.is_chart_name(name):
+        try:
+            chart.check_chart_name(name)  # type: ignore[arg-type]
+        except InputError as e:
+            return f"not a chart: {str(e).split(': ', 1)[-1]}"
+        return None
+    return f"must be one of {STITCH_CHOICES}, or a knit/purl chart as chart:KKPP"
 
 
 def check_stitch_name(name: object, field: str = "stitch") -> str:
@@ -45,5 +53,7 @@ def check_stitch_name(name: object, field: str = "stitch") -> str:
 
 def get_stitch(name: str = DEFAULT_STITCH) -> Stitch:
     """The stitch called ``name`` (its layout only: the geometry kernel loads on first
-    use)."""
+    use); a chart's (``chart:`` and its rows) built once."""
+    if chart.is_chart_name(name):
+        return chart.chart_stitch(chart.check_chart_name(name))
     return importlib.import_module(f"{__name__}.{check_stitch_name(name)}").STITCH

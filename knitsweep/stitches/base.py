@@ -138,6 +138,10 @@ class Stitch:
     gauge: Gauge | None = None
     """A free yarn's parametrisation gauge, used when its contact samples sit along the
     yarn by arclength (docs/model.md §11); None for a stitch without one (the ansatz)."""
+    cell_stitches: int = 1
+    """Stitches in the cell along the course (a chart's row, ``stitches.charts``; 1 for one
+    stitch): the state's periods are per stitch, the cell's course period is this many
+    times a_x, and its energies and length are reported per stitch (``cell_periods``)."""
     _loaded: dict = field(default_factory=dict, repr=False)  # kernels, starts: loaded once
 
     def __post_init__(self) -> None:
@@ -170,6 +174,18 @@ class Stitch:
     @property
     def idx_ay(self) -> int:
         return self.n_state - 1
+
+    @property
+    def mixes_row(self) -> bool:
+        """Whether a row of the fabric holds knit and purl stitches (its columns mirrored:
+        rib, seed; a chart's row of both), whose columns slide behind one another
+        (``topology.topology_word``)."""
+        return bool(self.mirror_parity[0])
+
+    def cell_periods(self, x: np.ndarray) -> tuple[float, float]:
+        """The cell's periods (course, wale), mm, of state ``x``: ``cell_stitches`` a_x and
+        a_y (the images' lattice, which the contact sums and checks take)."""
+        return float(x[-2]) * self.cell_stitches, float(x[-1])
 
     def period_index(self, direction: str) -> int:
         """The state entry of the period a pull in ``direction`` ('x' or 'y') fixes."""

@@ -174,44 +174,66 @@ class Glides(Translations):
 
     def energy_args(self, m, cp, jac, x, with_grad) -> tuple:
         ip = m.ip
-        return (cp, jac, x[-2], x[-1], m.skew, m._qtab, m._qw, m._ctab, m._aq, m._seg_w, ip.bend,
+        ax, ay = m.stitch.cell_periods(x)
+        return (cp, jac, ax, ay, m.skew, float(m.stitch.cell_stitches), m._qtab, m._qw, m._ctab, m._aq, m._seg_w, ip.bend,
                 ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.parity, *m.gauge_penalty_args(),
                 with_grad, m._grad_e, m._grad_l)  # fmt: skip
 
     def energy(self, m, cp, jac, x, with_grad) -> tuple[float, float, float, float]:
-        return pattern_cell_energy(*self.energy_args(m, cp, jac, x, with_grad))
+        """(E_b, E_c, length, gauge penalty) per stitch: a cell of several stitches (a
+        chart's row) divides its sums and their gradients by their number."""
+        out = pattern_cell_energy(*self.energy_args(m, cp, jac, x, with_grad))
+        c = m.stitch.cell_stitches
+        if c == 1:
+            return out
+        if with_grad:
+            m._grad_e /= c
+            m._grad_l /= c
+        return out[0] / c, out[1] / c, out[2] / c, out[3] / c
 
     def energy_listed(self, m, cp, jac, x, arrays):
         raise TypeError("a pattern's contact sum takes no neighbour list")
 
     def min_zeta(self, m, cp, x) -> float:
         ip = m.ip
-        return min_zeta_where(cp, x[-2], x[-1], ip.r, ip.rc, self.parity,
+        return min_zeta_where(cp, *m.stitch.cell_periods(x), ip.r, ip.rc, self.parity,
                               m.fidelity.samples_per_segment, m._aq, m.skew)[0]  # fmt: skip
 
     def forces_args(self, m, cp, dcp, x, forces, energies) -> tuple:
         ip = m.ip
-        return (cp, dcp, m._ctab, m._aq, x[-2], x[-1], m.skew, ip.r, ip.rc, ip.k, ip.p, *self.parity,
+        return (cp, dcp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r, ip.rc, ip.k, ip.p, *self.parity,
                 forces, energies)  # fmt: skip
 
     def forces_by_class(self, m, cp, dcp, x, forces, energies) -> None:
+        """Per stitch: in a cell of c stitches the force on a_x is the cell's on its period
+        c a_x (``dcp``'s a_x column divided by c), the others and the energies the
+        cell's divided by c."""
+        c = m.stitch.cell_stitches
+        if c > 1:
+            dcp = dcp.copy()
+            dcp[..., 0] /= c
         mirrored_forces_by_class(*self.forces_args(m, cp, dcp, x, forces, energies))
+        if c > 1:
+            forces[:, 1:] /= c
+            energies /= c
 
     def pair_forces_args(self, m, cp, x, weighted, forces) -> tuple:
         ip = m.ip
-        return (cp, m._ctab, m._aq, x[-2], x[-1], m.skew, ip.r, ip.rc, ip.k, ip.p, *self.parity,
+        return (cp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r, ip.rc, ip.k, ip.p, *self.parity,
                 weighted, forces)  # fmt: skip
 
     def pair_forces_by_class(self, m, cp, x, weighted, forces) -> None:
         mirrored_pair_forces_by_class(*self.pair_forces_args(m, cp, x, weighted, forces))
+        forces /= m.stitch.cell_stitches  # per stitch
 
     def skew_force(self, m, cp, x) -> float:
-        """dE/ds_x (N) at the model's skew: the contact sum's explicit derivative."""
+        """dE/ds_x (N) at the model's skew: the contact sum's explicit derivative (per
+        stitch)."""
         ip = m.ip
         gcell, ce = np.zeros(3), np.zeros(N_MIRROR_CLASSES)
-        mirrored_contact_energy(cp, m._ctab, m._aq, x[-2], x[-1], m.skew, ip.r, ip.rc, ip.k, ip.p,
+        mirrored_contact_energy(cp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r, ip.rc, ip.k, ip.p,
                                 *self.parity, -1, True, np.empty(cp.shape), gcell, ce)  # fmt: skip
-        return float(gcell[2])
+        return float(gcell[2]) / m.stitch.cell_stitches
 
     def topology_change(self, m, x) -> str:
         """ "" if state ``x`` shows the crossings of the stitch's first shipped start
@@ -221,9 +243,11 @@ class Glides(Translations):
         ref = stitch._loaded.get("topology_word")
         if ref is None:
             x1 = stitch.start(1)
-            ref = topology_word(m.control_points(x1), x1[-2], x1[-1], self.parity)
+            ref = topology_word(m.control_points(x1), *stitch.cell_periods(x1), self.parity,
+                                interlock=stitch.mixes_row)  # fmt: skip
             stitch._loaded["topology_word"] = ref
-        got = topology_word(m.control_points(x), x[-2], x[-1], self.parity, skew=m.skew)
+        got = topology_word(m.control_points(x), *stitch.cell_periods(x), self.parity,
+                            skew=m.skew, interlock=stitch.mixes_row)  # fmt: skip
         if got == ref:
             return ""
         count = sum(len(signs) for _, signs in ref)

@@ -257,14 +257,16 @@ def interlocking(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int]
 
 
 def topology_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
-                  samples: int = SAMPLES, skew: float = 0.0
+                  samples: int = SAMPLES, skew: float = 0.0, interlock: bool = False
                   ) -> tuple[tuple[int, tuple[int, ...]], ...]:  # fmt: skip
     """The word a relaxation of a pattern must keep (``CellModel.topology_change``), as
     runs (n, signs), with the rows beside it only (``adjacent_rows``). Where the course
     closes by a translation (garter): the cell's ``gauss_word``, every crossing in its
-    order (runs of one), which tells garter from stockinette. Where it closes through a glide (rib): ``interlocking``, since there
-    the knit and purl columns slide behind one another as the fabric draws in."""
-    if parity[0]:
+    order (runs of one), which tells garter from stockinette. Where it closes through a
+    glide (rib), or a row of the cell holds knit and purl stitches (``interlock``, a
+    chart's row, ``Stitch.mixes_row``): ``interlocking``, since there the knit and purl
+    columns slide behind one another as the fabric draws in."""
+    if parity[0] or interlock:
         return interlocking(cp, a_x, a_y, parity, samples, skew)
     word = adjacent_rows(gauss_word(cp, a_x, a_y, parity, samples, adjacent_only=True, skew=skew))
     return tuple((n, (s,)) for n, s in word)

@@ -282,8 +282,9 @@ def _crossings(model: CellModel, x: np.ndarray, skew: float) -> tuple:
     """How the rows of state ``x`` (its wale vector's skew ``skew``, mm) cross one another
     in projection (``topology_word``: the word a relaxation of a pattern must keep), for
     any stitch."""
-    return topology_word(model.control_points(x), x[-2], x[-1], model.stitch.mirror_parity,
-                         skew=skew)  # fmt: skip
+    return topology_word(model.control_points(x), *model.stitch.cell_periods(x),
+                         model.stitch.mirror_parity, skew=skew,
+                         interlock=model.stitch.mixes_row)  # fmt: skip
 
 
 def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettings) -> list[Chain]:

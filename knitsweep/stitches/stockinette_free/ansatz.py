@@ -20,11 +20,14 @@ def _tangent_angles(t: np.ndarray) -> tuple[float, float]:
 
 
 def to_free(cp: np.ndarray, a_x: float, a_y: float) -> np.ndarray:
-    """The free state (87,) of control points ``cp`` (8, 6, 3), mm, periods in mm."""
+    """The free state (87,) of control points ``cp`` (8, 6, 3), mm, periods in mm; of any
+    closed chain (S, 6, 3) the chain's state (``layout.chain_names(S)``: a chart's row)."""
     cp = np.asarray(cp, dtype=float) - cp[0, 0]
-    x = np.empty(layout.N_STATE)
+    n_seg = cp.shape[0]
+    seg0 = layout.chain_seg0(n_seg)
+    x = np.empty(seg0 + layout.PER_SEGMENT * n_seg + 2)
     tangents = []
-    for j in range(layout.N_JOINTS):
+    for j in range(n_seg):
         d1 = cp[j, 1] - cp[j, 0]
         alpha = 5.0 * np.linalg.norm(d1)
         t = d1 / np.linalg.norm(d1)
@@ -39,13 +42,13 @@ def to_free(cp: np.ndarray, a_x: float, a_y: float) -> np.ndarray:
             x[s : s + 3] = cp[j, 0]
             s += 3
         x[s : s + 4] = th, ph, cv @ e_th, cv @ e_ph
-        b = layout.SEG0 + layout.PER_SEGMENT * j
+        b = seg0 + layout.PER_SEGMENT * j
         x[b], x[b + 1] = alpha, beta
         tangents.append(t)
-    for s in range(layout.N_SEGMENTS):
-        t_end = tangents[(s + 1) % layout.N_JOINTS]
-        b = layout.SEG0 + layout.PER_SEGMENT * s
+    for s in range(n_seg):
+        t_end = tangents[(s + 1) % n_seg]
+        b = seg0 + layout.PER_SEGMENT * s
         x[b + 2] = 5.0 * np.linalg.norm(cp[s, 5] - cp[s, 4])
         x[b + 3] = -float((cp[s, 3] - cp[s, 4]) @ t_end)
-    x[layout.IDX_AX], x[layout.IDX_AY] = a_x, a_y
+    x[-2], x[-1] = a_x, a_y
     return x

@@ -37,8 +37,14 @@ import numpy as np
 
 from . import layout
 
-SPEED_ENTRIES = tuple(layout.SEG0 + layout.PER_SEGMENT * s + e
-                      for s in range(layout.N_SEGMENTS) for e in (0, 2))  # fmt: skip
+
+def speed_entries(n_segments: int) -> tuple[int, ...]:
+    """The end speeds α0, α1 of every segment of a closed chain of ``n_segments``."""
+    seg0 = layout.chain_seg0(n_segments)
+    return tuple(seg0 + layout.PER_SEGMENT * s + e for s in range(n_segments) for e in (0, 2))
+
+
+SPEED_ENTRIES = speed_entries(layout.N_SEGMENTS)
 """The end speeds α0, α1 of every segment: the gauge's entries (16)."""
 OFFSET_ENTRIES = tuple(i + 1 for i in SPEED_ENTRIES)
 """The offsets β0, β1 of every segment."""
@@ -91,7 +97,9 @@ def regauge(x: np.ndarray, cp: np.ndarray, L: float) -> np.ndarray:
     """The gauged state (a new array) whose curve interpolates that of state ``x`` (with
     control points ``cp`` (8, 6, 3) in path order) at 8 equal fractions of its arclength,
     G2, with every end speed L/8 and every offset L/40 (module docstring). Joint 0's frame,
-    the periods and every entry after the shape (garter's z0) are kept."""
+    the periods and every entry after the shape (garter's z0) are kept. A chain of S
+    segments (a chart's row of S/8 stitches, ``L`` the length per stitch) is interpolated
+    at S equal fractions, its speeds L/8 as well."""
     x = np.asarray(x, dtype=float)
     out = x.copy()
     cp = np.asarray(cp, dtype=float)
@@ -103,8 +111,9 @@ def regauge(x: np.ndarray, cp: np.ndarray, L: float) -> np.ndarray:
     lengths = np.array([cum[-1] for cum in cums])
     starts = np.concatenate([[0.0], np.cumsum(lengths)])
     total = starts[-1]
-    for j in range(1, layout.N_JOINTS):
-        s = j * total / layout.N_JOINTS
+    n_seg = len(cp)
+    for j in range(1, n_seg):
+        s = j * total / n_seg
         seg = int(np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(cp) - 1))
         t = _parameter_at(cp[seg], cums[seg], s - starts[seg])
         r, r1, r2 = (v[0] for v in _derivatives(cp[seg], [t]))
@@ -119,6 +128,7 @@ def regauge(x: np.ndarray, cp: np.ndarray, L: float) -> np.ndarray:
         e_ph = np.array([-np.sin(phi), np.cos(phi), 0.0])
         out[i : i + 3] = r - cp[0, 0]
         out[i + 3 : i + 7] = theta, phi, float(cv @ e_th), float(cv @ e_ph)
-    out[list(SPEED_ENTRIES)] = L / layout.N_SEGMENTS
-    out[list(OFFSET_ENTRIES)] = L / (5 * layout.N_SEGMENTS)
+    speeds = speed_entries(n_seg)
+    out[list(speeds)] = L / layout.N_SEGMENTS
+    out[[i + 1 for i in speeds]] = L / (5 * layout.N_SEGMENTS)
     return out

@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 
 from ... import kernels  # noqa: F401  (first: it points numba's cache at this version's)
-from .layout import IDX_AX, JOINT0, N_JOINTS, N_SEGMENTS, PER_JOINT, PER_SEGMENT, SEG0
+from .layout import JOINT0, PER_JOINT, PER_SEGMENT
 
 
 @njit(cache=True)
@@ -103,22 +103,58 @@ def closed_control_points(x, cp, jac, mirrored):
     False) or through a glide (True: segment 7 ends at M joint 0 + t_c with joint 0's
     frame mirrored, M = diag(1, 1, -1), as in rib; joint 0 is at the origin, so
     M joint 0 = joint 0)."""
+    chain_control_points(x, cp, jac, mirrored, 1.0)
+
+
+@njit(cache=True)
+def chain_control_points(x, cp, jac, mirrored, cx):
+    """``closed_control_points`` of a closed chain of S = ``cp.shape[0]`` segments (S
+    joints, ``layout.chain_names(S)``), its last segment ending at joint 0 shifted by
+    (cx a_x, 0, 0): a chart's row of cx stitches of period a_x each
+    (``stitches.charts``); cx = 1 and S = 8 is the stitch of ``closed_control_points``."""
+    n_seg = cp.shape[0]
+    seg0 = JOINT0 + PER_JOINT * (n_seg - 1)
     fr = np.empty((8, 3))
     start_slots = np.array([0, 1, 2])
     end_slots = np.array([5, 4, 3])
     jac[:] = 0.0
-    for j in range(N_JOINTS):
+    for j in range(n_seg):
         ia, ip = _joint_frame(x, j, fr)
         s_out = j  # the segment leaving joint j
-        s_in = (j - 1) % N_SEGMENTS  # the segment reaching it
-        b_out = SEG0 + PER_SEGMENT * s_out
-        b_in = SEG0 + PER_SEGMENT * s_in + 2
+        s_in = (j - 1) % n_seg  # the segment reaching it
+        b_out = seg0 + PER_SEGMENT * s_out
+        b_in = seg0 + PER_SEGMENT * s_in + 2
         _half(x, fr, ia, ip, b_out, 1.0, start_slots, cp[s_out], jac[s_out])
         if j == 0 and mirrored:  # the mirrored frame: M t, M cv and their derivatives
             for row in range(1, 8):
                 fr[row, 2] = -fr[row, 2]
         _half(x, fr, ia, ip, b_in, -1.0, end_slots, cp[s_in], jac[s_in])
-    last = N_SEGMENTS - 1
+    last = n_seg - 1
+    iax = seg0 + PER_SEGMENT * n_seg
     for i in (3, 4, 5):
-        cp[last, i, 0] += x[IDX_AX]
-        jac[last, i, 0, IDX_AX] += 1.0
+        cp[last, i, 0] += cx * x[iax]
+        jac[last, i, 0, iax] += cx
+
+
+@njit(cache=True)
+def lifted_control_points(x, cp, jac, cx):
+    """``chain_control_points`` (closing by a translation) of a state whose shape entries
+    are followed by z0, the height of joint 0 above the mirror plane, then the periods:
+    the chain lifted by z0 (garter's state, ``garter.layout``; a chart whose rows are
+    mirrored, ``stitches.charts``)."""
+    nf = x.shape[0] - 3  # shape entries
+    xf = np.empty(nf + 2)
+    xf[:nf] = x[:nf]
+    xf[nf] = x[nf + 1]
+    xf[nf + 1] = x[nf + 2]
+    jf = np.empty((cp.shape[0], 6, 3, nf + 2))
+    chain_control_points(xf, cp, jf, False, cx)
+    for s in range(cp.shape[0]):
+        for i in range(6):
+            cp[s, i, 2] += x[nf]
+            for c in range(3):
+                for k in range(nf):
+                    jac[s, i, c, k] = jf[s, i, c, k]
+                jac[s, i, c, nf] = 1.0 if c == 2 else 0.0
+                jac[s, i, c, nf + 1] = jf[s, i, c, nf]
+                jac[s, i, c, nf + 2] = jf[s, i, c, nf + 1]

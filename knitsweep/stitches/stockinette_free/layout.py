@@ -41,20 +41,29 @@ IDX_AY = N_STATE - 1
 
 
 def joint_start(j: int) -> int:
-    """Index of joint j's first entry: θ for joint 0, p_x for joints 1..7."""
+    """Index of joint j's first entry: θ for joint 0, p_x for joints 1..7 (of any chain:
+    the joints come first, ``chain_seg0``)."""
     return 0 if j == 0 else JOINT0 + PER_JOINT * (j - 1)
 
 
-def _names() -> tuple[str, ...]:
+def chain_seg0(n_segments: int) -> int:
+    """First segment entry of a closed chain of ``n_segments`` (its joints' entries before)."""
+    return JOINT0 + PER_JOINT * (n_segments - 1)
+
+
+def chain_names(n_segments: int) -> tuple[str, ...]:
+    """Name of every entry of a closed chain of ``n_segments`` quintics (this module's
+    layout with as many joints as segments; a chart's row of stitches,
+    ``stitches.charts``)."""
     names = ["theta0", "phi0", "k1_0", "k2_0"]
-    for j in range(1, N_JOINTS):
+    for j in range(1, n_segments):
         names += [f"px{j}", f"py{j}", f"pz{j}", f"theta{j}", f"phi{j}", f"k1_{j}", f"k2_{j}"]
-    for s in range(N_SEGMENTS):
+    for s in range(n_segments):
         names += [f"alpha0_{s}", f"beta0_{s}", f"alpha1_{s}", f"beta1_{s}"]
     return (*names, "a_x", "a_y")
 
 
-STATE_NAMES = _names()
+STATE_NAMES = chain_names(N_SEGMENTS)
 """Name of every state entry, in order."""
 
 SEGMENT_WEIGHTS = np.ones(N_SEGMENTS)
@@ -94,23 +103,35 @@ def state_bounds(L: float, r: float, sampling: str = "parameter") -> tuple[np.nd
     periods in [r/2, L]; speeds in ``SPEED_BOUNDS`` L and offsets within ``OFFSET_BOUND`` L
     (the box that keeps samples at fixed parameters resolved), or with samples placed by
     arclength (``sampling`` "arclength" or "yarn_arclength") in ``ARCLENGTH_SPEED_BOUNDS`` L and within ``ARCLENGTH_OFFSET_BOUND`` L."""
+    return chain_bounds(N_SEGMENTS, 1, L, r, sampling)
+
+
+def chain_bounds(n_segments: int, stitches: int, L: float, r: float,
+                 sampling: str = "parameter") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """``state_bounds`` of a closed chain of ``n_segments`` through ``stitches`` stitches of
+    yarn length L each (a chart's row, ``stitches.charts``): joint points within the row's
+    yarn (stitches × L) of joint 0, speeds and offsets in units of L and periods (per
+    stitch) as ``state_bounds``'s."""
     speeds, offset = SPEED_BOUNDS, OFFSET_BOUND
     if sampling != "parameter":  # "arclength" or "yarn_arclength"
         speeds, offset = ARCLENGTH_SPEED_BOUNDS, ARCLENGTH_OFFSET_BOUND
-    lo = np.full(N_STATE, -np.inf)
-    hi = np.full(N_STATE, np.inf)
-    for j in range(N_JOINTS):
+    n = chain_seg0(n_segments) + PER_SEGMENT * n_segments + 2
+    reach = stitches * L
+    lo = np.full(n, -np.inf)
+    hi = np.full(n, np.inf)
+    for j in range(n_segments):
         s = joint_start(j)
         if j > 0:
-            lo[s : s + 3], hi[s : s + 3] = -L, L
+            lo[s : s + 3], hi[s : s + 3] = -reach, reach
             s += 3
         lo[s + 2 : s + 4], hi[s + 2 : s + 4] = -10.0 / r, 10.0 / r
-    for s in range(N_SEGMENTS):
-        b = SEG0 + PER_SEGMENT * s
+    seg0 = chain_seg0(n_segments)
+    for s in range(n_segments):
+        b = seg0 + PER_SEGMENT * s
         for i in (b, b + 2):
             lo[i], hi[i] = speeds[0] * L, speeds[1] * L
         for i in (b + 1, b + 3):
             lo[i], hi[i] = -offset * L, offset * L
-    lo[IDX_AX] = lo[IDX_AY] = 0.5 * r
-    hi[IDX_AX] = hi[IDX_AY] = L
+    lo[n - 2] = lo[n - 1] = 0.5 * r
+    hi[n - 2] = hi[n - 1] = L
     return lo, hi
