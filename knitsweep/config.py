@@ -34,7 +34,7 @@ from pydantic import (
 
 from .errors import InputError as InputError  # the settings' error, re-exported
 from .paths import check_path, load_path
-from .stitches import DEFAULT_STITCH, STITCH_CHOICES, unknown_stitch
+from .stitches import DEFAULT_STITCH, STITCH_CHOICES, check_stitch_name, unknown_stitch
 from .util.plain_values import plain_value
 
 STRICT = ConfigDict(
@@ -56,11 +56,12 @@ def _known_stitch(v: str) -> str:
     why = unknown_stitch(v)
     if why is not None:
         raise ValueError(why)
-    return v
+    return check_stitch_name(v)  # a chart's canonical spelling
 
 
 StitchName = Annotated[str, AfterValidator(_known_stitch)]
-"""The name of a stitch knitsweep knows (``knitsweep.stitches.STITCH_NAMES``)."""
+"""The name of a stitch knitsweep knows (``knitsweep.stitches.STITCH_NAMES``, or a chart's,
+``chart:KKPP``, in its canonical spelling)."""
 
 
 def within(lo: float, hi: float, *, open_lo: bool = False, unit: str = ""):

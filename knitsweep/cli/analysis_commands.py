@@ -10,6 +10,7 @@ import typer
 
 from .common import (
     BOpt,
+    ChartOpt,
     ConfigOpt,
     JsonOpt,
     KOpt,
@@ -27,6 +28,7 @@ from .common import (
     option,
     stitch_inputs,
     user_errors,
+    with_chart,
 )
 
 ThresholdOpt = Annotated[
@@ -138,7 +140,7 @@ def render(
                             default="without --results: the stitch relaxed at the parameters")
     ] = None,
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
-    r_core: RcOpt = None, stitch: StitchOpt = None, config: ConfigOpt = None,
+    r_core: RcOpt = None, stitch: StitchOpt = None, chart: ChartOpt = None, config: ConfigOpt = None,
     preset: PresetOpt = None,
     starts: Annotated[int, option("--starts", help="starts per point (relaxing: neither "
                                   "--state nor --results)", default="1")] = 1,
@@ -172,6 +174,7 @@ def render(
     from ..report import render as rendering
 
     with user_errors():
+        stitch = with_chart(stitch, chart)
         params = None
         flags = {"L": L, "B": B, "k": k, "p": p, "r": r, "r_core": r_core, "stitch": stitch}
         given = [f"--{n.replace('_', '-')}" for n, v in {**flags, "config": config}.items()

@@ -97,10 +97,28 @@ NodesOpt = Annotated[int | None, option("--quadrature-nodes", help="Gauss–Lege
                                         "segment", default="32")]  # fmt: skip
 ImagesOpt = Annotated[str | None, option("--images", help="periodic images: cutoff (all that "
                                          "touch) or reference", default="cutoff")]  # fmt: skip
-STITCH_HELP = f"stitch pattern: {STITCH_CHOICES}"
+STITCH_HELP = f"stitch pattern: {STITCH_CHOICES}, or a knit/purl chart as chart:KKPP"
 """The help of every --stitch option, built from the stitch registry."""
 StitchOpt = Annotated[str | None, option("--stitch", help=STITCH_HELP,
                                          default=DEFAULT_STITCH)]  # fmt: skip
+ChartOpt = Annotated[str | None, option(
+    "--chart", help="a knit/purl chart instead of --stitch: rows of K and P, bottom row first, "
+    "separated by / (KKPP: 2x2 rib; KP/PK: seed)", default="none")]  # fmt: skip
+
+
+def with_chart(stitch: str | None, chart: str | None) -> str | None:
+    """The stitch of a command given ``--stitch`` and ``--chart`` (a chart's stitch name,
+    ``chart:KKPP``); InputError if both are given or the chart is not one."""
+    if chart is None:
+        return stitch
+    from ..errors import InputError
+    from ..stitches.chart import chart_stitch_names
+
+    if stitch is not None:
+        raise InputError(f"--chart {chart} and --stitch {stitch}: give one of them")
+    return chart_stitch_names(chart, "--chart")[0]
+
+
 PresetOpt = Annotated[str | None, option("--preset", help="fidelity preset: draft, paper, "
                                          "converged or fine", default="converged")]  # fmt: skip
 ConfigOpt = Annotated[

@@ -12,6 +12,7 @@ from ..paths import load_path
 from .common import (
     RELAX_UNITS,
     BOpt,
+    ChartOpt,
     ConfigOpt,
     ImagesOpt,
     JsonOpt,
@@ -32,6 +33,7 @@ from .common import (
     option,
     stitch_inputs,
     user_errors,
+    with_chart,
 )
 
 
@@ -39,7 +41,7 @@ from .common import (
 def energy(
     state: Annotated[Path, typer.Option("--state", help="a state (Init) file: one number a line, 30 for stockinette")],
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
-    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
+    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None, chart: ChartOpt = None,
     samples: SamplesOpt = None,
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     as_json: JsonOpt = False,
@@ -50,6 +52,7 @@ def energy(
     from ..model import CellModel
 
     with user_errors():
+        stitch = with_chart(stitch, chart)
         params, fidelity = stitch_inputs(
             config, L=L, B=B, k=k, p=p, r=r, r_core=r_core, regularization=regularization,
             stitch=stitch, samples=samples, quadrature_nodes=quadrature_nodes, images=images,
@@ -85,7 +88,7 @@ FtolOpt = Annotated[float | None, option("--ftol", help="precision goal on the e
 def relax(
     state: StateOpt = None,
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
-    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
+    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None, chart: ChartOpt = None,
     samples: SamplesOpt = None,
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     preset: PresetOpt = None, ftol: FtolOpt = None, starts: StartsOpt = None, seed: SeedOpt = 0,
@@ -109,6 +112,7 @@ def relax(
     from ..util.safe_files import check_writable
 
     with user_errors():
+        stitch = with_chart(stitch, chart)
         check_seed(seed)
         if out is not None:
             check_writable(out, "--out")  # before the relaxation, not after
@@ -159,7 +163,7 @@ def relax(
 def sweep(
     direction: Annotated[str, typer.Option("--direction", help="load path: x or y (uniaxial), biaxial, strip_x, strip_y, shear, shear_free (free yarns), or ray:<rate_x>,<rate_y> with an optional ,<rate_xy> (free yarns)")],
     L: LOpt = None, B: BOpt = None, k: KOpt = None, p: POpt = None, r: ROpt = None,
-    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None,
+    r_core: RcOpt = None, regularization: RegOpt = None, stitch: StitchOpt = None, chart: ChartOpt = None,
     samples: SamplesOpt = None,
     quadrature_nodes: NodesOpt = None, images: ImagesOpt = None, config: ConfigOpt = None,
     preset: PresetOpt = None, ftol: FtolOpt = None, starts: StartsOpt = None, seed: SeedOpt = 0,
@@ -197,6 +201,7 @@ def sweep(
     from ..util.safe_files import check_writable
 
     with user_errors():
+        stitch = with_chart(stitch, chart)
         check_seed(seed)
         try:
             load_path(direction)

@@ -24,8 +24,9 @@ from pydantic import (
     model_validator,
 )
 
-from ..errors import describe_validation_error
-from ..stitches import STITCH_CHOICES, unknown_stitch
+from ..errors import InputError, describe_validation_error
+from ..stitches import STITCH_CHOICES, check_stitch_name, unknown_stitch
+from ..stitches.chart import chart_stitch_names
 
 _STRICT = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, strict=True)
 MAX_POINTS = 1_000_000
@@ -132,6 +133,24 @@ class Grid(BaseModel):
         default_factory=list, description="groups of axes that vary together, not crossed"
     )
 
+    @model_validator(mode="before")
+    @classmethod
+    def _charts_are_stitches(cls, data: Any) -> Any:
+        """``chart``: a knit/purl chart (rows of K and P, bottom first) or a list of
+        charts, each one more stitch of the axis ``stitch`` (``chart:KKPP``,
+        ``stitches.chart``)."""
+        if not isinstance(data, dict) or "chart" not in data:
+            return data
+        data = dict(data)
+        try:
+            charts = chart_stitch_names(data.pop("chart"), "grid.chart")
+        except InputError as e:
+            raise ValueError(str(e)) from None
+        given = data.get("stitch")
+        stitches = [] if given is None else [given] if isinstance(given, str) else list(given)
+        data["stitch"] = [*stitches, *charts]
+        return data
+
     @field_validator("stitch", mode="before")
     @classmethod
     def _parse_stitches(cls, v: Any) -> Any:
@@ -146,6 +165,7 @@ class Grid(BaseModel):
             why = unknown_stitch(name)
             if why is not None:
                 raise ValueError(f"{name!r} is not a stitch: {why}")
+        names = [check_stitch_name(name) for name in names]  # charts spelled canonically
         if len(set(names)) != len(names):
             raise ValueError("repeated values")
         return tuple(names)

@@ -46,6 +46,7 @@ from ..errors import MAX_SEED, describe_validation_error
 from ..paths import check_path_for_stitch
 from ..presets import DEFAULT_PRESET, PRESETS, preset_sections
 from ..stitches import DEFAULT_STITCH, STITCH_CHOICES, get_stitch
+from ..stitches.chart import chart_stitch_names
 from ..util.safe_files import read_text
 from .grid import MAX_POINTS, Grid
 from .id_forms import FIDELITY_FORMS, PARAMS_FORMS, STARTS_FORMS, id_form, protocol_id_form
@@ -185,6 +186,28 @@ class JobSpec(BaseModel):
         if not isinstance(name, str) or name not in PRESETS:
             return data  # reported by the field validator below
         return {**data, **preset_sections(name, data)}
+
+    @model_validator(mode="before")
+    @classmethod
+    def _chart_is_the_stitch(cls, data: Any) -> Any:
+        """``chart = ["KKPP"]``: the stitch of every point is that knit/purl chart
+        (``chart:KKPP``; several charts: ``[grid] chart``)."""
+        if not isinstance(data, dict) or "chart" not in data:
+            return data
+        data = dict(data)
+        chart = data.pop("chart")
+        if "stitch" in data:
+            raise ValueError(f"chart = {chart!r} and stitch = {data['stitch']!r}: give the "
+                             "stitch in one place")  # fmt: skip
+        try:
+            names = chart_stitch_names(chart, "chart")
+        except InputError as e:
+            raise ValueError(str(e)) from None
+        if len(names) > 1:
+            raise ValueError("chart: one chart here; several charts are a grid axis: "
+                             "[grid] chart = [[...], [...]]")  # fmt: skip
+        data["stitch"] = names[0]
+        return data
 
     @field_validator("schema_version")
     @classmethod

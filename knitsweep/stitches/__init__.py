@@ -35,25 +35,29 @@ def unknown_stitch(name: object) -> str | None:
         return None
     if chart.is_chart_name(name):
         try:
-            chart.check_chart_name(name)  # type: ignore[arg-type]
+            chart.check_chart_name(name, "chart")  # type: ignore[arg-type]
         except InputError as e:
-            return f"not a chart: {str(e).split(': ', 1)[-1]}"
+            return str(e)
         return None
     return f"must be one of {STITCH_CHOICES}, or a knit/purl chart as chart:KKPP"
 
 
 def check_stitch_name(name: object, field: str = "stitch") -> str:
-    """``name`` if it names a stitch; InputError naming ``field`` and listing the
-    registered ones otherwise."""
+    """``name`` if it names a stitch (a chart's in its canonical spelling,
+    ``chart.chart_name``); InputError naming ``field`` and listing the registered ones
+    otherwise."""
     why = unknown_stitch(name)
     if why is not None:
         raise InputError(f"{field} = {name!r}: {why}")
+    if chart.is_chart_name(name):
+        return chart.check_chart_name(name)  # type: ignore[arg-type]
     return name  # type: ignore[return-value]
 
 
 def get_stitch(name: str = DEFAULT_STITCH) -> Stitch:
     """The stitch called ``name`` (its layout only: the geometry kernel loads on first
     use); a chart's (``chart:`` and its rows) built once."""
+    name = check_stitch_name(name)
     if chart.is_chart_name(name):
-        return chart.chart_stitch(chart.check_chart_name(name))
-    return importlib.import_module(f"{__name__}.{check_stitch_name(name)}").STITCH
+        return chart.chart_stitch(name)
+    return importlib.import_module(f"{__name__}.{name}").STITCH

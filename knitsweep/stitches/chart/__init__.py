@@ -105,6 +105,22 @@ def row_and_parity(rows: tuple[str, ...], field: str = "chart") -> tuple[str, in
                      "several yarns, not supported yet")  # fmt: skip
 
 
+def chart_stitch_names(value: object, field: str = "chart") -> list[str]:
+    """The stitch names of a job's ``chart`` entry: one chart (a list of rows, or one
+    string) or several (a list of charts, each a list of rows); InputError naming
+    ``field`` (with the chart's number among several) and what is wrong."""
+    if isinstance(value, list) and value and all(isinstance(c, list) for c in value):
+        charts = [(c, f"{field}[{i}]") for i, c in enumerate(value)]
+    else:
+        charts = [(value, field)]
+    names = []
+    for chart, where in charts:
+        rows = parse_chart(chart, where)
+        row_and_parity(rows, where)
+        names.append(chart_name(rows))
+    return names
+
+
 def chart_name(rows: Sequence[str]) -> str:
     """The stitch name of a chart (``PREFIX`` and its rows)."""
     return PREFIX + ROW_SEPARATOR.join(rows)
