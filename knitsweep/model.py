@@ -241,7 +241,8 @@ class CellModel:
         x = self._as_state(x)
         return check_start(self.control_points(x), *self.stitch.cell_periods(x), ip.r, ip.rc,
                            self.stitch.mirror_parity, label, self.fidelity.samples_per_segment,
-                           compiled=False, arc_rule=self._aq)  # fmt: skip
+                           compiled=False, arc_rule=self._aq,
+                           segment_names=self.stitch.segment_names)  # fmt: skip
 
     def min_zeta(self, x: np.ndarray) -> float:
         """Smallest compression zeta over all counted contacts (1.0 if none);

@@ -176,6 +176,12 @@ class Stitch:
         return self.n_state - 1
 
     @property
+    def segment_names(self) -> tuple[str, ...] | None:
+        """What a message calls each segment (None: "segment s"; a chart names its
+        stitch)."""
+        return None
+
+    @property
     def mixes_row(self) -> bool:
         """Whether a row of the fabric holds knit and purl stitches (its columns mirrored:
         rib, seed; a chart's row of both), whose columns slide behind one another

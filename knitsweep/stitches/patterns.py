@@ -157,20 +157,24 @@ def check_start(
     samples=10,
     compiled=True,
     arc_rule=None,
+    segment_names=None,
 ) -> float:
     """min ζ of a starting state; InputError naming where if the hard cores overlap.
     ``compiled=False``: by ``min_zeta_where_reference`` (the same ζ, bit for bit, without
     compiling the check's kernel: what a command checking one start before it compiles
     anything uses), unless the samples sit by arclength (a non-empty ``arc_rule``, as in
-    ``min_zeta_where``), which only the compiled check places."""
+    ``min_zeta_where``), which only the compiled check places. ``segment_names``: what
+    the message calls each segment (``Stitch.segment_names``)."""
     if arc_rule is not None and arc_rule.shape[1] > 0:
         z, image, sa, sb = min_zeta_where(cp, a_x, a_y, r, r_core, parity, samples, arc_rule)
     else:
         where = min_zeta_where if compiled else min_zeta_where_reference
         z, image, sa, sb = where(cp, a_x, a_y, r, r_core, parity, samples)
     if not z > MIN_ZETA:
+        a, b = (f"segment {sa}", f"segment {sb}") if segment_names is None else (
+            segment_names[sa], segment_names[sb])  # fmt: skip
         raise InputError(f"{label} = overlapping yarn: min zeta {z:.3g} <= {MIN_ZETA:g} between "
-                         f"segment {sa} of the cell and segment {sb} of its image {image}: "
+                         f"{a} of the cell and {b} of its image {image}: "
                          f"a start must keep the hard cores apart")  # fmt: skip
     return z
 

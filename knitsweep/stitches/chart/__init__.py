@@ -96,9 +96,8 @@ def row_and_parity(rows: tuple[str, ...], field: str = "chart") -> tuple[str, in
         return first, 0
     if len(rows) % 2 == 0 and all(r == (first if i % 2 == 0 else back) for i, r in enumerate(rows)):
         return first, 1
-    bad = next(i for i, r in enumerate(rows) if r != (back if i % 2 else first))
-    if bad == 0:  # alternating to the last row, but an odd number of rows
-        bad = len(rows) - 1
+    # the first row that breaks the alternation, else the last (an odd number of rows)
+    bad = next((i for i, r in enumerate(rows) if r != (back if i % 2 else first)), len(rows) - 1)
     raise InputError(f"{field} row {bad + 1} = {rows[bad]!r}: the rows of a chart here are "
                      f"its first row, {first!r}, repeated, or alternating with its purl image "
                      f"{back!r} over an even number of rows; other charts need a cell of "
@@ -159,6 +158,13 @@ class ChartStitch(Stitch):
     @property
     def mixes_row(self) -> bool:
         return "K" in self.row and "P" in self.row
+
+    @property
+    def segment_names(self) -> tuple[str, ...]:
+        """Segment s of the cell as "segment s (stitch c of the row, K or P)"."""
+        per = SEGMENTS_PER_STITCH
+        return tuple(f"segment {s} (stitch {s // per + 1} of the row, {self.row[s // per]})"
+                     for s in range(self.n_segments))  # fmt: skip
 
     def shipped_starts(self) -> tuple[np.ndarray, ...]:
         starts = self._loaded.get("starts")
@@ -246,7 +252,7 @@ def chart_stitch(name: str) -> ChartStitch:
         segment_weights=np.ones(n_seg),
         bounds=_bounds(n_seg, c, lifted),
         twist_index=None,
-        starts=src.starts,
+        starts=tuple(f"{source}'s {name}" for name in src.starts),
         data_package=src.data_package,
         geometry_module="knitsweep.stitches.chart.geometry",
         images="glides",
