@@ -201,3 +201,33 @@ def test_chart_in_a_job_file(tmp_path):
     same.write_text(base + '[grid]\nL_mm = 11.6\nstitch = "chart:KP"\nchart = [["kp"]]\n')
     with pytest.raises(InputError, match="repeated"):
         load_job(same)
+
+
+def test_two_by_two_rib_rearranges_its_crossings_but_keeps_the_rows_linking(data_dir):
+    """2x2 rib relaxed at 11.6 mm (k = 0.1; stored): its knit ribs fold over its purl
+    ribs, the crossings with the rows beside it rearranged (the interlocking word of its
+    start is not kept: pairs of crossings appear), but every row's linking with the cell's
+    is its start's; lifting one segment through the yarn it passes under changes it."""
+    from knitsweep.formats import read_state
+    from knitsweep.stitches.topology import crossings, linking_sums, stitch_topology, topology_word
+
+    m = _model("chart:KKPP")
+    x = read_state(data_dir / "chart_KKPP_L11.6_k0.1.dat", "chart:KKPP")
+    x1 = m.stitch.start(1)
+    assert m.stitch.keeps_linking and not _model("chart:KPKP").stitch.keeps_linking
+    cp, cp1 = m.control_points(x), m.control_points(x1)
+    periods, periods1 = m.stitch.cell_periods(x), m.stitch.cell_periods(x1)
+    word = topology_word(cp, *periods, interlock=True)
+    assert word != topology_word(cp1, *periods1, interlock=True)
+    assert stitch_topology(m.stitch, cp, x) == stitch_topology(m.stitch, cp1, x1)
+    assert m.topology_change(x) == ""
+    heights, along = [], []
+    crossings(cp, *periods, heights=heights, along=along)
+    # a segment under a strand of the row above once, lifted 5 mm over everything
+    under = [(int(a // 48), n) for (a, n, _), (_, _, za, zb) in zip(along, heights, strict=True)
+             if n == 1 and za < zb]  # fmt: skip
+    seg = next(s for s, _ in under if sum(1 for t, _ in under if t == s) == 1)
+    lifted = cp.copy()
+    lifted[seg, :, 2] += 5.0
+    before, after = dict(linking_sums(cp, *periods)), dict(linking_sums(lifted, *periods))
+    assert abs(after.get(1, 0) - before.get(1, 0)) == 2

@@ -75,10 +75,11 @@ def _view_matrix(elevation_deg: float, azimuth_deg: float, side: str = "face") -
 
 
 def default_cells(stitch: Stitch) -> tuple[int, int]:
-    """(stitches across, rows): two repeats of the pattern (``Stitch.repeat``) each
-    way, at least 3 (the paper's Fig. 1a: 3 × 3 stockinette stitches)."""
+    """(cells across, rows): two repeats of the pattern (``Stitch.repeat``) each
+    way, at least 3 stitches (the paper's Fig. 1a: 3 × 3 stockinette stitches; a chart's
+    cell holds a row of several)."""
     along, rows = stitch.repeat
-    return max(3, 2 * along), max(3, 2 * rows)
+    return max(-(-3 // stitch.closing_shift[0]), 2 * along), max(3, 2 * rows)
 
 
 def _cells(cells: int | tuple[int, int]) -> tuple[int, int]:
@@ -236,7 +237,7 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int | tuple[int, int] | 
     box = window(stitch, (nx, ny), view)
     image = shade_tile(stitch, (nx, ny), r, view, box, width_px, highlight)
     what = "cores (r_core)" if core and radius is None else "yarn"
-    note = (f"{nx} × {ny} stitches, {side} side; {what} drawn at radius {r:.3g} mm; "
+    note = (f"{nx * stitch.closing_shift[0]} × {ny} stitches, {side} side; {what} drawn at radius {r:.3g} mm; "
             "one colour per row") + ("; saturated: one unit cell" if highlight else "")  # fmt: skip
     if stitch.label.startswith(FROM_FILE):
         note = f"{stitch.label}\n{note}"

@@ -182,6 +182,13 @@ class Stitch:
         return None
 
     @property
+    def keeps_linking(self) -> bool:
+        """Whether a relaxation keeps the rows' linking rather than their crossings
+        (``topology.stitch_topology``): a chart's row of knit and purl stitches with two
+        of a kind side by side, whose knit ribs fold over its purl ribs."""
+        return False
+
+    @property
     def mixes_row(self) -> bool:
         """Whether a row of the fabric holds knit and purl stitches (its columns mirrored:
         rib, seed; a chart's row of both), whose columns slide behind one another

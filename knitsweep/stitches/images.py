@@ -49,7 +49,7 @@ from ..kernels.mirrored import (
 from ..kernels.neighbours import NO_LIST, build_neighbour_list
 from ..kernels.pattern_cell import pattern_cell_energy
 from .patterns import min_zeta_where
-from .topology import TOPOLOGY_CHANGED, topology_word
+from .topology import TOPOLOGY_CHANGED, stitch_topology
 
 
 def _nothing() -> None:
@@ -237,19 +237,22 @@ class Glides(Translations):
 
     def topology_change(self, m, x) -> str:
         """ "" if state ``x`` shows the crossings of the stitch's first shipped start
-        (``topology.topology_word``: their order for garter, the rows' interlocking for
-        rib; docs/model.md §11), else what changed."""
+        (``topology.stitch_topology``: their order for garter, the rows' interlocking for
+        rib, the linking of the rows for a chart whose knit ribs fold over its purl ribs;
+        docs/model.md §11), else what changed."""
         stitch = m.stitch
         ref = stitch._loaded.get("topology_word")
         if ref is None:
             x1 = stitch.start(1)
-            ref = topology_word(m.control_points(x1), *stitch.cell_periods(x1), self.parity,
-                                interlock=stitch.mixes_row)  # fmt: skip
+            ref = stitch_topology(stitch, m.control_points(x1), x1)
             stitch._loaded["topology_word"] = ref
-        got = topology_word(m.control_points(x), *stitch.cell_periods(x), self.parity,
-                            skew=m.skew, interlock=stitch.mixes_row)  # fmt: skip
+        got = stitch_topology(stitch, m.control_points(x), x, m.skew)
         if got == ref:
             return ""
+        if stitch.keeps_linking:
+            return (f"{TOPOLOGY_CHANGED}: the oriented crossings with the other rows sum to "
+                    f"{_sums(got)} (row offset: sum), the {stitch.name} stitch's to "
+                    f"{_sums(ref)}: a yarn passed through another")  # fmt: skip
         count = sum(len(signs) for _, signs in ref)
         return (f"{TOPOLOGY_CHANGED}: the rows cross in projection as {_runs(got)} (row offset: "
                 f"signs), the {stitch.name} stitch has {count} crossings as "
@@ -287,6 +290,11 @@ def image_group(stitch) -> Translations:
     if stitch.images == "glides":
         return Glides(stitch.mirror_parity)
     raise ValueError(f"stitch {stitch.name}: images = {stitch.images!r}, not an image group")
+
+
+def _sums(sums) -> str:
+    """``topology.linking_sums`` in one line."""
+    return " ".join(f"{n:+d}:{v:+d}" for n, v in sums) or "0 with every row"
 
 
 def _runs(word) -> str:

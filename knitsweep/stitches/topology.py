@@ -270,3 +270,60 @@ def topology_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int
         return interlocking(cp, a_x, a_y, parity, samples, skew)
     word = adjacent_rows(gauss_word(cp, a_x, a_y, parity, samples, adjacent_only=True, skew=skew))
     return tuple((n, (s,)) for n, s in word)
+
+
+def linking_sums(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
+                 samples: int = SAMPLES, skew: float = 0.0) -> tuple[tuple[int, int], ...]:  # fmt: skip
+    """Per other row n (n != 0, every row the cell's yarn can reach in projection): the
+    sum over the cell's crossings in projection with that row's yarn (its images (m, n),
+    every m) of their oriented signs, over/under (+1 where the cell's strand is on top)
+    times the handedness of the strands' directions in the plane (the z component of
+    d_cell × d_image), as ((n, sum), ...) for the rows with a crossing.
+
+    Two rows are two yarns, and this is their linking in projection: a pair of crossings
+    that appears or vanishes as strands slide over one another (a Reidemeister II move:
+    one strand on top at both, the directions crossing opposite ways) or a crossing that
+    slides past another (III) leaves it as it was; a strand passing through another flips
+    one crossing and changes the sum by 2. So it is what a relaxation must keep where the
+    crossings themselves may rearrange: a chart's knit ribs folding over its purl ribs
+    (``Stitch.keeps_linking``). The cell's crossings with its own row (one yarn) are left
+    out: a loop forming in projection (I) changes their sum."""
+    pts = _polyline(np.asarray(cp, dtype=float), samples)
+    p0, p1 = pts[:-1], pts[1:]
+    d = p1 - p0
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    reach_y = math.ceil((hi[1] - lo[1]) / a_y)
+    out: Counter = Counter()
+    for n in range(-reach_y, reach_y + 1):
+        if n == 0:
+            continue
+        reach_x = math.ceil((hi[0] - lo[0] + abs(n * skew)) / a_x) + 1
+        for m in range(-reach_x, reach_x + 1):
+            q0 = image_points(p0, m, n, a_x, a_y, parity, skew)
+            q1 = image_points(p1, m, n, a_x, a_y, parity, skew)
+            e = q1 - q0
+            i_idx, j_idx = _near_pieces(p0, p1, q0, q1)
+            w = q0[j_idx, :2] - p0[i_idx, :2]
+            di, ej = d[i_idx], e[j_idx]
+            den = di[:, 0] * ej[:, 1] - di[:, 1] * ej[:, 0]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = (w[:, 0] * ej[:, 1] - w[:, 1] * ej[:, 0]) / den
+                u = (w[:, 0] * di[:, 1] - w[:, 1] * di[:, 0]) / den
+            hit = (np.abs(den) > 1e-14) & (s >= 0) & (s < 1) & (u >= 0) & (u < 1)
+            za = p0[i_idx, 2] + s * d[i_idx, 2]
+            zb = q0[j_idx, 2] + u * e[j_idx, 2]
+            sign = np.where(za > zb, 1, -1) * np.where(den > 0, 1, -1)
+            out[n] += int(sign[hit].sum())
+    return tuple(sorted((n, v) for n, v in out.items() if v))
+
+
+def stitch_topology(stitch, cp: np.ndarray, x: np.ndarray, skew: float = 0.0) -> tuple:
+    """What a relaxation of ``stitch`` (a ``Stitch``) at state ``x`` (control points
+    ``cp``) must keep: ``linking_sums`` where its knit ribs may fold over its purl ribs
+    (``Stitch.keeps_linking``: a chart's row with knit and purl stitches and two of a
+    kind side by side), else ``topology_word``."""
+    a_x, a_y = stitch.cell_periods(x)
+    if stitch.keeps_linking:
+        return linking_sums(cp, a_x, a_y, stitch.mirror_parity, skew=skew)
+    return topology_word(cp, a_x, a_y, stitch.mirror_parity, skew=skew,
+                         interlock=stitch.mixes_row)  # fmt: skip

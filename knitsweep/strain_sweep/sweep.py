@@ -42,7 +42,7 @@ from ..paths import load_path
 from ..quantities import registered
 from ..relax import Chain, Relaxation, Relaxer, merge_chains, single_threaded
 from ..relax.zero_force import ZeroForce, pick_lowest, relax_at_rest, zero_force
-from ..stitches.topology import topology_word
+from ..stitches.topology import stitch_topology
 from .rest_skew import relax_skew
 from .result import SweepResult, centred_stress
 from .schedule import StepControl, observables_determined
@@ -280,11 +280,9 @@ def _lower_rest(model, zero, start, step, direction, strain, fall, solver, toler
 
 def _crossings(model: CellModel, x: np.ndarray, skew: float) -> tuple:
     """How the rows of state ``x`` (its wale vector's skew ``skew``, mm) cross one another
-    in projection (``topology_word``: the word a relaxation of a pattern must keep), for
+    in projection (``topology.stitch_topology``: what a relaxation of a pattern must keep), for
     any stitch."""
-    return topology_word(model.control_points(x), *model.stitch.cell_periods(x),
-                         model.stitch.mirror_parity, skew=skew,
-                         interlock=model.stitch.mixes_row)  # fmt: skip
+    return stitch_topology(model.stitch, model.control_points(x), x, skew)
 
 
 def _start_chains(zero: ZeroForce, merged_into: np.ndarray, solver: SolverSettings) -> list[Chain]:

@@ -160,6 +160,12 @@ class ChartStitch(Stitch):
         return "K" in self.row and "P" in self.row
 
     @property
+    def keeps_linking(self) -> bool:
+        row = self.row
+        twins = any(row[i] == row[i - 1] for i in range(len(row)))  # cyclically
+        return self.mixes_row and twins
+
+    @property
     def segment_names(self) -> tuple[str, ...]:
         """Segment s of the cell as "segment s (stitch c of the row, K or P)"."""
         per = SEGMENTS_PER_STITCH
