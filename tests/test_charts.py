@@ -231,3 +231,21 @@ def test_two_by_two_rib_rearranges_its_crossings_but_keeps_the_rows_linking(data
     lifted[seg, :, 2] += 5.0
     before, after = dict(linking_sums(cp, *periods)), dict(linking_sums(lifted, *periods))
     assert abs(after.get(1, 0) - before.get(1, 0)) == 2
+
+
+@pytest.mark.parametrize("chart", ["chart:KKP", "chart:KK-PP"])
+def test_chart_contact_forces_are_the_per_stitch_energys_derivatives(chart):
+    """Summed over the classes, the contact forces on the periods are −dE_c/da per stitch
+    at fixed shape (central differences of the per-stitch E_c), and the classes' energies
+    add up to E_c per stitch."""
+    m = _model(chart)
+    x = m.gauged(m.stitch.start(1))
+    forces, energies = m.contacts_by_class(x)
+    assert energies.sum() == pytest.approx(m.energies(x).contact_energy, rel=1e-10)
+    h = 1e-6
+    for k, col in ((-2, 0), (-1, 1)):
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        fd = -(m.energies(xp).contact_energy - m.energies(xm).contact_energy) / (2 * h)
+        assert forces[:, col].sum() == pytest.approx(fd, rel=1e-5, abs=1e-9), col

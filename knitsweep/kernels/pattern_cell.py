@@ -14,8 +14,8 @@ from .mirrored import N_MIRROR_CLASSES, mirrored_contact_energy
 
 
 @njit(cache=True)
-def pattern_cell_energy(cp, jac, ax, ay, sx, cx, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc, k, p, pm,
-                        pn, gauge_rule, gauge_stiffness, with_grad, grad_e, grad_l):  # fmt: skip
+def pattern_cell_energy(cp, jac, ax, ay, sx, cx, qtab, qw, ctab, aq, seg_w, bend, reg, r, rc, k, p,
+                        pm, pn, gauge_rule, gauge_stiffness, with_grad, grad_e, grad_l):  # fmt: skip
     """(E_b, E_c, length, gauge penalty) of the cell ``cp`` (S, 6, 3) with Jacobian ``jac``
     (S, 6, 3, n) over images mirrored by parities (pm, pn), the wale vector skewed by
     ``sx`` (t_w = (s_x, a_y), mm; a prescribed shear, not a state entry); ``ax`` the

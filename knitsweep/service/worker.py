@@ -277,8 +277,9 @@ def _packing_fractions(model: Any, states: Any) -> dict[str, np.ndarray]:
         if np.all(np.isfinite(x)):
             key = x.tobytes()
             if key not in seen:
-                seen[key] = packing_fraction(model.control_points(x), *model.stitch.cell_periods(x),
-                                             model.params.r_mm, model.stitch.mirror_parity)  # fmt: skip
+                seen[key] = packing_fraction(model.control_points(x),
+                                             *model.stitch.cell_periods(x), model.params.r_mm,
+                                             model.stitch.mirror_parity)  # fmt: skip
             phi[i], err[i] = seen[key]
     return {"packing_fraction": phi, "packing_fraction_error": err}
 

@@ -175,9 +175,9 @@ class Glides(Translations):
     def energy_args(self, m, cp, jac, x, with_grad) -> tuple:
         ip = m.ip
         ax, ay = m.stitch.cell_periods(x)
-        return (cp, jac, ax, ay, m.skew, float(m.stitch.cell_stitches), m._qtab, m._qw, m._ctab, m._aq, m._seg_w, ip.bend,
-                ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.parity, *m.gauge_penalty_args(),
-                with_grad, m._grad_e, m._grad_l)  # fmt: skip
+        return (cp, jac, ax, ay, m.skew, float(m.stitch.cell_stitches), m._qtab, m._qw,
+                m._ctab, m._aq, m._seg_w, ip.bend, ip.reg, ip.r, ip.rc, ip.k, ip.p, *self.parity,
+                *m.gauge_penalty_args(), with_grad, m._grad_e, m._grad_l)  # fmt: skip
 
     def energy(self, m, cp, jac, x, with_grad) -> tuple[float, float, float, float]:
         """(E_b, E_c, length, gauge penalty) per stitch: a cell of several stitches (a
@@ -201,8 +201,8 @@ class Glides(Translations):
 
     def forces_args(self, m, cp, dcp, x, forces, energies) -> tuple:
         ip = m.ip
-        return (cp, dcp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r, ip.rc, ip.k, ip.p, *self.parity,
-                forces, energies)  # fmt: skip
+        return (cp, dcp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r, ip.rc, ip.k,
+                ip.p, *self.parity, forces, energies)  # fmt: skip
 
     def forces_by_class(self, m, cp, dcp, x, forces, energies) -> None:
         """Per stitch: in a cell of c stitches the force on a_x is the cell's on its period
@@ -219,8 +219,8 @@ class Glides(Translations):
 
     def pair_forces_args(self, m, cp, x, weighted, forces) -> tuple:
         ip = m.ip
-        return (cp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r, ip.rc, ip.k, ip.p, *self.parity,
-                weighted, forces)  # fmt: skip
+        return (cp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r, ip.rc, ip.k, ip.p,
+                *self.parity, weighted, forces)  # fmt: skip
 
     def pair_forces_by_class(self, m, cp, x, weighted, forces) -> None:
         mirrored_pair_forces_by_class(*self.pair_forces_args(m, cp, x, weighted, forces))
@@ -231,8 +231,9 @@ class Glides(Translations):
         stitch)."""
         ip = m.ip
         gcell, ce = np.zeros(3), np.zeros(N_MIRROR_CLASSES)
-        mirrored_contact_energy(cp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r, ip.rc, ip.k, ip.p,
-                                *self.parity, -1, True, np.empty(cp.shape), gcell, ce)  # fmt: skip
+        mirrored_contact_energy(cp, m._ctab, m._aq, *m.stitch.cell_periods(x), m.skew, ip.r,
+                                ip.rc, ip.k, ip.p, *self.parity, -1, True, np.empty(cp.shape),
+                                gcell, ce)  # fmt: skip
         return float(gcell[2]) / m.stitch.cell_stitches
 
     def topology_change(self, m, x) -> str:

@@ -273,7 +273,8 @@ def topology_word(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int
 
 
 def linking_sums(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int] = (0, 0),
-                 samples: int = SAMPLES, skew: float = 0.0) -> tuple[tuple[int, int], ...]:  # fmt: skip
+                 samples: int = SAMPLES, skew: float = 0.0
+                 ) -> tuple[tuple[int, int], ...]:  # fmt: skip
     """Per other row n (n != 0, every row the cell's yarn can reach in projection): the
     sum over the cell's crossings in projection with that row's yarn (its images (m, n),
     every m) of their oriented signs, over/under (+1 where the cell's strand is on top)
