@@ -151,7 +151,8 @@ def render(
     core: Annotated[bool, flag("--core", help="draw the incompressible cores (radius "
                                        "r_core) instead of the yarn")] = False,
     cells: Annotated[str | None, option(
-        "--cells", help="stitches across and rows: N or NxM",
+        "--cells", help="cells across and rows: N or NxM (a cell is a stitch, a chart's the "
+        "stitches of its row)",
         default="two repeats of the pattern each way, at least 3")] = None,
     side: Annotated[str, typer.Option("--side", help="face (knit side) or back (purl side)")] = "face",
     elevation: Annotated[

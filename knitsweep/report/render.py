@@ -215,7 +215,7 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int | tuple[int, int] | 
 
     Args:
         stitch: the cell to repeat.
-        cells: stitches across and rows [``default_cells``: two repeats of the pattern,
+        cells: cells across (a chart's holds its row's stitches) and rows [``default_cells``: two repeats of the pattern,
             at least 3 × 3].
         radius: tube radius, mm [the yarn radius r; with ``core``, r_core].
         elevation_deg: angle between the viewing direction and the fabric plane
