@@ -215,8 +215,8 @@ def draw_stitch(stitch: Stitch, out: str | Path, cells: int | tuple[int, int] | 
 
     Args:
         stitch: the cell to repeat.
-        cells: cells across (a chart's holds its row's stitches) and rows [``default_cells``: two repeats of the pattern,
-            at least 3 × 3].
+        cells: cells across (a chart's holds its row's stitches) and rows
+            [``default_cells``: two repeats of the pattern, at least 3 × 3 stitches].
         radius: tube radius, mm [the yarn radius r; with ``core``, r_core].
         elevation_deg: angle between the viewing direction and the fabric plane
             (90: straight onto the fabric).
