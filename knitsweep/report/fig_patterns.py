@@ -33,13 +33,15 @@ STITCH_COLOUR = {
     "rib": "#2e8b46",
     "seed": "#b0306a",
 }
-"""One colour per pattern (others: matplotlib's cycle)."""
+"""One colour per pattern (others, such as charts: ``OTHER_COLOURS``)."""
+OTHER_COLOURS = ("C0", "C3", "C4", "C5", "C9", "C8", "C6", "C7")
+"""matplotlib's cycle without its green and orange, which the named patterns' are near."""
 DIRECTION_STYLE = {"x": ("-", "o"), "y": ("--", "s")}
 """Line style and marker of a pull in x (across the course) and in y (along the wale)."""
 
 
 def _colour(stitch: str, i: int) -> str:
-    return STITCH_COLOUR.get(stitch, f"C{i % 10}")
+    return STITCH_COLOUR.get(stitch, OTHER_COLOURS[i % len(OTHER_COLOURS)])
 
 
 def _one_series_per_stitch(red: Reduction, notes: list[str]) -> dict[str, tuple[Any, ...]]:
