@@ -258,7 +258,7 @@ def chart_stitch(name: str) -> ChartStitch:
         segment_weights=np.ones(n_seg),
         bounds=_bounds(n_seg, c, lifted),
         twist_index=None,
-        starts=tuple(f"{source}'s {name}" for name in src.starts),
+        starts=tuple(f"{source}'s {start}" for start in src.starts),
         data_package=src.data_package,
         geometry_module="knitsweep.stitches.chart.geometry",
         images="glides",
