@@ -77,7 +77,8 @@ def test_defaults_are_the_papers_table_1():
         ({"pattern": 1.0}, "pattern: unknown field"),
         (
             {"stitch": "cable"},
-            "stitch = 'cable': must be one of stockinette, stockinette_free, garter, rib, seed",
+            "stitch = 'cable': must be one of stockinette, stockinette_free, garter, rib, seed, "
+            "or a knit/purl chart as chart:KKPP",
         ),
         ({"stitch": 1.0}, "stitch = 1.0: Input should be a valid string"),
     ],

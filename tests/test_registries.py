@@ -47,12 +47,16 @@ def test_stitch_errors_and_help_list_the_registry():
     for name in STITCH_NAMES:
         assert check_stitch_name(name) == name == get_stitch(name).name
     with pytest.raises(
-        InputError, match=f"^grid.stitch = 'moss': must be one of {STITCH_CHOICES}$"
+        InputError,
+        match=f"^grid.stitch = 'moss': must be one of {STITCH_CHOICES}, or a knit/purl chart as "
+        "chart:KKPP$",
     ):
         check_stitch_name("moss", "grid.stitch")
     with pytest.raises(ValueError) as e:
         StitchParams(stitch="moss")
-    assert describe_validation_error(e.value) == f"stitch = 'moss': must be one of {STITCH_CHOICES}"
+    assert describe_validation_error(e.value) == (
+        f"stitch = 'moss': must be one of {STITCH_CHOICES}, or a knit/purl chart as chart:KKPP"
+    )
     assert STITCH_CHOICES in StitchParams.model_fields["stitch"].description
     cli = typer.main.get_command(app)
     for command in ("energy", "relax", "sweep", "render", "compile"):
