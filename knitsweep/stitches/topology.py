@@ -89,17 +89,8 @@ def crossings_reference(cp: np.ndarray, a_x: float, a_y: float, samples: int = S
     wide = math.ceil(2.0 * abs(skew) / a_x)
     for m in range(-1 - wide, 2 + wide):
         for n in (-1, 1) if adjacent_only else (-2, -1, 0, 1, 2):
-            q0 = image_points(p0, m, n, a_x, a_y, parity, skew)
-            q1 = image_points(p1, m, n, a_x, a_y, parity, skew)
-            e = q1 - q0
-            i_idx, j_idx = _near_pieces(p0, p1, q0, q1)
-            w = q0[j_idx, :2] - p0[i_idx, :2]
-            di, ej = d[i_idx], e[j_idx]
-            den = di[:, 0] * ej[:, 1] - di[:, 1] * ej[:, 0]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = (w[:, 0] * ej[:, 1] - w[:, 1] * ej[:, 0]) / den
-                u = (w[:, 0] * di[:, 1] - w[:, 1] * di[:, 0]) / den
-            hit = (np.abs(den) > 1e-14) & (s >= 0) & (s < 1) & (u >= 0) & (u < 1)
+            q0, e, i_idx, j_idx, s, u, _, hit = _image_crossings(p0, p1, d, m, n, a_x, a_y,
+                                                                 parity, skew)  # fmt: skip
             if m == 0 and n == 0:  # each self-crossing once; neighbouring pieces never
                 hit &= (j_idx > i_idx + 1) & ~((i_idx == 0) & (j_idx == n_p - 1))
             for i, j, sij, uij in zip(i_idx[hit], j_idx[hit], s[hit], u[hit], strict=True):
@@ -111,6 +102,26 @@ def crossings_reference(cp: np.ndarray, a_x: float, a_y: float, samples: int = S
                 if along is not None:
                     along.append((float(i + sij), n, 1 if za > zb else -1))
     return out
+
+
+def _image_crossings(p0, p1, d, m, n, a_x, a_y, parity, skew) -> tuple:
+    """The pieces of the cell's polyline (p0[i] → p1[i], directions ``d``) that may cross
+    the pieces of its image (m, n) in projection (``_near_pieces``), and where: (q0 and e,
+    the image's piece starts and directions; i, j, the candidate pairs; s, u, their
+    parameters along each piece; den, d_i × e_j in the plane; hit, the pairs that cross
+    within both pieces), each array over the candidate pairs."""
+    q0 = image_points(p0, m, n, a_x, a_y, parity, skew)
+    q1 = image_points(p1, m, n, a_x, a_y, parity, skew)
+    e = q1 - q0
+    i_idx, j_idx = _near_pieces(p0, p1, q0, q1)
+    w = q0[j_idx, :2] - p0[i_idx, :2]
+    di, ej = d[i_idx], e[j_idx]
+    den = di[:, 0] * ej[:, 1] - di[:, 1] * ej[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (w[:, 0] * ej[:, 1] - w[:, 1] * ej[:, 0]) / den
+        u = (w[:, 0] * di[:, 1] - w[:, 1] * di[:, 0]) / den
+    hit = (np.abs(den) > 1e-14) & (s >= 0) & (s < 1) & (u >= 0) & (u < 1)
+    return q0, e, i_idx, j_idx, s, u, den, hit
 
 
 def _near_pieces(p0, p1, q0, q1) -> tuple[np.ndarray, np.ndarray]:
@@ -300,17 +311,8 @@ def linking_sums(cp: np.ndarray, a_x: float, a_y: float, parity: tuple[int, int]
             continue
         reach_x = math.ceil((hi[0] - lo[0] + abs(n * skew)) / a_x) + 1
         for m in range(-reach_x, reach_x + 1):
-            q0 = image_points(p0, m, n, a_x, a_y, parity, skew)
-            q1 = image_points(p1, m, n, a_x, a_y, parity, skew)
-            e = q1 - q0
-            i_idx, j_idx = _near_pieces(p0, p1, q0, q1)
-            w = q0[j_idx, :2] - p0[i_idx, :2]
-            di, ej = d[i_idx], e[j_idx]
-            den = di[:, 0] * ej[:, 1] - di[:, 1] * ej[:, 0]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = (w[:, 0] * ej[:, 1] - w[:, 1] * ej[:, 0]) / den
-                u = (w[:, 0] * di[:, 1] - w[:, 1] * di[:, 0]) / den
-            hit = (np.abs(den) > 1e-14) & (s >= 0) & (s < 1) & (u >= 0) & (u < 1)
+            q0, e, i_idx, j_idx, s, u, den, hit = _image_crossings(p0, p1, d, m, n, a_x, a_y,
+                                                                   parity, skew)  # fmt: skip
             za = p0[i_idx, 2] + s * d[i_idx, 2]
             zb = q0[j_idx, 2] + u * e[j_idx, 2]
             sign = np.where(za > zb, 1, -1) * np.where(den > 0, 1, -1)
