@@ -126,16 +126,12 @@ def series_state(
     if t.status == "unjammed_at_start":
         first = SeriesState("unjammed_at_start", None, hi, None, n,
                             f"already unjammed at the smallest L, {hi} mm")  # fmt: skip
-        if not last_crossing or t.n_jammed_after == 0:
-            return first
-        return _last(t, gaps, first, tolerance, exhausted, max_refinements)
+        return _last(t, gaps, first, last_crossing, tolerance, exhausted, max_refinements)
     lo = t.bracket_lower
     jammed = [L for L in Ls if L < hi]
     if hi - lo <= tolerance * (1.0 + 1e-9):
         first = SeriesState("done", lo, hi, None, n)
-        if not last_crossing or t.n_jammed_after == 0:
-            return first
-        return _last(t, gaps, first, tolerance, exhausted, max_refinements)
+        return _last(t, gaps, first, last_crossing, tolerance, exhausted, max_refinements)
     if exhausted:
         return SeriesState("failed", lo, hi, None, n,
                            f"bracket still {hi - lo:.3g} mm after {max_refinements} refinements")  # fmt: skip
@@ -143,10 +139,13 @@ def series_state(
     return SeriesState("refining", lo, hi, L, n)
 
 
-def _last(t, gaps, first: SeriesState, tolerance, exhausted, max_refinements) -> SeriesState:
-    """A re-entrant series whose first crossing is settled (``first``, how it ends without
-    this): its last crossing's bracket (last jammed L, the L after it) bisected to
-    ``tolerance`` (the gap is not monotone there: no secant)."""
+def _last(t, gaps, first: SeriesState, last_crossing: bool, tolerance, exhausted,
+          max_refinements) -> SeriesState:  # fmt: skip
+    """A series whose first crossing is settled (``first``, how it ends without this): with
+    ``last_crossing``, if it is re-entrant, its last crossing's bracket (last jammed L, the
+    L after it) bisected to ``tolerance`` (the gap is not monotone there: no secant)."""
+    if not last_crossing or t.n_jammed_after == 0:
+        return first
     last_lo, last_hi = t.bracket_lower_last, t.L_over_r_trans_last
     if last_hi is None:
         return replace(first, message=f"jammed again up to the largest L, {last_lo} mm",
