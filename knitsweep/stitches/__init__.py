@@ -46,11 +46,14 @@ def check_stitch_name(name: object, field: str = "stitch") -> str:
     """``name`` if it names a stitch (a chart's in its canonical spelling,
     ``chart.chart_name``); InputError naming ``field`` and listing the registered ones
     otherwise."""
+    if chart.is_chart_name(name):  # parsed once: its refusal is ``unknown_stitch``'s
+        try:
+            return chart.check_chart_name(name, "chart")  # type: ignore[arg-type]
+        except InputError as e:
+            raise InputError(f"{field} = {name!r}: {e}") from None
     why = unknown_stitch(name)
     if why is not None:
         raise InputError(f"{field} = {name!r}: {why}")
-    if chart.is_chart_name(name):
-        return chart.check_chart_name(name)  # type: ignore[arg-type]
     return name  # type: ignore[return-value]
 
 
